@@ -1,0 +1,77 @@
+//! `ferrofmm demo`: an FMM on built-in random points, checked against
+//! direct summation.
+
+use clap::Args;
+
+use super::run::{Input, Settings, run};
+use super::{FmmArgs, GeometryArg};
+use crate::error::{CliError, Result};
+
+/// Default number of points.
+pub const DEFAULT_N: usize = 1_000_000;
+
+/// Arguments of `ferrofmm demo`.
+#[derive(Args, Clone, Debug)]
+pub struct DemoArgs {
+    /// Number of points (sources = targets).
+    #[arg(long, short = 'n', default_value_t = DEFAULT_N)]
+    pub n: usize,
+    /// Point distribution; charges are uniform in [0, 1).
+    #[arg(long, value_enum, default_value_t = GeometryArg::Cube)]
+    pub geometry: GeometryArg,
+    #[command(flatten)]
+    pub fmm: FmmArgs,
+    /// Evaluate potentials and gradients (the default).
+    #[arg(long, overrides_with = "no_gradients")]
+    pub gradients: bool,
+    /// Evaluate potentials only.
+    #[arg(long = "no-gradients", overrides_with = "gradients")]
+    pub no_gradients: bool,
+    /// Evaluate this many times and report the fastest (and the median).
+    #[arg(long, default_value_t = 1)]
+    pub repeats: usize,
+    /// Targets to compare with direct summation (0: skip the check).
+    #[arg(long, default_value_t = 1000, value_name = "TARGETS")]
+    pub check: usize,
+    /// Random seed of the points and charges.
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Print one JSON object (the last line of stdout) instead of the table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Run `ferrofmm demo`.
+pub fn demo(args: &DemoArgs) -> Result<()> {
+    if args.n == 0 {
+        return Err(CliError::InvalidArgument("--n must be at least 1".into()));
+    }
+    if args.repeats == 0 {
+        return Err(CliError::InvalidArgument(
+            "--repeats must be at least 1".into(),
+        ));
+    }
+    let input = Input::Generated {
+        geometry: args.geometry.geometry(),
+        n: args.n,
+        seed: args.seed,
+    };
+    let settings = Settings {
+        command: "demo",
+        order: args.fmm.order,
+        leaf_size: args.fmm.leaf_size,
+        scheme: args.fmm.scheme,
+        precision: args.fmm.precision,
+        gradients: !args.no_gradients,
+        repeats: args.repeats,
+        check: args.check,
+        cache_dir: args.fmm.cache_dir.clone(),
+    };
+    let report = run(input, &settings, None)?;
+    if args.json {
+        println!("{}", report.json());
+    } else {
+        print!("{}", report.table());
+    }
+    Ok(())
+}

@@ -1,0 +1,99 @@
+//! The subcommands and the argument types they share.
+
+pub mod demo;
+pub mod eval;
+pub mod run;
+pub mod sweep;
+
+use clap::{Args, ValueEnum};
+use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
+
+/// Float type of a run.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
+pub enum PrecisionArg {
+    /// Single precision (about 7 digits: errors level off near 1e-7 to 1e-6).
+    F32,
+    /// Double precision.
+    F64,
+}
+
+impl PrecisionArg {
+    /// `"f32"` or `"f64"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            PrecisionArg::F32 => "f32",
+            PrecisionArg::F64 => "f64",
+        }
+    }
+}
+
+/// M2L translation scheme.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
+pub enum SchemeArg {
+    /// Truncated SVD of the stacked M2L operators (Fong-Darve): fast.
+    Svd,
+    /// One full matrix per transfer vector: the reference.
+    Dense,
+}
+
+impl SchemeArg {
+    /// `"svd"` or `"dense"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SchemeArg::Svd => "svd",
+            SchemeArg::Dense => "dense",
+        }
+    }
+}
+
+/// Built-in point distributions.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
+pub enum GeometryArg {
+    /// Uniform in the unit cube.
+    Cube,
+    /// Uniform on the unit sphere's surface.
+    Sphere,
+    /// A Plummer sphere: strongly clustered, a deep adaptive tree.
+    #[value(alias = "clustered")]
+    Plummer,
+    /// Two equal-count clusters whose sizes differ 1000x.
+    TwoClusters,
+}
+
+impl GeometryArg {
+    /// The library's geometry.
+    pub fn geometry(self) -> Geometry {
+        match self {
+            GeometryArg::Cube => Geometry::Cube,
+            GeometryArg::Sphere => Geometry::Sphere,
+            GeometryArg::Plummer => Geometry::Plummer,
+            GeometryArg::TwoClusters => Geometry::TwoClusters,
+        }
+    }
+
+    /// Name as on the command line.
+    pub fn name(self) -> &'static str {
+        self.geometry().name()
+    }
+}
+
+/// FMM parameters common to `demo` and `eval`.
+#[derive(Args, Clone, Debug)]
+pub struct FmmArgs {
+    /// Expansion order p (2..=20): the potential error falls roughly 7-10x
+    /// per order (p = 6: about 1e-6).
+    #[arg(long, short = 'p', default_value_t = DEFAULT_ORDER)]
+    pub order: usize,
+    /// Largest number of points in a leaf box.
+    #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
+    pub leaf_size: usize,
+    /// M2L translation scheme.
+    #[arg(long, value_enum, default_value_t = SchemeArg::Svd)]
+    pub scheme: SchemeArg,
+    /// Float type of the whole computation.
+    #[arg(long, value_enum, default_value_t = PrecisionArg::F64)]
+    pub precision: PrecisionArg,
+    /// Directory of the on-disk operator cache (off by default).
+    #[arg(long, value_name = "DIR")]
+    pub cache_dir: Option<std::path::PathBuf>,
+}

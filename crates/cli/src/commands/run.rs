@@ -1,0 +1,223 @@
+//! Build, evaluate, check and (optionally) save one FMM run.
+//!
+//! This is the one place where the command line's float type and M2L
+//! scheme become type parameters: [`run`] matches on them once and calls
+//! [`run_typed`], which is generic over `T: Real` and `S: M2lScheme<T>`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use ferrofmm_field::{DenseM2l, M2lScheme, SvdM2l};
+use ferrofmm_fmm::{EvalTimings, FmmBuilder, Geometry, charges, relative_errors, sample_indices};
+use ferrofmm_kernels::{EvalMode, Laplace3d, Real};
+
+use super::{PrecisionArg, SchemeArg};
+use crate::error::Result;
+use crate::io::{self, Values};
+use crate::memory::peak_rss_bytes;
+use crate::progress::with_stage;
+use crate::report::{
+    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures,
+};
+
+/// Where the points and charges come from.
+#[derive(Clone, Debug)]
+pub enum Input {
+    /// A built-in geometry with charges uniform in `[0, 1)`; the targets are the sources.
+    Generated {
+        /// The distribution.
+        geometry: Geometry,
+        /// Number of points.
+        n: usize,
+        /// Random seed.
+        seed: u64,
+    },
+    /// Points and charges read from files (interleaved `f64`).
+    Given {
+        /// Sources.
+        sources: Vec<f64>,
+        /// Targets (`None`: the sources).
+        targets: Option<Vec<f64>>,
+        /// One charge per source.
+        charges: Vec<f64>,
+    },
+}
+
+/// Parameters of one run.
+#[derive(Clone, Debug)]
+pub struct Settings {
+    /// `"demo"` or `"eval"`, for the report.
+    pub command: &'static str,
+    /// Expansion order.
+    pub order: usize,
+    /// Points per leaf at most.
+    pub leaf_size: usize,
+    /// M2L scheme.
+    pub scheme: SchemeArg,
+    /// Float type.
+    pub precision: PrecisionArg,
+    /// Potential and gradient (true) or potential only.
+    pub gradients: bool,
+    /// Evaluations to time (at least 1).
+    pub repeats: usize,
+    /// Targets to compare with direct summation (0: no check).
+    pub check: usize,
+    /// Operator cache directory.
+    pub cache_dir: Option<PathBuf>,
+}
+
+/// Run the FMM described by `input` and `settings`; write the values to
+/// `output` when given (format by extension).
+pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
+    use PrecisionArg::{F32, F64};
+    use SchemeArg::{Dense, Svd};
+    match (settings.precision, settings.scheme) {
+        (F64, Svd) => run_typed::<f64, SvdM2l<f64>>(input, settings, output),
+        (F64, Dense) => run_typed::<f64, DenseM2l<f64>>(input, settings, output),
+        (F32, Svd) => run_typed::<f32, SvdM2l<f32>>(input, settings, output),
+        (F32, Dense) => run_typed::<f32, DenseM2l<f32>>(input, settings, output),
+    }
+}
+
+/// Column names of the output for a run with or without gradients.
+pub fn output_names(gradients: bool) -> &'static [&'static str] {
+    if gradients {
+        &["potential", "grad_x", "grad_y", "grad_z"]
+    } else {
+        &["potential"]
+    }
+}
+
+/// The values as the float type they are.
+fn as_values<T: Real>(values: &[T]) -> Values<'_> {
+    match (T::as_f64_slice(values), T::as_f32_slice(values)) {
+        (Some(v), _) => Values::F64(v),
+        (None, Some(v)) => Values::F32(v),
+        (None, None) => unreachable!("Real is implemented for f32 and f64 only"),
+    }
+}
+
+/// [`run`] for float type `T` and M2L scheme `S`.
+pub fn run_typed<T: Real, S: M2lScheme<T>>(
+    input: Input,
+    settings: &Settings,
+    output: Option<&Path>,
+) -> Result<RunReport>
+where
+    S::Config: Default,
+{
+    let start = Instant::now();
+    let mode = if settings.gradients {
+        EvalMode::PotentialGradient
+    } else {
+        EvalMode::Potential
+    };
+    // Files are read as f64 and converted once (consumed, so that only one
+    // copy of the input is held).
+    let convert = |v: Vec<f64>| v.into_iter().map(T::from_f64).collect::<Vec<T>>();
+    let geometry = match &input {
+        Input::Generated { geometry, .. } => Some(geometry.name().to_string()),
+        Input::Given { .. } => None,
+    };
+    let (sources, targets, q): (Vec<T>, Option<Vec<T>>, Vec<T>) = match input {
+        Input::Generated { geometry, n, seed } => with_stage(
+            format!("generating {n} points ({})", geometry.name()),
+            || (geometry.points(n, seed), None, charges(n, seed)),
+        ),
+        Input::Given {
+            sources,
+            targets,
+            charges,
+        } => (convert(sources), targets.map(convert), convert(charges)),
+    };
+
+    let fmm = with_stage("setup: tree and operators", || {
+        let mut builder = FmmBuilder::new(&sources)
+            .order(settings.order)
+            .leaf_size(settings.leaf_size)
+            .mode(mode);
+        if let Some(t) = &targets {
+            builder = builder.targets(t);
+        }
+        if let Some(dir) = &settings.cache_dir {
+            builder = builder.cache_dir(dir);
+        }
+        builder.build_with::<S>(S::Config::default())
+    })?;
+
+    let repeats = settings.repeats.max(1);
+    let mut totals = Vec::with_capacity(repeats);
+    let mut best: Option<EvalTimings> = None;
+    let mut values = Vec::new();
+    for r in 0..repeats {
+        let label = if repeats > 1 {
+            format!("evaluation {}/{repeats}", r + 1)
+        } else {
+            "evaluation".to_string()
+        };
+        drop(std::mem::take(&mut values)); // never hold two results at once
+        let (v, timings) = with_stage(label, || fmm.evaluate_timed(&q))?;
+        totals.push(timings.total.as_secs_f64());
+        if best.is_none_or(|b| timings.total < b.total) {
+            best = Some(timings);
+        }
+        values = v;
+    }
+    let best = best.unwrap_or_default();
+    totals.sort_by(f64::total_cmp);
+    let median = if repeats % 2 == 1 {
+        totals[repeats / 2]
+    } else {
+        0.5 * (totals[repeats / 2 - 1] + totals[repeats / 2])
+    };
+
+    let (errors, direct_check_s) = if settings.check > 0 {
+        let t0 = Instant::now();
+        let tgt = targets.as_deref().unwrap_or(&sources);
+        let sample = sample_indices(fmm.n_targets(), settings.check);
+        let e = with_stage(
+            format!("direct summation on {} sampled targets", sample.len()),
+            || relative_errors(&Laplace3d, mode, &sources, &q, tgt, &values, &sample),
+        );
+        let figures = ErrorFigures {
+            n_sampled: e.n_sampled,
+            potential: e.potential,
+            gradient: e.gradient,
+        };
+        (Some(figures), Some(t0.elapsed().as_secs_f64()))
+    } else {
+        (None, None)
+    };
+
+    if let Some(path) = output {
+        with_stage(format!("writing {}", path.display()), || {
+            io::write(path, as_values(&values), output_names(settings.gradients))
+        })?;
+    }
+
+    let summary = fmm.summary();
+    Ok(RunReport {
+        command: settings.command.to_string(),
+        geometry,
+        n_sources: fmm.n_sources(),
+        n_targets: fmm.n_targets(),
+        order: settings.order,
+        leaf_size: settings.leaf_size,
+        scheme: settings.scheme.name().to_string(),
+        precision: settings.precision.name().to_string(),
+        gradients: settings.gradients,
+        threads: rayon::current_num_threads(),
+        tree: TreeFigures::from(&summary),
+        setup: SetupSeconds::from(fmm.setup_timings()),
+        evaluation: EvalSeconds {
+            repeats,
+            best_s: best.total.as_secs_f64(),
+            median_s: median,
+            operators_s: OperatorSeconds::from(&best),
+        },
+        errors,
+        direct_check_s,
+        peak_rss_bytes: peak_rss_bytes(),
+        wall_s: start.elapsed().as_secs_f64(),
+    })
+}

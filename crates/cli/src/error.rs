@@ -1,0 +1,109 @@
+//! The command's typed errors.
+//!
+//! Every failure the user can cause (a missing or malformed file, an
+//! impossible parameter, an FMM that rejects its input) ends in a
+//! [`CliError`]; `main` prints it as one line, `error: {e}`, and exits with
+//! status 1. (Command-line syntax errors are reported by clap, status 2.)
+
+use std::path::{Path, PathBuf};
+
+use ferrofmm_fmm::FmmError;
+
+/// Everything that can go wrong in a `ferrofmm` command.
+#[derive(Debug, thiserror::Error)]
+pub enum CliError {
+    /// A file could not be opened, read or written.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// A line of a CSV file could not be understood.
+    #[error("{}, line {line}: {message}", path.display())]
+    Csv {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line number.
+        line: usize,
+        /// What is wrong with the line.
+        message: String,
+    },
+    /// A `.npy` file has a type, shape or layout we cannot use.
+    #[error("{}: {message}", path.display())]
+    Npy {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with the file.
+        message: String,
+    },
+    /// A file holds no values.
+    #[error("{}: the file holds no {what}", path.display())]
+    Empty {
+        /// The file.
+        path: PathBuf,
+        /// "points" or "charges".
+        what: &'static str,
+    },
+    /// A NaN or infinite value in an input file.
+    #[error("{}: {location} is not finite ({value})", path.display())]
+    NonFinite {
+        /// The file.
+        path: PathBuf,
+        /// Where, in words ("line 4", "row 17, column 2").
+        location: String,
+        /// The value.
+        value: f64,
+    },
+    /// The number of charges differs from the number of sources.
+    #[error("{} holds {charges} charges but {} holds {sources} points: give one charge per source", charges_path.display(), sources_path.display())]
+    CountMismatch {
+        /// The charges file.
+        charges_path: PathBuf,
+        /// Number of charges.
+        charges: usize,
+        /// The sources file.
+        sources_path: PathBuf,
+        /// Number of sources.
+        sources: usize,
+    },
+    /// A file name whose extension is neither `.csv` nor `.npy`.
+    #[error("{}: unknown file type (use a .csv or .npy file)", .0.display())]
+    UnknownExtension(PathBuf),
+    /// A command-line value that cannot work.
+    #[error("{0}")]
+    InvalidArgument(String),
+    /// The FMM rejected the problem.
+    #[error("{0}")]
+    Fmm(#[from] FmmError),
+    /// A chart could not be drawn.
+    #[error("chart {}: {message}", path.display())]
+    Chart {
+        /// The chart file.
+        path: PathBuf,
+        /// What went wrong.
+        message: String,
+    },
+    /// A child run of a sweep failed.
+    #[error("sweep configuration {config} failed: {message}")]
+    SweepRun {
+        /// The configuration, in words.
+        config: String,
+        /// Why.
+        message: String,
+    },
+}
+
+impl CliError {
+    /// An [`CliError::Io`] for `path`.
+    pub fn io(path: &Path, source: std::io::Error) -> CliError {
+        CliError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}
+
+/// Shorthand for results of this crate.
+pub type Result<T, E = CliError> = std::result::Result<T, E>;

@@ -1,0 +1,245 @@
+//! Reading points and charges, writing results: `.csv` and `.npy` files.
+//!
+//! The format follows the file's extension (case-insensitive):
+//!
+//! * `.csv`: text, one record per line — see [`csv`] for the exact rules
+//!   (optional header line, `#` comments, blank lines ignored).
+//! * `.npy`: NumPy arrays, `float64` or `float32`, either byte order,
+//!   C or Fortran order — see [`npy`].
+//!
+//! Points are returned interleaved (`x0, y0, z0, x1, ...`) as `f64`; every
+//! value is checked to be finite, and an empty file is an error.
+
+pub mod csv;
+pub mod npy;
+
+use std::path::Path;
+
+use crate::error::{CliError, Result};
+
+/// What a file holds, which fixes its shape.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Contents {
+    /// Points: three coordinates per record.
+    Points,
+    /// Charges: one value per record.
+    Charges,
+}
+
+impl Contents {
+    /// Values per record.
+    pub fn columns(self) -> usize {
+        match self {
+            Contents::Points => 3,
+            Contents::Charges => 1,
+        }
+    }
+
+    /// Plural noun for messages.
+    pub fn noun(self) -> &'static str {
+        match self {
+            Contents::Points => "points",
+            Contents::Charges => "charges",
+        }
+    }
+}
+
+/// A file format, chosen by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Format {
+    /// Comma-separated text.
+    Csv,
+    /// NumPy `.npy`.
+    Npy,
+}
+
+impl Format {
+    /// The format of `path` from its extension (`.csv` / `.npy`, any case).
+    pub fn of(path: &Path) -> Result<Format> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("csv") => Ok(Format::Csv),
+            Some("npy") => Ok(Format::Npy),
+            _ => Err(CliError::UnknownExtension(path.to_path_buf())),
+        }
+    }
+}
+
+/// Output values in the run's float type.
+#[derive(Clone, Copy, Debug)]
+pub enum Values<'a> {
+    /// Double precision.
+    F64(&'a [f64]),
+    /// Single precision.
+    F32(&'a [f32]),
+}
+
+impl Values<'_> {
+    /// Number of values.
+    pub fn len(&self) -> usize {
+        match self {
+            Values::F64(v) => v.len(),
+            Values::F32(v) => v.len(),
+        }
+    }
+}
+
+/// Read points (interleaved, `3 n` values) from a `.csv` or `.npy` file.
+pub fn read_points(path: &Path) -> Result<Vec<f64>> {
+    read(path, Contents::Points)
+}
+
+/// Read charges (one per point) from a `.csv` or `.npy` file.
+pub fn read_charges(path: &Path) -> Result<Vec<f64>> {
+    read(path, Contents::Charges)
+}
+
+/// Read `contents` from `path`, whatever its format.
+pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
+    let format = Format::of(path)?;
+    let values = match format {
+        Format::Csv => csv::read(path, contents)?,
+        Format::Npy => npy::read(path, contents)?,
+    };
+    if values.is_empty() {
+        return Err(CliError::Empty {
+            path: path.to_path_buf(),
+            what: contents.noun(),
+        });
+    }
+    Ok(values)
+}
+
+/// Write `values` (`columns` per record, named by `names`) to `path` in the
+/// format its extension asks for. A `.npy` file gets shape `(n,)` for one
+/// column and `(n, columns)` otherwise, in the values' float type; a `.csv`
+/// file gets a header line of `names` and then one record per line.
+pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
+    let columns = names.len();
+    assert!(
+        columns > 0 && values.len().is_multiple_of(columns),
+        "values do not fill whole records"
+    );
+    match Format::of(path)? {
+        Format::Csv => csv::write(path, values, names),
+        Format::Npy => npy::write(path, values, columns),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use npyz::WriterBuilder;
+
+    use super::*;
+
+    /// A fresh directory under the system temp dir.
+    fn scratch(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("ferrofmm-io-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(&dir).unwrap();
+        dir
+    }
+
+    fn points(n: usize) -> Vec<f64> {
+        (0..3 * n)
+            .map(|i| ((i * 7919) % 1013) as f64 / 1013.0 - 0.25 + 1e-13 * i as f64)
+            .collect()
+    }
+
+    #[test]
+    fn csv_and_npy_round_trip_in_both_precisions() {
+        let dir = scratch("roundtrip");
+        let p = points(50);
+        let q: Vec<f64> = p.iter().step_by(3).map(|x| x * 1e-7).collect();
+        for ext in ["csv", "npy", "CSV"] {
+            let pp = dir.join(format!("p.{ext}"));
+            let qp = dir.join(format!("q.{ext}"));
+            write(&pp, Values::F64(&p), &["x", "y", "z"]).unwrap();
+            write(&qp, Values::F64(&q), &["charge"]).unwrap();
+            assert_eq!(read_points(&pp).unwrap(), p, "{ext}: f64 points exact");
+            assert_eq!(read_charges(&qp).unwrap(), q, "{ext}: f64 charges exact");
+            let p32: Vec<f32> = p.iter().map(|&x| x as f32).collect();
+            write(&pp, Values::F32(&p32), &["x", "y", "z"]).unwrap();
+            let back: Vec<f32> = read_points(&pp)
+                .unwrap()
+                .iter()
+                .map(|&x| x as f32)
+                .collect();
+            assert_eq!(back, p32, "{ext}: f32 points exact");
+        }
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn npy_shapes_orders_and_types() {
+        let dir = scratch("npy");
+        let path = dir.join("a.npy");
+        // (N, 4) output, and (N,) output.
+        let v: Vec<f64> = (0..40).map(f64::from).collect();
+        write(&path, Values::F64(&v), &["a", "b", "c", "d"]).unwrap();
+        let npy = npyz::NpyFile::new(std::fs::File::open(&path).unwrap()).unwrap();
+        assert_eq!(npy.shape(), &[10, 4]);
+        write(&path, Values::F32(&[1.0, 2.0]), &["a"]).unwrap();
+        let npy = npyz::NpyFile::new(std::fs::File::open(&path).unwrap()).unwrap();
+        assert_eq!(npy.shape(), &[2]);
+        assert_eq!(npy.into_vec::<f32>().unwrap(), vec![1.0, 2.0]);
+
+        // Fortran order: stored column by column.
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&[2, 3])
+            .order(npyz::Order::Fortran)
+            .writer(std::fs::File::create(&path).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([1.0f64, 4.0, 2.0, 5.0, 3.0, 6.0]).unwrap();
+        w.finish().unwrap();
+        assert_eq!(
+            read_points(&path).unwrap(),
+            vec![1.0, 2.0, 3.0, 4.0, 5.0, 6.0]
+        );
+
+        // Charges as (N, 1).
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&[3, 1])
+            .writer(std::fs::File::create(&path).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([1.0f32, 2.0, 3.0]).unwrap();
+        w.finish().unwrap();
+        assert_eq!(read_charges(&path).unwrap(), vec![1.0, 2.0, 3.0]);
+
+        // Integers are refused with the dtype named.
+        let mut w = npyz::WriteOptions::new()
+            .default_dtype()
+            .shape(&[3])
+            .writer(std::fs::File::create(&path).unwrap())
+            .begin_nd()
+            .unwrap();
+        w.extend([1i64, 2, 3]).unwrap();
+        w.finish().unwrap();
+        let e = read_charges(&path).unwrap_err().to_string();
+        assert!(e.contains("unsupported dtype '<i8'"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    #[test]
+    fn format_by_extension() {
+        assert_eq!(Format::of(Path::new("a/b.NPY")).unwrap(), Format::Npy);
+        assert_eq!(Format::of(Path::new("b.csv")).unwrap(), Format::Csv);
+        assert!(matches!(
+            Format::of(Path::new("b.txt")),
+            Err(CliError::UnknownExtension(_))
+        ));
+        assert!(matches!(
+            Format::of(Path::new("npy")),
+            Err(CliError::UnknownExtension(_))
+        ));
+    }
+}

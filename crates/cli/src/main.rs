@@ -1,0 +1,137 @@
+//! `ferrofmm`: the kernel-independent fast multipole method from the
+//! command line.
+//!
+//! * `ferrofmm demo`: an FMM on built-in random points, checked against
+//!   direct summation (timings, per-operator split, errors, peak memory);
+//! * `ferrofmm eval`: potentials (and gradients) for your own points and
+//!   charges, from and to `.csv` or `.npy` files;
+//! * `ferrofmm sweep`: speed against accuracy over a grid of orders,
+//!   schemes, precisions and leaf sizes, as `results.csv` and charts.
+//!
+//! Exit status: 0 on success, 1 when the command fails (the reason is one
+//! line on stderr, `error: ...`), 2 for command-line syntax errors, 101 for
+//! an internal error (a bug; also reported as one `error: ...` line).
+
+mod charts;
+mod commands;
+mod error;
+mod io;
+mod memory;
+mod progress;
+mod report;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+use commands::demo::DemoArgs;
+use commands::eval::EvalArgs;
+use commands::sweep::SweepArgs;
+use error::{CliError, Result};
+
+/// Kernel-independent fast multipole method (Laplace 1/(4 pi r) in 3D).
+#[derive(Parser, Debug)]
+#[command(
+    name = "ferrofmm",
+    version,
+    about,
+    long_about = "Kernel-independent fast multipole method for the 3D Laplace kernel 1/(4 pi r):\n\
+                  potentials (and gradients) of N charges at M targets in O(N + M).\n\n\
+                  Exit status: 0 on success, 1 when the command fails (one line `error: ...` on\n\
+                  stderr), 2 for command-line syntax errors, 101 for an internal error (a bug)."
+)]
+struct Cli {
+    /// Worker threads (default: one per core).
+    #[arg(long, short = 't', global = true, value_name = "T")]
+    threads: Option<usize>,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Run the FMM on built-in random points and check it against direct summation.
+    ///
+    /// Prints the problem, the tree, setup and evaluation time (per operator),
+    /// the relative L2 errors of potential and gradient on sampled targets,
+    /// and the peak memory.
+    Demo(DemoArgs),
+    /// Evaluate potentials (and gradients) for points and charges from files.
+    ///
+    /// Inputs: .csv (one point `x,y,z` per line, or one charge per line;
+    /// commas or whitespace separate fields; blank lines and lines starting
+    /// with `#` are ignored; a first line without any number is a header) or
+    /// .npy (float64/float32; points N x 3, charges N; C or Fortran order).
+    /// Output by extension: .npy (N, or N x 4 with --gradients, in the run's
+    /// precision) or .csv (a header line, then one target per line).
+    /// Potentials use 1/(4 pi r); coincident source-target pairs are skipped.
+    Eval(EvalArgs),
+    /// Measure speed against accuracy over a grid of configurations.
+    ///
+    /// Each configuration runs as a child `ferrofmm demo --json` (so its peak
+    /// memory is its own). Writes DIR/results.csv (one row per configuration;
+    /// columns geometry, n, order, scheme, precision, leaf_size, gradients,
+    /// threads, repeats, depth, n_leaves, n_boxes, setup_s, tree_s,
+    /// operators_s, m2l_precompute_s, eval_best_s, eval_median_s, one `<op>_s`
+    /// per operator (p2m ... p2p, from the fastest evaluation),
+    /// potential_error, gradient_error, peak_rss_mib, m2l_mib) and the charts
+    /// time_vs_error, operators and error_vs_order as PNG and SVG.
+    Sweep(SweepArgs),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    install_panic_hook();
+    match run(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+/// Bad input never panics; should a bug panic all the same, say so in one
+/// line (exit status 101) instead of a raw panic message, unless
+/// `RUST_BACKTRACE` asks for the details.
+fn install_panic_hook() {
+    if std::env::var_os("RUST_BACKTRACE").is_some() {
+        return;
+    }
+    std::panic::set_hook(Box::new(|info| {
+        let payload = info
+            .payload()
+            .downcast_ref::<&str>()
+            .map(|s| s.to_string())
+            .or_else(|| info.payload().downcast_ref::<String>().cloned())
+            .unwrap_or_else(|| "unknown cause".to_string());
+        let payload = payload.lines().next().unwrap_or_default();
+        let at = info
+            .location()
+            .map(|l| format!(" at {}:{}", l.file(), l.line()))
+            .unwrap_or_default();
+        eprintln!(
+            "error: internal error{at}: {payload} (a bug in ferrofmm: please report it; \
+             RUST_BACKTRACE=1 shows details)"
+        );
+    }));
+}
+
+fn run(cli: Cli) -> Result<()> {
+    if let Some(t) = cli.threads {
+        if t == 0 {
+            return Err(CliError::InvalidArgument(
+                "--threads must be at least 1".into(),
+            ));
+        }
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(t)
+            .build_global()
+            .map_err(|e| CliError::InvalidArgument(format!("cannot start {t} threads: {e}")))?;
+    }
+    match &cli.command {
+        Command::Demo(args) => commands::demo::demo(args),
+        Command::Eval(args) => commands::eval::eval(args),
+        Command::Sweep(args) => commands::sweep::sweep(args, cli.threads),
+    }
+}

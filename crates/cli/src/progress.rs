@@ -1,0 +1,61 @@
+//! Progress display on stderr (indicatif), only when stderr is a terminal.
+//!
+//! The FMM passes report no progress of their own, so each long step
+//! (setup, evaluation, the direct check) shows a spinner with its name and
+//! the elapsed time; `sweep` shows a bar over its configurations. When
+//! stderr is redirected (a pipe, a file, a test harness, a sweep's child
+//! process) nothing is drawn at all.
+
+use std::io::IsTerminal;
+use std::time::Duration;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+/// Draw target: stderr when it is a terminal, hidden otherwise.
+fn target() -> ProgressDrawTarget {
+    if std::io::stderr().is_terminal() {
+        ProgressDrawTarget::stderr()
+    } else {
+        ProgressDrawTarget::hidden()
+    }
+}
+
+/// A spinner for one step; cleared when finished or dropped.
+pub struct Stage(ProgressBar);
+
+/// Start a spinner labelled `message`.
+pub fn stage(message: impl Into<String>) -> Stage {
+    let bar = ProgressBar::with_draw_target(None, target());
+    if !bar.is_hidden() {
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} {msg} [{elapsed}]")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar.set_message(message.into());
+        bar.enable_steady_tick(Duration::from_millis(120));
+    }
+    Stage(bar)
+}
+
+impl Drop for Stage {
+    fn drop(&mut self) {
+        self.0.finish_and_clear();
+    }
+}
+
+/// A bar over `len` steps (cleared when dropped by the caller with
+/// `finish_and_clear`).
+pub fn bar(len: u64) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(len), target());
+    bar.set_style(
+        ProgressStyle::with_template("{bar:30} {pos}/{len} [{elapsed} < {eta}] {msg}")
+            .unwrap_or_else(|_| ProgressStyle::default_bar()),
+    );
+    bar
+}
+
+/// Run `f` under a spinner labelled `message`.
+pub fn with_stage<R>(message: impl Into<String>, f: impl FnOnce() -> R) -> R {
+    let _stage = stage(message);
+    f()
+}

@@ -1,0 +1,374 @@
+//! What a run reports: a [`RunReport`], printed as a table for people or as
+//! one JSON object (the last line of stdout) for scripts and for `sweep`.
+//!
+//! JSON keys (times in seconds, memory in bytes):
+//!
+//! ```text
+//! command, geometry (demo only), n_sources, n_targets, order, leaf_size,
+//! scheme, precision, gradients, threads,
+//! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes },
+//! setup:      { tree_s, operators_s, m2l_precompute_s, layout_s, total_s },
+//! evaluation: { repeats, best_s, median_s,
+//!               operators_s: { p2m, m2m, m2l, p2l, l2l, l2p, m2p, p2p } },
+//! errors:     { n_sampled, potential, gradient } or null,
+//! direct_check_s, peak_rss_bytes (null where unknown), wall_s
+//! ```
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use ferrofmm_fmm::{EvalTimings, FmmSummary, SetupTimings};
+use serde::{Deserialize, Serialize};
+
+/// Everything one `demo` or `eval` run measured.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct RunReport {
+    /// `"demo"` or `"eval"`.
+    pub command: String,
+    /// Built-in geometry (demo) or `None` (points from files).
+    pub geometry: Option<String>,
+    /// Number of sources.
+    pub n_sources: usize,
+    /// Number of targets.
+    pub n_targets: usize,
+    /// Expansion order.
+    pub order: usize,
+    /// Points per leaf at most.
+    pub leaf_size: usize,
+    /// M2L scheme (`svd` / `dense`).
+    pub scheme: String,
+    /// Float type (`f32` / `f64`).
+    pub precision: String,
+    /// Whether gradients were evaluated.
+    pub gradients: bool,
+    /// Rayon worker threads.
+    pub threads: usize,
+    /// Tree and operator figures.
+    pub tree: TreeFigures,
+    /// Setup time by step.
+    pub setup: SetupSeconds,
+    /// Evaluation time.
+    pub evaluation: EvalSeconds,
+    /// Relative L2 errors against direct summation (`None` when not checked).
+    pub errors: Option<ErrorFigures>,
+    /// Time of the direct-summation check.
+    pub direct_check_s: Option<f64>,
+    /// Peak resident memory of the process (`None` where unknown).
+    pub peak_rss_bytes: Option<u64>,
+    /// Wall time of the whole command.
+    pub wall_s: f64,
+}
+
+/// Tree and operator figures of a built FMM.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct TreeFigures {
+    /// Deepest level.
+    pub depth: u32,
+    /// Boxes.
+    pub n_boxes: usize,
+    /// Leaves.
+    pub n_leaves: usize,
+    /// Points per equivalent / check surface.
+    pub n_surface: usize,
+    /// Total U-list entries (P2P).
+    pub u_list: usize,
+    /// Total V-list entries (M2L).
+    pub v_list: usize,
+    /// Total W-list entries (M2P).
+    pub w_list: usize,
+    /// Total X-list entries (P2L).
+    pub x_list: usize,
+    /// Bytes held by the M2L operators.
+    pub m2l_bytes: usize,
+}
+
+impl From<&FmmSummary> for TreeFigures {
+    fn from(s: &FmmSummary) -> Self {
+        TreeFigures {
+            depth: s.depth,
+            n_boxes: s.n_boxes,
+            n_leaves: s.n_leaves,
+            n_surface: s.n_surface,
+            u_list: s.list_entries[0],
+            v_list: s.list_entries[1],
+            w_list: s.list_entries[2],
+            x_list: s.list_entries[3],
+            m2l_bytes: s.m2l_bytes,
+        }
+    }
+}
+
+/// Setup time by step, in seconds.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct SetupSeconds {
+    /// Octree.
+    pub tree_s: f64,
+    /// Check-to-equivalent pseudo-inverses, M2M / L2L.
+    pub operators_s: f64,
+    /// M2L scheme precomputation (or cache load).
+    pub m2l_precompute_s: f64,
+    /// Sorting points and bookkeeping.
+    pub layout_s: f64,
+    /// All of setup.
+    pub total_s: f64,
+}
+
+impl From<&SetupTimings> for SetupSeconds {
+    fn from(t: &SetupTimings) -> Self {
+        SetupSeconds {
+            tree_s: t.tree.as_secs_f64(),
+            operators_s: t.operators.as_secs_f64(),
+            m2l_precompute_s: t.m2l_precompute.as_secs_f64(),
+            layout_s: t.layout.as_secs_f64(),
+            total_s: t.total.as_secs_f64(),
+        }
+    }
+}
+
+/// Evaluation time over `repeats` calls, in seconds.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct EvalSeconds {
+    /// Calls of `evaluate`.
+    pub repeats: usize,
+    /// Fastest call.
+    pub best_s: f64,
+    /// Median call.
+    pub median_s: f64,
+    /// Time per operator in the fastest call.
+    pub operators_s: OperatorSeconds,
+}
+
+/// Time per operator, in seconds.
+#[derive(Clone, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct OperatorSeconds {
+    /// Particle to multipole (leaves).
+    pub p2m: f64,
+    /// Multipole to multipole.
+    pub m2m: f64,
+    /// Multipole to local (V lists).
+    pub m2l: f64,
+    /// Particle to local (X lists).
+    pub p2l: f64,
+    /// Local to local.
+    pub l2l: f64,
+    /// Local to particle.
+    pub l2p: f64,
+    /// Multipole to particle (W lists).
+    pub m2p: f64,
+    /// Particle to particle (U lists).
+    pub p2p: f64,
+}
+
+impl OperatorSeconds {
+    /// Operator names as the FMM literature writes them, in pass order.
+    pub const NAMES: [&'static str; 8] = ["P2M", "M2M", "M2L", "P2L", "L2L", "L2P", "M2P", "P2P"];
+
+    /// Values in the order of [`OperatorSeconds::NAMES`].
+    pub fn values(&self) -> [f64; 8] {
+        [
+            self.p2m, self.m2m, self.m2l, self.p2l, self.l2l, self.l2p, self.m2p, self.p2p,
+        ]
+    }
+}
+
+impl From<&EvalTimings> for OperatorSeconds {
+    fn from(t: &EvalTimings) -> Self {
+        let s = Duration::as_secs_f64;
+        OperatorSeconds {
+            p2m: s(&t.p2m),
+            m2m: s(&t.m2m),
+            m2l: s(&t.m2l),
+            p2l: s(&t.p2l),
+            l2l: s(&t.l2l),
+            l2p: s(&t.l2p),
+            m2p: s(&t.m2p),
+            p2p: s(&t.p2p),
+        }
+    }
+}
+
+/// Relative L2 errors on sampled targets.
+#[derive(Clone, Debug, Serialize, Deserialize, PartialEq)]
+pub struct ErrorFigures {
+    /// Targets compared with direct summation.
+    pub n_sampled: usize,
+    /// Relative L2 error of the potential.
+    pub potential: f64,
+    /// Relative L2 error of the gradient (`None` without gradients).
+    pub gradient: Option<f64>,
+}
+
+/// `1234567` as `1,234,567`.
+pub fn thousands(n: usize) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (k, c) in digits.chars().enumerate() {
+        if k > 0 && (digits.len() - k).is_multiple_of(3) {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// Seconds in a readable unit (`1.234 s`, `12.3 ms`, `45 us`).
+pub fn seconds(s: f64) -> String {
+    if s >= 1.0 {
+        format!("{s:.3} s")
+    } else if s >= 1e-3 {
+        format!("{:.1} ms", s * 1e3)
+    } else {
+        format!("{:.0} us", s * 1e6)
+    }
+}
+
+/// Bytes as MiB (or `n/a`).
+pub fn mebibytes(bytes: Option<u64>) -> String {
+    match bytes {
+        Some(b) => format!("{:.0} MiB", b as f64 / (1024.0 * 1024.0)),
+        None => "n/a (no /proc/self/status)".to_string(),
+    }
+}
+
+impl RunReport {
+    /// The human-readable table.
+    pub fn table(&self) -> String {
+        let mut o = String::new();
+        let row = |o: &mut String, label: &str, value: String| {
+            let _ = writeln!(o, "  {label:<18} {value}");
+        };
+        let what = if self.gradients {
+            "potential + gradient"
+        } else {
+            "potential"
+        };
+        let _ = writeln!(
+            o,
+            "ferrofmm {}: Laplace 1/(4 pi r), {what}, {}",
+            self.command, self.precision
+        );
+        let points = match &self.geometry {
+            Some(g) => format!("{} ({g})", thousands(self.n_sources)),
+            None => thousands(self.n_sources),
+        };
+        row(&mut o, "sources", points);
+        row(&mut o, "targets", thousands(self.n_targets));
+        row(
+            &mut o,
+            "expansion",
+            format!(
+                "order {} ({} points per surface), {} M2L ({:.1} MiB), leaf size {}",
+                self.order,
+                self.tree.n_surface,
+                self.scheme,
+                self.tree.m2l_bytes as f64 / (1024.0 * 1024.0),
+                self.leaf_size
+            ),
+        );
+        row(
+            &mut o,
+            "tree",
+            format!(
+                "depth {}, {} leaves, {} boxes",
+                self.tree.depth,
+                thousands(self.tree.n_leaves),
+                thousands(self.tree.n_boxes)
+            ),
+        );
+        row(
+            &mut o,
+            "lists",
+            format!(
+                "U {}, V {}, W {}, X {}",
+                thousands(self.tree.u_list),
+                thousands(self.tree.v_list),
+                thousands(self.tree.w_list),
+                thousands(self.tree.x_list)
+            ),
+        );
+        row(&mut o, "threads", self.threads.to_string());
+
+        let _ = writeln!(
+            o,
+            "setup                {:>10}",
+            seconds(self.setup.total_s)
+        );
+        for (label, s) in [
+            ("tree", self.setup.tree_s),
+            ("operators", self.setup.operators_s),
+            ("M2L precompute", self.setup.m2l_precompute_s),
+            ("layout", self.setup.layout_s),
+        ] {
+            let _ = writeln!(o, "  {label:<18} {:>10}", seconds(s));
+        }
+        let e = &self.evaluation;
+        let repeats = if e.repeats > 1 {
+            format!(" (best of {}, median {})", e.repeats, seconds(e.median_s))
+        } else {
+            String::new()
+        };
+        let _ = writeln!(o, "evaluation           {:>10}{repeats}", seconds(e.best_s));
+        for (name, s) in OperatorSeconds::NAMES.iter().zip(e.operators_s.values()) {
+            let share = if e.best_s > 0.0 {
+                100.0 * s / e.best_s
+            } else {
+                0.0
+            };
+            let _ = writeln!(o, "  {name:<18} {:>10} {share:>5.1}%", seconds(s));
+        }
+        let _ = writeln!(
+            o,
+            "setup + evaluation   {:>10}",
+            seconds(self.setup.total_s + e.best_s)
+        );
+        match &self.errors {
+            Some(err) => {
+                let check = self
+                    .direct_check_s
+                    .map(|s| format!(", {}", seconds(s)))
+                    .unwrap_or_default();
+                let _ = writeln!(
+                    o,
+                    "relative L2 error vs direct summation ({} sampled targets{check})",
+                    err.n_sampled
+                );
+                row(&mut o, "potential", format!("{:.2e}", err.potential));
+                if let Some(g) = err.gradient {
+                    row(&mut o, "gradient", format!("{g:.2e}"));
+                }
+            }
+            None => {
+                let _ = writeln!(o, "relative L2 error    not checked (use --check N)");
+            }
+        }
+        let _ = writeln!(
+            o,
+            "peak memory          {:>10}",
+            mebibytes(self.peak_rss_bytes)
+        );
+        let _ = writeln!(o, "wall time            {:>10}", seconds(self.wall_s));
+        o
+    }
+
+    /// The report as one line of JSON.
+    pub fn json(&self) -> String {
+        serde_json::to_string(self).expect("a report always serialises")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn number_formats() {
+        assert_eq!(thousands(0), "0");
+        assert_eq!(thousands(999), "999");
+        assert_eq!(thousands(1000), "1,000");
+        assert_eq!(thousands(1_234_567), "1,234,567");
+        assert_eq!(seconds(2.5), "2.500 s");
+        assert_eq!(seconds(0.0123), "12.3 ms");
+        assert_eq!(seconds(0.000045), "45 us");
+        assert_eq!(mebibytes(Some(3 * 1024 * 1024)), "3 MiB");
+    }
+}

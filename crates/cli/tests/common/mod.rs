@@ -1,0 +1,105 @@
+//! Helpers shared by the command-line tests: run the binary, scratch
+//! directories, simple input files.
+
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+/// Run `ferrofmm` with `args`; stderr is not a terminal, so no progress bars.
+pub fn ferrofmm(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+        .args(args)
+        .output()
+        .expect("the ferrofmm binary runs")
+}
+
+/// stdout and stderr as text.
+pub fn texts(out: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&out.stdout).into_owned(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
+}
+
+/// A fresh, empty directory for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("ferrofmm-cli-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+/// Deterministic pseudo-random points in the unit cube (interleaved).
+pub fn points(n: usize, seed: u64) -> Vec<f64> {
+    let mut state = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    (0..3 * n)
+        .map(|_| {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        })
+        .collect()
+}
+
+/// Write `values` as CSV, `columns` per line, with an optional header.
+pub fn write_csv(path: &Path, values: &[f64], columns: usize, header: Option<&str>) {
+    let mut text = String::new();
+    if let Some(h) = header {
+        text.push_str(h);
+        text.push('\n');
+    }
+    for row in values.chunks(columns) {
+        let fields: Vec<String> = row.iter().map(|v| format!("{v:e}")).collect();
+        text.push_str(&fields.join(","));
+        text.push('\n');
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Write `values` as a `.npy` array of the given shape.
+pub fn write_npy<T: npyz::AutoSerialize + Copy>(path: &Path, values: &[T], shape: &[u64]) {
+    use npyz::WriterBuilder;
+    let mut w = npyz::WriteOptions::new()
+        .default_dtype()
+        .shape(shape)
+        .writer(std::io::BufWriter::new(
+            std::fs::File::create(path).unwrap(),
+        ))
+        .begin_nd()
+        .unwrap();
+    w.extend(values.iter().copied()).unwrap();
+    w.finish().unwrap();
+}
+
+/// Read a `.npy` file: shape and values as f64.
+pub fn read_npy(path: &Path) -> (Vec<u64>, Vec<f64>) {
+    let npy = npyz::NpyFile::new(std::fs::File::open(path).unwrap()).unwrap();
+    let shape = npy.shape().to_vec();
+    let values = match npy.dtype().descr().as_str() {
+        "'<f8'" => npy.into_vec::<f64>().unwrap(),
+        "'<f4'" => npy
+            .into_vec::<f32>()
+            .unwrap()
+            .into_iter()
+            .map(f64::from)
+            .collect(),
+        other => panic!("unexpected dtype {other}"),
+    };
+    (shape, values)
+}
+
+/// Relative L2 error of column `c` (of `w`) of `got` against `want`.
+pub fn rel_error(got: &[f64], want: &[f64], w: usize, cols: std::ops::Range<usize>) -> f64 {
+    let (mut d, mut n) = (0.0, 0.0);
+    for (g, r) in got.chunks(w).zip(want.chunks(w)) {
+        for c in cols.clone() {
+            d += (g[c] - r[c]).powi(2);
+            n += r[c].powi(2);
+        }
+    }
+    (d / n).sqrt()
+}

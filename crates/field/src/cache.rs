@@ -1,0 +1,449 @@
+//! On-disk operator cache.
+//!
+//! # File format (version [`CACHE_FORMAT_VERSION`])
+//!
+//! | bytes | content |
+//! |---|---|
+//! | 8 | magic `b"FFMMOPS\0"` |
+//! | 4 | format version, `u32` little-endian |
+//! | 4 | header length `L`, `u32` little-endian |
+//! | `L` | header: bincode 2 (standard config) of [`CacheHeader`]: the full [`CacheKey`], layout metadata, payload length (elements) and checksum |
+//! | rest | payload: the operator values of the working type, raw little-endian (`bytemuck`) |
+//!
+//! The checksum is XXH64 (seed 0) of the payload bytes. A file is used only
+//! when magic, version, key (compared field by field, not by hash), exact
+//! file length, checksum and layout all agree; otherwise it is recomputed and
+//! rewritten. Files are written to a temporary name in the same directory
+//! and renamed into place, so a reader never sees a half-written file.
+//! The file name carries a hash of the key, so different parameters live in
+//! different files.
+
+use std::fs::{self, File};
+use std::io::{Read, Write};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use ferrofmm_kernels::{Kernel, Real};
+use serde::{Deserialize, Serialize};
+
+use crate::FieldError;
+
+/// Version of the cache file layout; bump on any change of header or
+/// payload layout (old files are then rebuilt).
+pub const CACHE_FORMAT_VERSION: u32 = 1;
+
+const MAGIC: &[u8; 8] = b"FFMMOPS\0";
+const MAX_HEADER: usize = 1 << 20;
+
+/// Everything that determines the contents of a cache file.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub(crate) struct CacheKey {
+    /// `"operators"`, `"m2l-dense"`, `"m2l-svd"`.
+    pub kind: String,
+    pub kernel_name: String,
+    pub kernel_parameters: Vec<f64>,
+    pub kernel_homogeneity: Option<f64>,
+    pub order: u64,
+    /// `[r_ue, r_uc, r_de, r_dc]`.
+    pub radii: [f64; 4],
+    /// Resolved pseudo-inverse cutoff (operators only).
+    pub rcond: Option<f64>,
+    /// Scheme configuration (M2L schemes), an exact textual form.
+    pub scheme_config: String,
+    /// `"f32"` / `"f64"`.
+    pub float_type: String,
+    /// `(domain_width, depth)` when the payload depends on them (kernels
+    /// without homogeneity), plus anything else structural.
+    pub geometry: Option<(f64, u32)>,
+    /// Structural flags (e.g. whether child operators are included).
+    pub flags: Vec<u64>,
+}
+
+impl CacheKey {
+    /// Key fields shared by every operator kind.
+    pub fn new<K: Kernel, T: Real>(kind: &str, kernel: &K, order: usize, radii: [f64; 4]) -> Self {
+        CacheKey {
+            kind: kind.to_string(),
+            kernel_name: kernel.name(),
+            kernel_parameters: kernel.parameters(),
+            kernel_homogeneity: kernel.homogeneity(),
+            order: order as u64,
+            radii,
+            rcond: None,
+            scheme_config: String::new(),
+            float_type: T::PRECISION.name().to_string(),
+            geometry: None,
+            flags: Vec::new(),
+        }
+    }
+}
+
+/// The bincode-encoded header.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub(crate) struct CacheHeader {
+    pub key: CacheKey,
+    pub meta: Vec<u64>,
+    pub payload_len: u64,
+    pub checksum: u64,
+}
+
+/// What happened with the cache when an operator set was built.
+///
+/// Never an error: a bad cache file is rebuilt, and a failure to write the
+/// new file only leaves `write_error` set (the operators are still correct).
+#[derive(Clone, Debug, PartialEq)]
+pub enum CacheStatus {
+    /// `OperatorParams::cache_dir` was `None`.
+    Disabled,
+    /// Loaded from this file.
+    Hit {
+        /// The cache file.
+        path: PathBuf,
+    },
+    /// Computed, then written to `path` unless `write_error` says otherwise.
+    Computed {
+        /// The cache file.
+        path: PathBuf,
+        /// Why an existing file was not used (`None`: there was no file).
+        rejected: Option<String>,
+        /// Why writing the file failed (`None`: written).
+        write_error: Option<String>,
+    },
+}
+
+impl CacheStatus {
+    /// True for [`CacheStatus::Hit`].
+    pub fn is_hit(&self) -> bool {
+        matches!(self, CacheStatus::Hit { .. })
+    }
+
+    /// The cache file, if caching is enabled.
+    pub fn path(&self) -> Option<&Path> {
+        match self {
+            CacheStatus::Disabled => None,
+            CacheStatus::Hit { path } | CacheStatus::Computed { path, .. } => Some(path),
+        }
+    }
+}
+
+/// Something that can be stored in the cache as `(meta, data)`.
+pub(crate) trait CachePayload<T: Real>: Sized {
+    /// Layout metadata (small).
+    fn meta(&self) -> Vec<u64>;
+    /// All values.
+    fn data(&self) -> &[T];
+    /// Rebuild from a file's parts; `Err` when the layout is inconsistent.
+    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String>;
+}
+
+/// Load `S` from the cache when a valid file exists (and `accept` agrees
+/// with its layout), else compute it and (try to) write the file.
+pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
+    dir: Option<&Path>,
+    key: &CacheKey,
+    accept: impl Fn(&S) -> Result<(), String>,
+    compute: impl FnOnce() -> Result<S, FieldError>,
+) -> Result<(S, CacheStatus), FieldError> {
+    let Some(dir) = dir else {
+        return Ok((compute()?, CacheStatus::Disabled));
+    };
+    let path = file_path(dir, key);
+    let rejected = match read::<T>(&path, key) {
+        Ok((meta, data)) => match S::from_parts(meta, data).and_then(|s| accept(&s).map(|_| s)) {
+            Ok(s) => return Ok((s, CacheStatus::Hit { path })),
+            Err(reason) => Some(format!("inconsistent layout: {reason}")),
+        },
+        Err(FieldError::CacheIo { source, .. })
+            if source.kind() == std::io::ErrorKind::NotFound =>
+        {
+            None
+        }
+        Err(e) => Some(e.to_string()),
+    };
+    let s = compute()?;
+    let write_error = write::<T>(&path, key, &s.meta(), s.data())
+        .err()
+        .map(|e| e.to_string());
+    Ok((
+        s,
+        CacheStatus::Computed {
+            path,
+            rejected,
+            write_error,
+        },
+    ))
+}
+
+/// `dir/<kind>_<kernel>_p<order>_<float>_<hash of key>.ffmm`.
+pub(crate) fn file_path(dir: &Path, key: &CacheKey) -> PathBuf {
+    let encoded =
+        bincode::serde::encode_to_vec(key, bincode::config::standard()).expect("key encodes");
+    let hash = xxh64(&encoded, 0);
+    let clean = |s: &str| -> String {
+        s.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .take(40)
+            .collect()
+    };
+    dir.join(format!(
+        "{}_{}_p{}_{}_{hash:016x}.ffmm",
+        clean(&key.kind),
+        clean(&key.kernel_name),
+        key.order,
+        key.float_type
+    ))
+}
+
+fn invalid(path: &Path, reason: impl Into<String>) -> FieldError {
+    FieldError::CacheInvalid {
+        path: path.to_path_buf(),
+        reason: reason.into(),
+    }
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FieldError + '_ {
+    move |source| FieldError::CacheIo {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+/// Read and fully validate a cache file against `key`.
+pub(crate) fn read<T: Real>(path: &Path, key: &CacheKey) -> Result<(Vec<u64>, Vec<T>), FieldError> {
+    let mut file = File::open(path).map_err(io_err(path))?;
+    let file_len = file.metadata().map_err(io_err(path))?.len();
+    let mut prefix = [0u8; 16];
+    file.read_exact(&mut prefix)
+        .map_err(|_| invalid(path, "truncated (no complete preamble)"))?;
+    if &prefix[0..8] != MAGIC {
+        return Err(invalid(path, "not a ferrofmm operator cache (bad magic)"));
+    }
+    let version = u32::from_le_bytes(prefix[8..12].try_into().expect("4 bytes"));
+    if version != CACHE_FORMAT_VERSION {
+        return Err(invalid(
+            path,
+            format!("format version {version}, expected {CACHE_FORMAT_VERSION}"),
+        ));
+    }
+    let header_len = u32::from_le_bytes(prefix[12..16].try_into().expect("4 bytes")) as usize;
+    if header_len > MAX_HEADER || 16 + header_len as u64 > file_len {
+        return Err(invalid(
+            path,
+            format!("truncated or bad header length {header_len}"),
+        ));
+    }
+    let mut header_bytes = vec![0u8; header_len];
+    file.read_exact(&mut header_bytes)
+        .map_err(|_| invalid(path, "truncated header"))?;
+    let (header, used): (CacheHeader, usize) =
+        bincode::serde::decode_from_slice(&header_bytes, bincode::config::standard())
+            .map_err(|e| invalid(path, format!("undecodable header: {e}")))?;
+    if used != header_len {
+        return Err(invalid(path, "header length mismatch"));
+    }
+    if header.key != *key {
+        return Err(invalid(
+            path,
+            format!("stale: written for {:?}", header.key),
+        ));
+    }
+    let elem = std::mem::size_of::<T>() as u64;
+    let expected = 16 + header_len as u64 + header.payload_len.saturating_mul(elem);
+    if file_len != expected {
+        return Err(invalid(
+            path,
+            format!("file has {file_len} bytes, header promises {expected} (truncated or padded)"),
+        ));
+    }
+    let mut data = vec![T::ZERO; header.payload_len as usize];
+    file.read_exact(bytemuck::cast_slice_mut(&mut data))
+        .map_err(|_| invalid(path, "truncated payload"))?;
+    // The bytes on disk are little-endian; hash them as stored.
+    let checksum = xxh64(bytemuck::cast_slice(&data), 0);
+    if checksum != header.checksum {
+        return Err(invalid(
+            path,
+            format!(
+                "checksum {checksum:016x} != {:016x} (corrupt)",
+                header.checksum
+            ),
+        ));
+    }
+    from_le_in_place(&mut data);
+    Ok((header.meta, data))
+}
+
+static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// Write a cache file atomically (temporary file in the same directory,
+/// then rename).
+pub(crate) fn write<T: Real>(
+    path: &Path,
+    key: &CacheKey,
+    meta: &[u64],
+    data: &[T],
+) -> Result<(), FieldError> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    fs::create_dir_all(dir).map_err(io_err(dir))?;
+    let le = to_le(data);
+    let bytes: &[u8] = bytemuck::cast_slice(&le);
+    let header = CacheHeader {
+        key: key.clone(),
+        meta: meta.to_vec(),
+        payload_len: data.len() as u64,
+        checksum: xxh64(bytes, 0),
+    };
+    let header_bytes = bincode::serde::encode_to_vec(&header, bincode::config::standard())
+        .map_err(|e| invalid(path, format!("header does not encode: {e}")))?;
+    let file_name = path.file_name().and_then(|s| s.to_str()).unwrap_or("cache");
+    let tmp = dir.join(format!(
+        ".{file_name}.{}.{}.tmp",
+        std::process::id(),
+        TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    let result = (|| -> std::io::Result<()> {
+        let mut f = std::io::BufWriter::new(File::create(&tmp)?);
+        f.write_all(MAGIC)?;
+        f.write_all(&CACHE_FORMAT_VERSION.to_le_bytes())?;
+        f.write_all(&(header_bytes.len() as u32).to_le_bytes())?;
+        f.write_all(&header_bytes)?;
+        f.write_all(bytes)?;
+        let f = f.into_inner().map_err(|e| e.into_error())?;
+        f.sync_all()?;
+        drop(f);
+        fs::rename(&tmp, path)
+    })();
+    if let Err(e) = result {
+        let _ = fs::remove_file(&tmp);
+        return Err(FieldError::CacheIo {
+            path: path.to_path_buf(),
+            source: e,
+        });
+    }
+    Ok(())
+}
+
+/// The values as little-endian (a borrow on little-endian hosts).
+fn to_le<T: Real>(data: &[T]) -> std::borrow::Cow<'_, [T]> {
+    if cfg!(target_endian = "little") {
+        std::borrow::Cow::Borrowed(data)
+    } else {
+        let mut v = data.to_vec();
+        swap_bytes(&mut v);
+        std::borrow::Cow::Owned(v)
+    }
+}
+
+fn from_le_in_place<T: Real>(data: &mut [T]) {
+    if cfg!(target_endian = "big") {
+        swap_bytes(data);
+    }
+}
+
+fn swap_bytes<T: Real>(data: &mut [T]) {
+    let size = std::mem::size_of::<T>();
+    for chunk in bytemuck::cast_slice_mut::<T, u8>(data).chunks_exact_mut(size) {
+        chunk.reverse();
+    }
+}
+
+const P1: u64 = 0x9E37_79B1_85EB_CA87;
+const P2: u64 = 0xC2B2_AE3D_27D4_EB4F;
+const P3: u64 = 0x1656_67B1_9E37_79F9;
+const P4: u64 = 0x85EB_CA77_C2B2_AE63;
+const P5: u64 = 0x27D4_EB2F_1656_67C5;
+
+#[inline(always)]
+fn round(acc: u64, input: u64) -> u64 {
+    acc.wrapping_add(input.wrapping_mul(P2))
+        .rotate_left(31)
+        .wrapping_mul(P1)
+}
+
+#[inline(always)]
+fn merge(acc: u64, val: u64) -> u64 {
+    (acc ^ round(0, val)).wrapping_mul(P1).wrapping_add(P4)
+}
+
+#[inline(always)]
+fn read_u64(b: &[u8]) -> u64 {
+    u64::from_le_bytes(b[..8].try_into().expect("8 bytes"))
+}
+
+/// XXH64 of `data` (the reference algorithm of Yann Collet's xxHash).
+pub(crate) fn xxh64(data: &[u8], seed: u64) -> u64 {
+    let len = data.len() as u64;
+    let mut rest = data;
+    let mut h = if data.len() >= 32 {
+        let mut v = [
+            seed.wrapping_add(P1).wrapping_add(P2),
+            seed.wrapping_add(P2),
+            seed,
+            seed.wrapping_sub(P1),
+        ];
+        let mut stripes = data.chunks_exact(32);
+        for s in &mut stripes {
+            v[0] = round(v[0], read_u64(&s[0..]));
+            v[1] = round(v[1], read_u64(&s[8..]));
+            v[2] = round(v[2], read_u64(&s[16..]));
+            v[3] = round(v[3], read_u64(&s[24..]));
+        }
+        rest = stripes.remainder();
+        let mut h = v[0]
+            .rotate_left(1)
+            .wrapping_add(v[1].rotate_left(7))
+            .wrapping_add(v[2].rotate_left(12))
+            .wrapping_add(v[3].rotate_left(18));
+        for x in v {
+            h = merge(h, x);
+        }
+        h
+    } else {
+        seed.wrapping_add(P5)
+    };
+    h = h.wrapping_add(len);
+    while rest.len() >= 8 {
+        h ^= round(0, read_u64(rest));
+        h = h.rotate_left(27).wrapping_mul(P1).wrapping_add(P4);
+        rest = &rest[8..];
+    }
+    if rest.len() >= 4 {
+        let k = u32::from_le_bytes(rest[..4].try_into().expect("4 bytes")) as u64;
+        h ^= k.wrapping_mul(P1);
+        h = h.rotate_left(23).wrapping_mul(P2).wrapping_add(P3);
+        rest = &rest[4..];
+    }
+    for &b in rest {
+        h ^= (b as u64).wrapping_mul(P5);
+        h = h.rotate_left(11).wrapping_mul(P1);
+    }
+    h ^= h >> 33;
+    h = h.wrapping_mul(P2);
+    h ^= h >> 29;
+    h = h.wrapping_mul(P3);
+    h ^= h >> 32;
+    h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn xxh64_reference_vectors() {
+        assert_eq!(xxh64(b"", 0), 0xEF46_DB37_51D8_E999);
+        assert_eq!(xxh64(b"abc", 0), 0x44BC_2CF5_AD77_0999);
+        // Longer than one stripe; any change of a byte changes the hash.
+        let data: Vec<u8> = (0..1000u32).map(|i| (i * 7 % 251) as u8).collect();
+        let h = xxh64(&data, 0);
+        let mut d2 = data.clone();
+        d2[500] ^= 1;
+        assert_ne!(h, xxh64(&d2, 0));
+    }
+}

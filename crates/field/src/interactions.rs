@@ -1,0 +1,337 @@
+//! Transfer vectors and the grouped V-list interactions of one level.
+
+use crate::FieldError;
+
+/// Number of distinct M2L transfer vectors: `7^3 - 3^3 = 316`.
+pub const N_TRANSFER_VECTORS: usize = 316;
+
+/// The 316 transfer vectors `v` (integer, `|v_i| <= 3`, `max |v_i| >= 2`)
+/// in their fixed index order (lexicographic, `x` slowest). A scheme's
+/// per-vector operators are stored in this order.
+///
+/// ```
+/// use ferrofmm_field::{transfer_vector_index, transfer_vectors};
+/// let vs = transfer_vectors();
+/// assert_eq!(vs.len(), 316);
+/// for (i, v) in vs.iter().enumerate() {
+///     assert_eq!(transfer_vector_index(*v), Some(i));
+/// }
+/// assert_eq!(transfer_vector_index([1, 1, 0]), None); // a neighbour, not a V-list vector
+/// ```
+pub fn transfer_vectors() -> Vec<[i32; 3]> {
+    let mut out = Vec::with_capacity(N_TRANSFER_VECTORS);
+    for x in -3..=3i32 {
+        for y in -3..=3i32 {
+            for z in -3..=3i32 {
+                if x.abs().max(y.abs()).max(z.abs()) >= 2 {
+                    out.push([x, y, z]);
+                }
+            }
+        }
+    }
+    out
+}
+
+/// Index of `v` in [`transfer_vectors`], `None` when `v` is not a V-list
+/// transfer vector.
+pub fn transfer_vector_index(v: [i32; 3]) -> Option<usize> {
+    if v.iter().any(|c| c.abs() > 3) || v.iter().all(|c| c.abs() <= 1) {
+        return None;
+    }
+    let flat = |a: [i32; 3]| ((a[0] + 3) * 49 + (a[1] + 3) * 7 + (a[2] + 3)) as usize;
+    let f = flat(v);
+    // Number of excluded (|.| <= 1 everywhere) vectors before v in the
+    // lexicographic order of the 7^3 cube.
+    let mut excluded = 0usize;
+    for x in -1..=1i32 {
+        for y in -1..=1i32 {
+            for z in -1..=1i32 {
+                if flat([x, y, z]) < f {
+                    excluded += 1;
+                }
+            }
+        }
+    }
+    Some(f - excluded)
+}
+
+/// A block of consecutive target columns processed by one task.
+#[derive(Clone, Debug)]
+struct Chunk {
+    target_start: usize,
+    target_end: usize,
+    group_start: usize,
+    group_end: usize,
+}
+
+/// All pairs of one chunk sharing one transfer vector.
+#[derive(Clone, Debug)]
+struct Group {
+    vector: u16,
+    pair_start: usize,
+    pair_end: usize,
+}
+
+/// The V-list (M2L) interactions of one tree level, grouped for batched
+/// application.
+///
+/// Built from pairs `(t, s, v)`: target column `t` (its downward check
+/// potential) receives `M2L_v * multipole[:, s]`, where `v = (center_s -
+/// center_t) / box_width` is the integer transfer vector
+/// (`|v_i| <= 3`, `max_i |v_i| >= 2`). The target columns are cut into
+/// contiguous chunks (one rayon task each, so tasks never write the same
+/// column), and inside a chunk the pairs are grouped by transfer vector so
+/// that a scheme applies each vector's operator with one matrix-matrix
+/// product over all of the chunk's pairs that share it.
+///
+/// ```
+/// use ferrofmm_field::M2lInteractions;
+/// let pairs = [(0, 1, [2, 0, 0]), (1, 0, [-2, 0, 0]), (0, 2, [0, 3, -1])];
+/// let inter = M2lInteractions::new(2, 3, &pairs);
+/// assert_eq!(inter.len(), 3);
+/// assert!(!inter.is_empty());
+/// ```
+#[derive(Clone, Debug)]
+pub struct M2lInteractions {
+    n_target_cols: usize,
+    n_source_cols: usize,
+    chunks: Vec<Chunk>,
+    groups: Vec<Group>,
+    sources: Vec<u32>,
+    /// Target column relative to its chunk's first column.
+    local_targets: Vec<u32>,
+}
+
+impl M2lInteractions {
+    /// Group `pairs` with an automatic chunk size (about four chunks per
+    /// rayon thread, 32 to 256 target columns each).
+    ///
+    /// # Panics
+    /// When a pair is invalid (see [`M2lInteractions::try_new`]).
+    pub fn new(
+        n_target_cols: usize,
+        n_source_cols: usize,
+        pairs: &[(usize, usize, [i32; 3])],
+    ) -> Self {
+        Self::try_new(n_target_cols, n_source_cols, pairs).unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// Like [`M2lInteractions::new`], returning an error for a target or
+    /// source column out of range or a vector that is not one of the 316
+    /// V-list transfer vectors.
+    pub fn try_new(
+        n_target_cols: usize,
+        n_source_cols: usize,
+        pairs: &[(usize, usize, [i32; 3])],
+    ) -> Result<Self, FieldError> {
+        let threads = rayon::current_num_threads().max(1);
+        let chunk = n_target_cols.div_ceil(4 * threads).clamp(32, 256);
+        Self::with_chunk_size(n_target_cols, n_source_cols, pairs, chunk)
+    }
+
+    /// Group `pairs` into chunks of `chunk_size` target columns (a tuning
+    /// knob: larger chunks give larger matrix products, smaller ones more
+    /// parallelism).
+    pub fn with_chunk_size(
+        n_target_cols: usize,
+        n_source_cols: usize,
+        pairs: &[(usize, usize, [i32; 3])],
+        chunk_size: usize,
+    ) -> Result<Self, FieldError> {
+        if chunk_size == 0 {
+            return Err(FieldError::InvalidInteractions(
+                "chunk size must be positive".into(),
+            ));
+        }
+        if n_target_cols > u32::MAX as usize || n_source_cols > u32::MAX as usize {
+            return Err(FieldError::InvalidInteractions(
+                "more than 2^32 columns".into(),
+            ));
+        }
+        let mut keyed = Vec::with_capacity(pairs.len());
+        for (i, &(t, s, v)) in pairs.iter().enumerate() {
+            if t >= n_target_cols || s >= n_source_cols {
+                return Err(FieldError::InvalidInteractions(format!(
+                    "pair {i} = ({t}, {s}, {v:?}): column out of range ({n_target_cols} targets, \
+                     {n_source_cols} sources)"
+                )));
+            }
+            let Some(vi) = transfer_vector_index(v) else {
+                return Err(FieldError::InvalidInteractions(format!(
+                    "pair {i}: {v:?} is not a V-list transfer vector"
+                )));
+            };
+            let c = t / chunk_size;
+            keyed.push(((c * N_TRANSFER_VECTORS + vi) as u64, t as u32, s as u32));
+        }
+        keyed.sort_unstable();
+        let n_chunks = n_target_cols.div_ceil(chunk_size);
+        let mut chunks = Vec::with_capacity(n_chunks);
+        let mut groups = Vec::new();
+        let mut sources = Vec::with_capacity(pairs.len());
+        let mut local_targets = Vec::with_capacity(pairs.len());
+        let mut p = 0;
+        for c in 0..n_chunks {
+            let target_start = c * chunk_size;
+            let target_end = ((c + 1) * chunk_size).min(n_target_cols);
+            let group_start = groups.len();
+            while p < keyed.len() && keyed[p].0 as usize / N_TRANSFER_VECTORS == c {
+                let key = keyed[p].0;
+                let pair_start = p;
+                while p < keyed.len() && keyed[p].0 == key {
+                    sources.push(keyed[p].2);
+                    local_targets.push(keyed[p].1 - target_start as u32);
+                    p += 1;
+                }
+                groups.push(Group {
+                    vector: (key as usize % N_TRANSFER_VECTORS) as u16,
+                    pair_start,
+                    pair_end: p,
+                });
+            }
+            chunks.push(Chunk {
+                target_start,
+                target_end,
+                group_start,
+                group_end: groups.len(),
+            });
+        }
+        debug_assert_eq!(p, keyed.len());
+        Ok(M2lInteractions {
+            n_target_cols,
+            n_source_cols,
+            chunks,
+            groups,
+            sources,
+            local_targets,
+        })
+    }
+
+    /// Number of `(target, source)` pairs.
+    pub fn len(&self) -> usize {
+        self.sources.len()
+    }
+
+    /// True when there are no pairs.
+    pub fn is_empty(&self) -> bool {
+        self.sources.is_empty()
+    }
+
+    /// Number of target columns (boxes receiving M2L).
+    pub fn n_target_cols(&self) -> usize {
+        self.n_target_cols
+    }
+
+    /// Number of source columns (boxes whose multipoles are read).
+    pub fn n_source_cols(&self) -> usize {
+        self.n_source_cols
+    }
+
+    /// Number of (chunk, transfer vector) groups, i.e. matrix products per
+    /// application.
+    pub fn n_groups(&self) -> usize {
+        self.groups.len()
+    }
+
+    /// Number of target chunks (parallel tasks).
+    pub fn n_chunks(&self) -> usize {
+        self.chunks.len()
+    }
+
+    pub(crate) fn chunk_views(&self) -> impl Iterator<Item = ChunkView<'_>> + '_ {
+        self.chunks.iter().map(move |c| ChunkView {
+            inter: self,
+            chunk: c,
+        })
+    }
+}
+
+/// One chunk as seen by a scheme's apply.
+#[derive(Clone, Copy)]
+pub(crate) struct ChunkView<'a> {
+    inter: &'a M2lInteractions,
+    chunk: &'a Chunk,
+}
+
+/// One group: transfer vector index, source columns, chunk-local target
+/// columns.
+pub(crate) struct GroupView<'a> {
+    pub vector: usize,
+    pub sources: &'a [u32],
+    pub targets: &'a [u32],
+}
+
+impl<'a> ChunkView<'a> {
+    /// Number of target columns in the chunk.
+    pub fn n_targets(&self) -> usize {
+        self.chunk.target_end - self.chunk.target_start
+    }
+
+    /// Largest group (number of pairs) of the chunk.
+    pub fn max_group_len(&self) -> usize {
+        self.groups().map(|g| g.sources.len()).max().unwrap_or(0)
+    }
+
+    /// True when the chunk has no pairs.
+    pub fn is_empty(&self) -> bool {
+        self.chunk.group_start == self.chunk.group_end
+    }
+
+    pub fn groups(&self) -> impl Iterator<Item = GroupView<'a>> + 'a {
+        let inter = self.inter;
+        inter.groups[self.chunk.group_start..self.chunk.group_end]
+            .iter()
+            .map(move |g| GroupView {
+                vector: g.vector as usize,
+                sources: &inter.sources[g.pair_start..g.pair_end],
+                targets: &inter.local_targets[g.pair_start..g.pair_end],
+            })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn grouping_preserves_pairs() {
+        let vs = transfer_vectors();
+        let mut pairs = Vec::new();
+        for t in 0..300 {
+            for k in 0..7 {
+                let s = (t * 13 + k * 101) % 250;
+                pairs.push((t, s, vs[(t * 7 + k * 31) % 316]));
+            }
+        }
+        let inter = M2lInteractions::with_chunk_size(300, 250, &pairs, 64).unwrap();
+        assert_eq!(inter.len(), pairs.len());
+        assert_eq!(inter.n_chunks(), 5);
+        let mut got = Vec::new();
+        for c in inter.chunk_views() {
+            let start = c.chunk.target_start;
+            let mut last = None;
+            for g in c.groups() {
+                assert!(last < Some(g.vector));
+                last = Some(g.vector);
+                for (&s, &t) in g.sources.iter().zip(g.targets) {
+                    assert!((t as usize) < c.n_targets());
+                    got.push((start + t as usize, s as usize, vs[g.vector]));
+                }
+            }
+        }
+        got.sort();
+        let mut want = pairs.clone();
+        want.sort();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn rejects_bad_pairs() {
+        assert!(M2lInteractions::try_new(2, 2, &[(2, 0, [2, 0, 0])]).is_err());
+        assert!(M2lInteractions::try_new(2, 2, &[(0, 2, [2, 0, 0])]).is_err());
+        assert!(M2lInteractions::try_new(2, 2, &[(0, 1, [1, 1, 1])]).is_err());
+        assert!(M2lInteractions::try_new(2, 2, &[(0, 1, [4, 0, 0])]).is_err());
+        let empty = M2lInteractions::new(0, 0, &[]);
+        assert!(empty.is_empty());
+    }
+}

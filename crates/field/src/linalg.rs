@@ -1,0 +1,274 @@
+//! `f64` dense building blocks of the precomputation: kernel matrices,
+//! SVD, and an R-only Householder QR for tall stacks.
+//!
+//! Everything here is `f64`; operators are rounded to the working type only
+//! once they are complete.
+
+use faer::{Accum, Mat, MatMut, MatRef, Par};
+use ferrofmm_kernels::{Kernel, Real};
+
+use crate::FieldError;
+
+/// Column-major kernel matrix `A[j, i] = K(x_i, y_j)` (`n_targets x
+/// n_sources`) between interleaved `f64` point sets.
+pub(crate) fn kernel_matrix<K: Kernel>(
+    kernel: &K,
+    sources: &[f64],
+    targets: &[f64],
+    what: &str,
+) -> Result<Mat<f64>, FieldError> {
+    let ns = sources.len() / 3;
+    let nt = targets.len() / 3;
+    let mut row_major = vec![0.0f64; ns * nt];
+    kernel.assemble::<f64>(sources, targets, &mut row_major);
+    if row_major.iter().any(|x| !x.is_finite()) {
+        return Err(FieldError::NonFiniteKernel {
+            kernel: kernel.name(),
+            what: what.to_string(),
+        });
+    }
+    Ok(Mat::from_fn(nt, ns, |j, i| row_major[j * ns + i]))
+}
+
+/// A thin SVD `A = U diag(s) V^T` with `s` non-increasing.
+pub(crate) struct SvdF64 {
+    pub u: Mat<f64>,
+    pub s: Vec<f64>,
+    pub v: Mat<f64>,
+}
+
+/// Thin SVD of `a` (faer, global parallelism).
+pub(crate) fn svd(a: MatRef<'_, f64>, what: &str) -> Result<SvdF64, FieldError> {
+    let svd = a.thin_svd().map_err(|_| FieldError::SvdFailed {
+        what: what.to_string(),
+    })?;
+    let s: Vec<f64> = (0..svd.S().dim()).map(|i| svd.S()[i]).collect();
+    if s.iter().any(|x| !x.is_finite()) {
+        return Err(FieldError::SvdFailed {
+            what: format!("{what} (non-finite singular values)"),
+        });
+    }
+    Ok(SvdF64 {
+        u: svd.U().to_owned(),
+        s,
+        v: svd.V().to_owned(),
+    })
+}
+
+/// The `n x n` upper-triangular factor `R` of `A = Q R` for a column-major
+/// `m x n` matrix with `m >= n` (destroyed). Blocked Householder QR
+/// (LAPACK `dgeqrf`/`dlarft` conventions) without any rank-revealing
+/// shortcuts: faer's QR skips columns whose residual falls below `16 m eps`
+/// of their norm, which for the strongly decaying M2L stacks would silently
+/// lose the small singular values we want to resolve.
+pub(crate) fn householder_r(a: &mut [f64], m: usize, n: usize, par: Par) -> Mat<f64> {
+    assert!(m >= n && a.len() == m * n);
+    const NB: usize = 32;
+    let mut j0 = 0;
+    let mut taus = vec![0.0f64; n];
+    while j0 < n {
+        let b = NB.min(n - j0);
+        // Unblocked factorisation of the panel a[j0.., j0..j0+b].
+        for j in j0..j0 + b {
+            let (head, tail) = a.split_at_mut((j + 1) * m);
+            let v = &mut head[j * m + j..(j + 1) * m];
+            taus[j] = make_householder(v);
+            let tau = taus[j];
+            if tau != 0.0 {
+                for c in j + 1..j0 + b {
+                    let off = (c - j - 1) * m;
+                    let col = &mut tail[off + j..off + m];
+                    let w = tau * (col[0] + dot(&v[1..], &col[1..]));
+                    col[0] -= w;
+                    for (y, x) in col[1..].iter_mut().zip(&v[1..]) {
+                        *y -= w * x;
+                    }
+                }
+            }
+        }
+        let nc = n - j0 - b;
+        if nc > 0 {
+            let rows = m - j0;
+            // Explicit V (rows x b), unit lower trapezoidal.
+            let mut vmat = Mat::<f64>::zeros(rows, b);
+            for jj in 0..b {
+                let j = j0 + jj;
+                vmat[(jj, jj)] = 1.0;
+                for i in jj + 1..rows {
+                    vmat[(i, jj)] = a[j * m + j0 + i];
+                }
+            }
+            // T (b x b) upper triangular with H_1 ... H_b = I - V T V^T
+            // (dlarft): T[i, i] = tau_i, T[0..i, i] = -tau_i T[0..i, 0..i] Z[0..i, i]
+            // with Z = V^T V.
+            let mut z = Mat::<f64>::zeros(b, b);
+            faer::linalg::matmul::matmul(
+                z.as_mut(),
+                Accum::Replace,
+                vmat.transpose(),
+                vmat.as_ref(),
+                1.0,
+                par,
+            );
+            let mut t = Mat::<f64>::zeros(b, b);
+            for i in 0..b {
+                let tau = taus[j0 + i];
+                t[(i, i)] = tau;
+                for r in 0..i {
+                    let mut s = 0.0;
+                    for kk in r..i {
+                        s += t[(r, kk)] * z[(kk, i)];
+                    }
+                    t[(r, i)] = -tau * s;
+                }
+            }
+            // A2 <- A2 - V T^T (V^T A2)
+            let amat = MatMut::from_column_major_slice_mut(a, m, n);
+            let mut a2 = amat.submatrix_mut(j0, j0 + b, rows, nc);
+            let mut w = Mat::<f64>::zeros(b, nc);
+            faer::linalg::matmul::matmul(
+                w.as_mut(),
+                Accum::Replace,
+                vmat.transpose(),
+                a2.as_ref(),
+                1.0,
+                par,
+            );
+            let mut w2 = Mat::<f64>::zeros(b, nc);
+            faer::linalg::matmul::matmul(
+                w2.as_mut(),
+                Accum::Replace,
+                t.transpose(),
+                w.as_ref(),
+                1.0,
+                par,
+            );
+            faer::linalg::matmul::matmul(
+                a2.as_mut(),
+                Accum::Add,
+                vmat.as_ref(),
+                w2.as_ref(),
+                -1.0,
+                par,
+            );
+        }
+        j0 += b;
+    }
+    Mat::from_fn(n, n, |i, j| if i <= j { a[j * m + i] } else { 0.0 })
+}
+
+/// Dot product with independent partial sums (vectorises).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 8];
+    let ca = a.chunks_exact(8);
+    let cb = b.chunks_exact(8);
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for l in 0..8 {
+            acc[l] += x[l] * y[l];
+        }
+    }
+    acc.iter().sum::<f64>() + tail
+}
+
+/// Householder reflector for `x` (in place, `dlarfg`): afterwards `x[0] =
+/// beta`, `x[1..]` holds `v[1..]` (`v[0] = 1`), and `(I - tau v v^T) x_old =
+/// beta e_1`. Returns `tau` (0 when `x[1..]` is already zero).
+fn make_householder(x: &mut [f64]) -> f64 {
+    let x0 = x[0];
+    let tail = dot(&x[1..], &x[1..]);
+    if tail == 0.0 {
+        return 0.0;
+    }
+    // Entries are kernel values of moderate size: no over/underflow guard.
+    let norm = (x0 * x0 + tail).sqrt();
+    let beta = if x0 >= 0.0 { -norm } else { norm };
+    let tau = (beta - x0) / beta;
+    let scale = 1.0 / (x0 - beta);
+    for v in &mut x[1..] {
+        *v *= scale;
+    }
+    x[0] = beta;
+    tau
+}
+
+/// Round an `f64` slice to the working type.
+pub(crate) fn round_to<T: Real>(x: &[f64]) -> Vec<T> {
+    x.iter().map(|&v| T::from_f64(v)).collect()
+}
+
+/// Column-major contents of a faer matrix.
+pub(crate) fn col_major(m: MatRef<'_, f64>) -> Vec<f64> {
+    let mut out = Vec::with_capacity(m.nrows() * m.ncols());
+    for j in 0..m.ncols() {
+        for i in 0..m.nrows() {
+            out.push(m[(i, j)]);
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn householder_r_reproduces_gram() {
+        for &(m, n) in &[(5usize, 3usize), (70, 45), (130, 64), (40, 40)] {
+            let a: Vec<f64> = (0..m * n)
+                .map(|i| {
+                    ((i * 7919 % 1013) as f64 / 1013.0 - 0.5)
+                        + if i % (m + 1) == 0 { 1.0 } else { 0.0 }
+                })
+                .collect();
+            let amat = MatRef::from_column_major_slice(&a, m, n).to_owned();
+            let mut work = a.clone();
+            let r = householder_r(&mut work, m, n, Par::Seq);
+            // A^T A == R^T R
+            let g1 = amat.transpose() * &amat;
+            let g2 = r.transpose() * &r;
+            let err = (&g1 - &g2).norm_l2() / g1.norm_l2();
+            assert!(err < 1e-13, "{m}x{n}: {err}");
+            // singular values agree
+            let s1 = amat.singular_values().unwrap();
+            let s2 = r.singular_values().unwrap();
+            for (x, y) in s1.iter().zip(&s2) {
+                assert!((x - y).abs() <= 1e-12 * s1[0]);
+            }
+        }
+    }
+
+    #[test]
+    fn householder_r_keeps_tiny_singular_values() {
+        // Stack of a graded matrix: singular values 10^0 .. 10^-14.
+        let n = 40;
+        let m = 8 * n;
+        let q = Mat::<f64>::from_fn(m, n, |i, j| ((i * 31 + j * 17) as f64 * 0.7).sin());
+        let qr = q.qr();
+        let qm = qr.compute_thin_Q();
+        let d = Mat::<f64>::from_fn(n, n, |i, j| {
+            if i == j {
+                10f64.powf(-14.0 * i as f64 / (n - 1) as f64)
+            } else {
+                0.0
+            }
+        });
+        let w = Mat::<f64>::from_fn(n, n, |i, j| ((i * 13 + j * 29) as f64 * 0.37).cos())
+            .qr()
+            .compute_thin_Q();
+        let a = &qm * &d * w.transpose();
+        let mut work = col_major(a.as_ref());
+        let r = householder_r(&mut work, m, n, Par::Seq);
+        let s = r.singular_values().unwrap();
+        let last = s[n - 1];
+        assert!(
+            (last / 1e-14 - 1.0).abs() < 1e-2,
+            "smallest singular value {last}"
+        );
+    }
+}

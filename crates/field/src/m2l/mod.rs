@@ -1,0 +1,168 @@
+//! M2L (multipole-to-local) translation schemes behind one trait.
+//!
+//! An M2L scheme maps the upward equivalent densities `phi_s` of the
+//! source boxes in a target box's V list to the target's **downward check
+//! potential**:
+//!
+//! ```text
+//! d_t += sum_{(t, s, v)} K_v phi_s,   K_v[j, i] = K(y_i + 2 h v, x_j)
+//! ```
+//!
+//! where `y_i` are the upward equivalent points (radius `r_ue h`) and `x_j`
+//! the downward check points (radius `r_dc h`) of a box of half-width `h`
+//! centred at the origin, and `v` is the integer transfer vector (source
+//! center minus target center over the box width). The driver then applies
+//! DC2E ([`Operators::dc2e`](crate::Operators::dc2e)) to get the local
+//! expansion. For a kernel homogeneous of degree `d`, `K_v` at half-width
+//! `h` is `h^d` times `K_v` at half-width 1, so one set of operators serves
+//! all levels; otherwise each level `2..=depth` (the only levels with V
+//! lists) gets its own.
+
+mod dense;
+mod svd;
+
+pub use dense::{DenseConfig, DenseM2l};
+pub use svd::{SvdConfig, SvdM2l, default_svd_tolerance};
+
+use faer::Mat;
+use ferrofmm_kernels::{Kernel, Real};
+use rayon::prelude::*;
+
+use crate::interactions::ChunkView;
+use crate::linalg::kernel_matrix;
+use crate::{
+    CacheStatus, FieldError, M2lInteractions, OperatorParams, SurfaceRadii, surface_points,
+};
+
+/// A swappable M2L translation scheme. The FMM driver is generic over it.
+///
+/// Contract of [`M2lScheme::apply`]: `multipoles` is column-major `n x
+/// n_source_cols` (upward equivalent densities), `check` is column-major `n
+/// x n_target_cols` (downward check potentials, **accumulated into**), with
+/// `n` = [`n_surface_points`](crate::n_surface_points)`(order)`. It runs in
+/// parallel (rayon) over target chunks, each task owning its columns, so
+/// there are no data races; call it from outside rayon tasks (the driver's
+/// main thread), once per level.
+pub trait M2lScheme<T: Real>: Sized + Send + Sync {
+    /// Scheme-specific settings (rank, tolerance, ...).
+    type Config: Clone + Default + std::fmt::Debug + Send + Sync;
+
+    /// Short name, e.g. `"dense"`, `"svd"`.
+    fn name(&self) -> &'static str;
+
+    /// Precompute the operators of `kernel` for a domain of width
+    /// `domain_width` and levels up to `depth` (per level for a
+    /// non-homogeneous kernel), using the order and radii of `params` and
+    /// its cache directory.
+    fn precompute<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &Self::Config,
+        domain_width: f64,
+        depth: u32,
+    ) -> Result<Self, FieldError>;
+
+    /// `check[:, t] += sum_{(t, s, v)} M2L_v(level) multipoles[:, s]`.
+    ///
+    /// # Panics
+    /// When a slice length disagrees with the interactions, or for a level
+    /// without operators (non-homogeneous kernel, `level < 2` or `> depth`).
+    fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]);
+
+    /// Bytes held by the precomputed operators.
+    fn memory_bytes(&self) -> usize;
+
+    /// Floating-point operations of one [`M2lScheme::apply`] of
+    /// `interactions` (multiply and add counted separately), for GFLOP/s
+    /// figures. `0.0` when a scheme does not say.
+    fn flops(&self, interactions: &M2lInteractions) -> f64 {
+        let _ = interactions;
+        0.0
+    }
+
+    /// What happened with the on-disk cache during precomputation.
+    fn cache_status(&self) -> CacheStatus {
+        CacheStatus::Disabled
+    }
+}
+
+/// First tree level with V-list interactions.
+pub(crate) const FIRST_M2L_LEVEL: u32 = 2;
+
+/// `K_v` at half-width `h` (column-major `n x n`, `f64`).
+pub(crate) fn m2l_matrix<K: Kernel>(
+    kernel: &K,
+    order: usize,
+    radii: &SurfaceRadii,
+    h: f64,
+    v: [i32; 3],
+) -> Result<Mat<f64>, FieldError> {
+    let center = [
+        2.0 * h * v[0] as f64,
+        2.0 * h * v[1] as f64,
+        2.0 * h * v[2] as f64,
+    ];
+    let ue: Vec<f64> = surface_points(order, center, h, radii.upward_equivalent);
+    let dc: Vec<f64> = surface_points(order, [0.0; 3], h, radii.downward_check);
+    kernel_matrix(kernel, &ue, &dc, "an M2L matrix")
+}
+
+/// Check the slice lengths of an apply call.
+pub(crate) fn check_lengths<T>(n: usize, inter: &M2lInteractions, multipoles: &[T], check: &[T]) {
+    assert_eq!(
+        multipoles.len(),
+        n * inter.n_source_cols(),
+        "M2L apply: multipoles must be n x n_source_cols = {n} x {}",
+        inter.n_source_cols()
+    );
+    assert_eq!(
+        check.len(),
+        n * inter.n_target_cols(),
+        "M2L apply: check must be n x n_target_cols = {n} x {}",
+        inter.n_target_cols()
+    );
+}
+
+/// Run `f(chunk, check_columns_of_chunk)` in parallel over the chunks of
+/// `inter` (disjoint column blocks of `check`, `rows` values per column).
+pub(crate) fn for_each_chunk<T: Real>(
+    inter: &M2lInteractions,
+    rows: usize,
+    check: &mut [T],
+    f: impl Fn(ChunkView<'_>, &mut [T]) + Sync + Send,
+) {
+    let mut blocks = Vec::with_capacity(inter.n_chunks());
+    let mut rest = check;
+    for c in inter.chunk_views() {
+        let (a, b) = rest.split_at_mut(c.n_targets() * rows);
+        blocks.push((c, a));
+        rest = b;
+    }
+    blocks.into_par_iter().for_each(|(c, out)| {
+        if !c.is_empty() {
+            f(c, out)
+        }
+    });
+}
+
+/// Copy the source columns of a group into a contiguous `rows x len` block.
+pub(crate) fn gather<T: Real>(rows: usize, src: &[T], cols: &[u32], out: &mut [T]) {
+    for (j, &s) in cols.iter().enumerate() {
+        let s = s as usize;
+        out[j * rows..(j + 1) * rows].copy_from_slice(&src[s * rows..(s + 1) * rows]);
+    }
+}
+
+/// Add the columns of a contiguous `rows x len` block to columns `cols` of
+/// `dst`.
+pub(crate) fn scatter_add<T: Real>(rows: usize, block: &[T], cols: &[u32], dst: &mut [T]) {
+    for (j, &t) in cols.iter().enumerate() {
+        let t = t as usize;
+        for (d, &b) in dst[t * rows..(t + 1) * rows]
+            .iter_mut()
+            .zip(&block[j * rows..(j + 1) * rows])
+        {
+            *d += b;
+        }
+    }
+}

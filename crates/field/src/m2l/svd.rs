@@ -1,0 +1,426 @@
+//! [`SvdM2l`]: Fong–Darve compression of all 316 M2L operators with one
+//! pair of bases.
+
+use faer::{Accum, Mat, MatRef, Par};
+use ferrofmm_kernels::{Kernel, Precision, Real};
+use rayon::prelude::*;
+
+use super::{
+    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+};
+use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
+use crate::levels::LevelMap;
+use crate::linalg::{col_major, householder_r, round_to, svd};
+use crate::{
+    FieldError, M2lInteractions, N_TRANSFER_VECTORS, OperatorParams, gemm, gemm_scaled,
+    n_surface_points, transfer_vectors,
+};
+
+/// Configuration of [`SvdM2l`].
+///
+/// The rank `k` is `rank` when given (clamped to `n`); otherwise the
+/// smallest `k` with `sigma_k / sigma_0 <= tolerance` for both stacked
+/// matrices (0-based singular values, so `k` values are kept). A
+/// `tolerance <= 0` (the default) selects [`default_svd_tolerance`] for the
+/// float type and order.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SvdConfig {
+    /// Fixed rank, overriding the tolerance.
+    pub rank: Option<usize>,
+    /// Relative singular-value cutoff; `<= 0` means automatic.
+    pub tolerance: f64,
+}
+
+/// Default compression tolerance for a float type and order: an order of
+/// magnitude below the accuracy the order reaches with the dense scheme
+/// (the P2M->M2L->L2P error falls about 10x per order, see
+/// `docs/algorithms.md`), and never below what the float type resolves.
+///
+/// ```
+/// use ferrofmm_field::default_svd_tolerance;
+/// use ferrofmm_kernels::Precision;
+/// assert!(default_svd_tolerance(Precision::F64, 10) < default_svd_tolerance(Precision::F64, 4));
+/// assert!(default_svd_tolerance(Precision::F32, 10) >= 1e-7);
+/// ```
+pub fn default_svd_tolerance(precision: Precision, order: usize) -> f64 {
+    let floor = match precision {
+        Precision::F64 => 1e-13,
+        Precision::F32 => 1e-6,
+    };
+    10f64.powf(-(0.9 * order as f64 + 0.6)).max(floor)
+}
+
+/// Fong–Darve SVD-compressed M2L.
+///
+/// Precomputation per operator set (half-width `h`): with `K_v` the 316
+/// kernel matrices (`n x n`, downward check <- upward equivalent), take the
+/// left singular vectors `U` of the fat stack `[K_1 ... K_316]` and the
+/// right singular vectors `V` of the tall stack `[K_1; ...; K_316]`, keep
+/// `k` of each, and store `C_v = U_k^T K_v V_k` (`k x k`). Both SVDs are
+/// computed from the `R` factor of a parallel TSQR of the stack (each of
+/// 20 blocks of 16 matrices QR-factorised, then the stacked `R`s), so the
+/// stack itself is never held in memory; all in `f64`.
+///
+/// Application: compress all multipoles once (`V_k^T M`, one GEMM per
+/// column block), then per target chunk and transfer vector one GEMM with
+/// `C_v` over all pairs sharing it, accumulated in the compressed check
+/// potentials of the chunk's targets, which are expanded once (`U_k *`,
+/// one GEMM per chunk) and added to `check`. Flops: `2 k^2` per pair plus
+/// `2 n k` per source and per target box, against `2 n^2` per pair for
+/// [`DenseM2l`](crate::DenseM2l).
+///
+/// The approximation error of `K_v` is about `sigma_k / sigma_0` of the
+/// stack (relative to its largest singular value).
+pub struct SvdM2l<T: Real> {
+    n: usize,
+    levels: LevelMap,
+    store: SvdStore<T>,
+    tolerance: f64,
+    cache_status: CacheStatus,
+}
+
+/// Per-set compression summary.
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct SvdSetInfo {
+    rank: usize,
+    /// `sigma_k / sigma_0` of the fat and tall stacks (first dropped value,
+    /// 0 when nothing is dropped).
+    dropped_fat: f64,
+    dropped_tall: f64,
+}
+
+struct SvdStore<T> {
+    n: usize,
+    sets: Vec<SvdSetInfo>,
+    /// Per set: `U_k` (`n x k`), `V_k^T` (`k x n`), then 316 `C_v` (`k x k`).
+    data: Vec<T>,
+}
+
+fn set_len(n: usize, k: usize) -> usize {
+    2 * n * k + N_TRANSFER_VECTORS * k * k
+}
+
+impl<T: Real> CachePayload<T> for SvdStore<T> {
+    fn meta(&self) -> Vec<u64> {
+        let mut m = vec![self.n as u64, self.sets.len() as u64];
+        for s in &self.sets {
+            m.extend([
+                s.rank as u64,
+                s.dropped_fat.to_bits(),
+                s.dropped_tall.to_bits(),
+            ]);
+        }
+        m
+    }
+
+    fn data(&self) -> &[T] {
+        &self.data
+    }
+
+    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String> {
+        if meta.len() < 2 {
+            return Err("short metadata".into());
+        }
+        let (n, n_sets) = (meta[0] as usize, meta[1] as usize);
+        if meta.len() != 2 + 3 * n_sets {
+            return Err("metadata length".into());
+        }
+        let sets: Vec<SvdSetInfo> = (0..n_sets)
+            .map(|s| SvdSetInfo {
+                rank: meta[2 + 3 * s] as usize,
+                dropped_fat: f64::from_bits(meta[3 + 3 * s]),
+                dropped_tall: f64::from_bits(meta[4 + 3 * s]),
+            })
+            .collect();
+        if sets.iter().any(|s| s.rank > n) {
+            return Err("rank exceeds n".into());
+        }
+        if sets.iter().map(|s| set_len(n, s.rank)).sum::<usize>() != data.len() {
+            return Err("payload length disagrees with layout".into());
+        }
+        Ok(SvdStore { n, sets, data })
+    }
+}
+
+impl<T: Real> SvdM2l<T> {
+    /// Compression rank `k` (the largest over operator sets; a homogeneous
+    /// kernel has one set).
+    pub fn rank(&self) -> usize {
+        self.store.sets.iter().map(|s| s.rank).max().unwrap_or(0)
+    }
+
+    /// Compression rank used at `level`.
+    pub fn rank_at(&self, level: u32) -> usize {
+        self.store.sets[self.levels.lookup(level, 1.0).0].rank
+    }
+
+    /// Tolerance the rank was chosen with (resolved default, or the
+    /// configured one; meaningless when a rank was given).
+    pub fn tolerance(&self) -> f64 {
+        self.tolerance
+    }
+
+    /// Largest `sigma_k / sigma_0` over both stacks and all sets: an
+    /// estimate of the relative compression error.
+    pub fn truncation_estimate(&self) -> f64 {
+        self.store
+            .sets
+            .iter()
+            .map(|s| s.dropped_fat.max(s.dropped_tall))
+            .fold(0.0, f64::max)
+    }
+
+    /// Start of set `set` and its rank.
+    fn set(&self, set: usize) -> (usize, usize) {
+        let start = self.store.sets[..set]
+            .iter()
+            .map(|s| set_len(self.n, s.rank))
+            .sum();
+        (start, self.store.sets[set].rank)
+    }
+}
+
+impl<T: Real> M2lScheme<T> for SvdM2l<T> {
+    type Config = SvdConfig;
+
+    fn name(&self) -> &'static str {
+        "svd"
+    }
+
+    fn precompute<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &SvdConfig,
+        domain_width: f64,
+        depth: u32,
+    ) -> Result<Self, FieldError> {
+        params.validate()?;
+        if !config.tolerance.is_finite() || config.tolerance >= 1.0 {
+            return Err(FieldError::InvalidParams(format!(
+                "SVD tolerance must be finite and < 1, got {}",
+                config.tolerance
+            )));
+        }
+        if config.rank == Some(0) {
+            return Err(FieldError::InvalidParams(
+                "SVD rank must be positive".into(),
+            ));
+        }
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let n = n_surface_points(params.order);
+        let tolerance = if config.tolerance > 0.0 {
+            config.tolerance
+        } else {
+            default_svd_tolerance(T::PRECISION, params.order)
+        };
+        let mut key =
+            CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array());
+        key.scheme_config = format!(
+            "rank={:?};tolerance={:?}",
+            config.rank.map(|r| r.min(n)),
+            tolerance
+        );
+        if levels.homogeneity.is_none() {
+            key.geometry = Some((domain_width, depth));
+        }
+        let accept = |s: &SvdStore<T>| {
+            if s.n == n && s.sets.len() == levels.n_sets() {
+                Ok(())
+            } else {
+                Err("layout disagrees with the parameters".to_string())
+            }
+        };
+        let (store, cache_status) =
+            load_or_compute::<T, SvdStore<T>>(params.cache_dir.as_deref(), &key, accept, || {
+                let mut sets = Vec::new();
+                let mut data = Vec::new();
+                for set in 0..levels.n_sets() {
+                    let h = levels.set_half_width(set);
+                    let (info, values) = compress_set(kernel, params, h, config.rank, tolerance)?;
+                    sets.push(info);
+                    data.extend(round_to::<T>(&values));
+                }
+                Ok(SvdStore { n, sets, data })
+            })?;
+        Ok(SvdM2l {
+            n,
+            levels,
+            store,
+            tolerance,
+            cache_status,
+        })
+    }
+
+    fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
+        let n = self.n;
+        check_lengths(n, interactions, multipoles, check);
+        if interactions.is_empty() {
+            return;
+        }
+        let (set, scale) = self.levels.lookup(level, 1.0);
+        let (start, k) = self.set(set);
+        let data = &self.store.data[start..start + set_len(n, k)];
+        let (u, rest) = data.split_at(n * k);
+        let (vt, c) = rest.split_at(k * n);
+        // Compress all multipoles: mc = V_k^T M (k x n_source_cols).
+        let ns = interactions.n_source_cols();
+        let mut mc = vec![T::ZERO; k * ns];
+        const COLS: usize = 256;
+        mc.par_chunks_mut(k * COLS)
+            .zip(multipoles.par_chunks(n * COLS))
+            .for_each(|(out, m)| gemm(k, m.len() / n, n, vt, m, out, false));
+        let mc = &mc;
+        for_each_chunk(interactions, n, check, |chunk, out| {
+            let nt = chunk.n_targets();
+            let m = chunk.max_group_len();
+            let mut acc = vec![T::ZERO; k * nt];
+            let mut src = vec![T::ZERO; k * m];
+            let mut dst = vec![T::ZERO; k * m];
+            for g in chunk.groups() {
+                let len = g.sources.len();
+                gather(k, mc, g.sources, &mut src[..k * len]);
+                let cv = &c[g.vector * k * k..(g.vector + 1) * k * k];
+                gemm(k, len, k, cv, &src[..k * len], &mut dst[..k * len], false);
+                scatter_add(k, &dst[..k * len], g.targets, &mut acc);
+            }
+            gemm_scaled(n, nt, k, scale, u, &acc, out, true);
+        });
+    }
+
+    fn memory_bytes(&self) -> usize {
+        self.store.data.len() * std::mem::size_of::<T>()
+    }
+
+    fn flops(&self, interactions: &M2lInteractions) -> f64 {
+        // Assumes the level's set; ranks are equal or close across sets.
+        let k = self.rank() as f64;
+        let n = self.n as f64;
+        2.0 * k * k * interactions.len() as f64
+            + 2.0 * n * k * (interactions.n_source_cols() + interactions.n_target_cols()) as f64
+    }
+
+    fn cache_status(&self) -> CacheStatus {
+        self.cache_status.clone()
+    }
+}
+
+/// Matrices per TSQR block.
+const TSQR_BLOCK: usize = 16;
+
+/// Compress the 316 operators of one set at half-width `h`: returns the
+/// summary and `[U_k, V_k^T, C_1 .. C_316]` (column-major, `f64`).
+fn compress_set<K: Kernel>(
+    kernel: &K,
+    params: &OperatorParams,
+    h: f64,
+    rank: Option<usize>,
+    tolerance: f64,
+) -> Result<(SvdSetInfo, Vec<f64>), FieldError> {
+    let p = params.order;
+    let n = n_surface_points(p);
+    let vectors = transfer_vectors();
+    // First TSQR level: R factors of blocks of the tall stack [K_v] and of
+    // the transposed fat stack [K_v^T].
+    let blocks: Vec<Result<(Mat<f64>, Mat<f64>), FieldError>> = vectors
+        .par_chunks(TSQR_BLOCK)
+        .map(|vs| {
+            let rows = vs.len() * n;
+            let mut tall = vec![0.0f64; rows * n];
+            let mut fat_t = vec![0.0f64; rows * n];
+            for (b, &v) in vs.iter().enumerate() {
+                let k = m2l_matrix(kernel, p, &params.radii, h, v)?;
+                for j in 0..n {
+                    for i in 0..n {
+                        tall[j * rows + b * n + i] = k[(i, j)];
+                        fat_t[j * rows + b * n + i] = k[(j, i)];
+                    }
+                }
+            }
+            Ok((
+                householder_r(&mut tall, rows, n, Par::Seq),
+                householder_r(&mut fat_t, rows, n, Par::Seq),
+            ))
+        })
+        .collect();
+    let mut r_tall = Vec::with_capacity(blocks.len());
+    let mut r_fat = Vec::with_capacity(blocks.len());
+    for b in blocks {
+        let (t, f) = b?;
+        r_tall.push(t);
+        r_fat.push(f);
+    }
+    let reduce = |rs: &[Mat<f64>]| -> Mat<f64> {
+        let rows = rs.len() * n;
+        let mut stacked = vec![0.0f64; rows * n];
+        for (b, r) in rs.iter().enumerate() {
+            for j in 0..n {
+                for i in 0..=j {
+                    stacked[j * rows + b * n + i] = r[(i, j)];
+                }
+            }
+        }
+        householder_r(&mut stacked, rows, n, Par::rayon(0))
+    };
+    let rt = reduce(&r_tall);
+    let rf = reduce(&r_fat);
+    // Right singular vectors of R_tall are V; of R_fat (from the fat
+    // stack's transpose) they are the left singular vectors U of the fat
+    // stack.
+    let st = svd(rt.as_ref(), "the tall M2L stack")?;
+    let sf = svd(rf.as_ref(), "the fat M2L stack")?;
+    let count = |s: &[f64]| {
+        s.iter()
+            .take_while(|&&x| x > tolerance * s[0])
+            .count()
+            .max(1)
+    };
+    let k = match rank {
+        Some(r) => r.min(n),
+        None => count(&sf.s).max(count(&st.s)),
+    };
+    let dropped = |s: &[f64]| {
+        if k < s.len() && s[0] > 0.0 {
+            s[k] / s[0]
+        } else {
+            0.0
+        }
+    };
+    let info = SvdSetInfo {
+        rank: k,
+        dropped_fat: dropped(&sf.s),
+        dropped_tall: dropped(&st.s),
+    };
+    let uk = sf.v.as_ref().subcols(0, k);
+    let vk = st.v.as_ref().subcols(0, k);
+    let mut out = Vec::with_capacity(set_len(n, k));
+    out.extend(col_major(uk));
+    out.extend(col_major(vk.transpose()));
+    // C_v = U_k^T K_v V_k.
+    let cs: Vec<Result<Vec<f64>, FieldError>> = vectors
+        .par_iter()
+        .map(|&v| {
+            let kv = m2l_matrix(kernel, p, &params.radii, h, v)?;
+            Ok(project(uk, kv.as_ref(), vk))
+        })
+        .collect();
+    for c in cs {
+        out.extend(c?);
+    }
+    Ok((info, out))
+}
+
+/// `U^T K V` (column-major `k x k`).
+fn project(u: MatRef<'_, f64>, kv: MatRef<'_, f64>, v: MatRef<'_, f64>) -> Vec<f64> {
+    let mut kvv = Mat::<f64>::zeros(kv.nrows(), v.ncols());
+    faer::linalg::matmul::matmul(kvv.as_mut(), Accum::Replace, kv, v, 1.0, Par::Seq);
+    let mut c = Mat::<f64>::zeros(u.ncols(), v.ncols());
+    faer::linalg::matmul::matmul(
+        c.as_mut(),
+        Accum::Replace,
+        u.transpose(),
+        kvv.as_ref(),
+        1.0,
+        Par::Seq,
+    );
+    col_major(c.as_ref())
+}

@@ -1,0 +1,191 @@
+//! [`OperatorParams`]: order, surface radii, pseudo-inverse cutoff, cache.
+
+use std::path::PathBuf;
+
+use ferrofmm_kernels::Precision;
+
+use crate::{FieldError, SurfaceRadii};
+
+/// Highest accepted expansion order. At `p = 30` one expansion already has
+/// 5048 values and a dense M2L level would need `316 * 5048^2` matrix
+/// entries; nothing useful lies beyond.
+pub const MAX_ORDER: usize = 30;
+
+/// Default relative cutoff of the check-to-equivalent pseudo-inverse for a
+/// float type: singular values `sigma_i <= rcond * sigma_0` are dropped.
+///
+/// Chosen by the stability measurements in `docs/stability.md`:
+/// `1e-15` for `f64` (the error of P2M->M2L->L2P keeps falling up to
+/// `p = 12` and stays flat beyond) and `1e-7` for `f32` (a tighter cutoff
+/// lets `f32` rounding of the check potential, amplified by up to
+/// `1 / rcond`, dominate; a looser one truncates the expansion).
+///
+/// ```
+/// use ferrofmm_field::default_pinv_rcond;
+/// use ferrofmm_kernels::Precision;
+/// assert!(default_pinv_rcond(Precision::F32) > default_pinv_rcond(Precision::F64));
+/// ```
+pub fn default_pinv_rcond(precision: Precision) -> f64 {
+    match precision {
+        Precision::F64 => 1e-13,
+        Precision::F32 => 1e-7,
+    }
+}
+
+/// Parameters shared by all translation operators of one FMM.
+///
+/// ```
+/// use ferrofmm_field::OperatorParams;
+/// let mut params = OperatorParams::new(6);
+/// params.pinv_rcond = Some(1e-12);
+/// params.validate().unwrap();
+/// assert!(OperatorParams::new(1).validate().is_err());
+/// ```
+#[derive(Clone, Debug, PartialEq)]
+pub struct OperatorParams {
+    /// Expansion order `p >= 2`: `6 (p-1)^2 + 2` equivalent points per box.
+    pub order: usize,
+    /// Surface radii as multiples of the box half-width.
+    pub radii: SurfaceRadii,
+    /// Relative cutoff of the check-to-equivalent pseudo-inverse
+    /// (`sigma_i <= rcond * sigma_0` dropped). `None`: the per-type default
+    /// [`default_pinv_rcond`]; `Some(0.0)`: no cutoff (only exactly zero
+    /// singular values are dropped; see `docs/stability.md` for why this is
+    /// a bad idea at high order).
+    pub pinv_rcond: Option<f64>,
+    /// Directory of the on-disk operator cache; `None` disables the cache.
+    /// The directory is created when missing.
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl OperatorParams {
+    /// Order `order`, default radii, default cutoff, no cache.
+    pub fn new(order: usize) -> Self {
+        OperatorParams {
+            order,
+            radii: SurfaceRadii::default(),
+            pinv_rcond: None,
+            cache_dir: None,
+        }
+    }
+
+    /// The cutoff actually used for float type `precision`.
+    pub fn rcond_for(&self, precision: Precision) -> f64 {
+        self.pinv_rcond
+            .unwrap_or_else(|| default_pinv_rcond(precision))
+    }
+
+    /// Number of points per surface, `6 (p-1)^2 + 2` (requires a valid order).
+    pub fn n_surface(&self) -> usize {
+        crate::n_surface_points(self.order)
+    }
+
+    /// Check the parameters:
+    /// * `2 <= order <= MAX_ORDER`;
+    /// * all radii finite, `1 < r_ue < r_uc <= 3`, `1 <= r_dc < r_de <= 3`
+    ///   (equivalent surfaces enclose the box, check surfaces lie between
+    ///   the equivalent surface and the far field three half-widths out);
+    /// * `r_ue + r_dc < 4` and `r_ue + r_de <= 4`: for the closest V-list
+    ///   pair (centers two box widths = four half-widths apart) the source's
+    ///   equivalent surface neither meets the target's check surface nor
+    ///   enters its downward equivalent surface;
+    /// * `pinv_rcond`, if given, finite and in `[0, 1)`.
+    pub fn validate(&self) -> Result<(), FieldError> {
+        let bad = |m: String| Err(FieldError::InvalidParams(m));
+        if self.order < 2 {
+            return bad(format!("order must be at least 2, got {}", self.order));
+        }
+        if self.order > MAX_ORDER {
+            return bad(format!(
+                "order must be at most {MAX_ORDER}, got {}",
+                self.order
+            ));
+        }
+        let r = &self.radii;
+        if !r.to_array().iter().all(|x| x.is_finite()) {
+            return bad(format!("surface radii must be finite: {r:?}"));
+        }
+        if !(r.upward_equivalent > 1.0) {
+            return bad(format!(
+                "upward equivalent radius must exceed 1 (enclose the box), got {}",
+                r.upward_equivalent
+            ));
+        }
+        if !(r.upward_equivalent < r.upward_check && r.upward_check <= 3.0) {
+            return bad(format!(
+                "need upward equivalent < upward check <= 3, got {} / {}",
+                r.upward_equivalent, r.upward_check
+            ));
+        }
+        if !(r.downward_check >= 1.0) {
+            return bad(format!(
+                "downward check radius must be at least 1 (enclose the box), got {}",
+                r.downward_check
+            ));
+        }
+        if !(r.downward_check < r.downward_equivalent && r.downward_equivalent <= 3.0) {
+            return bad(format!(
+                "need downward check < downward equivalent <= 3, got {} / {}",
+                r.downward_check, r.downward_equivalent
+            ));
+        }
+        if !(r.upward_equivalent + r.downward_check < 4.0) {
+            return bad(format!(
+                "upward equivalent + downward check radii must be < 4 (surfaces of the closest \
+                 M2L pair would touch), got {} + {}",
+                r.upward_equivalent, r.downward_check
+            ));
+        }
+        if !(r.upward_equivalent + r.downward_equivalent <= 4.0 + 1e-12) {
+            return bad(format!(
+                "upward equivalent + downward equivalent radii must be <= 4, got {} + {}",
+                r.upward_equivalent, r.downward_equivalent
+            ));
+        }
+        if let Some(c) = self.pinv_rcond {
+            if !(c.is_finite() && (0.0..1.0).contains(&c)) {
+                return bad(format!("pinv_rcond must be finite and in [0, 1), got {c}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn validation() {
+        assert!(OperatorParams::new(2).validate().is_ok());
+        assert!(OperatorParams::new(30).validate().is_ok());
+        for p in [0, 1, 31, 1000] {
+            assert!(OperatorParams::new(p).validate().is_err(), "order {p}");
+        }
+        let mut q = OperatorParams::new(4);
+        q.radii.upward_check = 1.0;
+        assert!(q.validate().is_err());
+        let mut q = OperatorParams::new(4);
+        q.radii.downward_equivalent = f64::NAN;
+        assert!(q.validate().is_err());
+        let mut q = OperatorParams::new(4);
+        q.radii.upward_equivalent = 0.9;
+        assert!(q.validate().is_err());
+        let mut q = OperatorParams::new(4);
+        q.radii.downward_check = 3.0;
+        assert!(q.validate().is_err());
+        let mut q = OperatorParams::new(4);
+        q.pinv_rcond = Some(-1.0);
+        assert!(q.validate().is_err());
+        q.pinv_rcond = Some(0.0);
+        assert!(q.validate().is_ok());
+        let mut q = OperatorParams::new(4);
+        q.radii = SurfaceRadii {
+            upward_equivalent: 1.5,
+            upward_check: 2.5,
+            downward_equivalent: 2.9,
+            downward_check: 1.1,
+        };
+        assert!(q.validate().is_err()); // 1.5 + 2.9 > 4
+    }
+}

@@ -1,0 +1,268 @@
+//! The on-disk operator cache: bit-identical round trips, and every kind of
+//! bad file detected and rebuilt.
+
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use ferrofmm_field::{
+    CacheStatus, DenseConfig, DenseM2l, M2lInteractions, M2lScheme, OperatorParams, Operators,
+    SvdConfig, SvdM2l,
+};
+use ferrofmm_kernels::{Laplace3d, ModifiedHelmholtz3d, Real};
+
+/// A fresh, empty directory per test.
+fn temp_dir(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!(
+        "ferrofmm-field-cache-{name}-{}",
+        std::process::id()
+    ));
+    let _ = fs::remove_dir_all(&d);
+    fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn params(p: usize, dir: &Path) -> OperatorParams {
+    let mut params = OperatorParams::new(p);
+    params.cache_dir = Some(dir.to_path_buf());
+    params
+}
+
+/// Everything the operators do to a fixed input, as raw bits.
+fn fingerprint<T: Real>(ops: &Operators<T>) -> Vec<u64> {
+    let n = ops.n_surface();
+    let input: Vec<T> = (0..2 * n)
+        .map(|i| T::from_f64((i as f64 * 0.37).sin()))
+        .collect();
+    let mut out = vec![T::ZERO; 2 * n];
+    let mut bits = Vec::new();
+    for level in 0..=ops.depth() {
+        ops.uc2e(level, &input, &mut out);
+        ops.dc2e(level, &input, &mut out);
+        if level >= 1 {
+            for o in 0..8 {
+                ops.m2m(level, o, &input, &mut out);
+                ops.l2l(level, o, &input, &mut out);
+            }
+        }
+        bits.extend(out.iter().map(|x| x.to_f64().to_bits()));
+    }
+    bits
+}
+
+fn scheme_fingerprint<T: Real, S: M2lScheme<T>>(s: &S, n: usize) -> Vec<u64> {
+    let vs = ferrofmm_field::transfer_vectors();
+    let pairs: Vec<_> = (0..20).map(|i| (i % 3, i % 4, vs[i * 13 % 316])).collect();
+    let inter = M2lInteractions::new(3, 4, &pairs);
+    let m: Vec<T> = (0..4 * n)
+        .map(|i| T::from_f64((i as f64 * 0.11).cos()))
+        .collect();
+    let mut check = vec![T::ZERO; 3 * n];
+    s.apply(2, &inter, &m, &mut check);
+    check.iter().map(|x| x.to_f64().to_bits()).collect()
+}
+
+fn assert_computed(status: &CacheStatus, rejected: bool) -> PathBuf {
+    match status {
+        CacheStatus::Computed {
+            path,
+            rejected: r,
+            write_error,
+        } => {
+            assert_eq!(r.is_some(), rejected, "rejected = {r:?}");
+            assert!(write_error.is_none(), "{write_error:?}");
+            assert!(path.exists());
+            path.clone()
+        }
+        other => panic!("expected a computation, got {other:?}"),
+    }
+}
+
+fn rejection(status: &CacheStatus) -> String {
+    match status {
+        CacheStatus::Computed {
+            rejected: Some(r), ..
+        } => r.clone(),
+        other => panic!("expected a rejected file, got {other:?}"),
+    }
+}
+
+#[test]
+fn round_trip_is_bit_identical() {
+    let dir = temp_dir("roundtrip");
+    let p = params(4, &dir);
+    let a = Operators::<f64>::new(&Laplace3d, &p, 1.0, 3).unwrap();
+    let path = assert_computed(a.cache_status(), false);
+    let b = Operators::<f64>::new(&Laplace3d, &p, 1.0, 3).unwrap();
+    assert_eq!(b.cache_status(), &CacheStatus::Hit { path: path.clone() });
+    assert_eq!(fingerprint(&a), fingerprint(&b));
+    assert_eq!(a.diagnostics(), b.diagnostics());
+    // f32 lives in its own file.
+    let c = Operators::<f32>::new(&Laplace3d, &p, 1.0, 3).unwrap();
+    assert_ne!(assert_computed(c.cache_status(), false), path);
+    let d = Operators::<f32>::new(&Laplace3d, &p, 1.0, 3).unwrap();
+    assert!(d.cache_status().is_hit());
+    assert_eq!(fingerprint(&c), fingerprint(&d));
+    // A homogeneous kernel's file does not depend on the domain or depth...
+    let e = Operators::<f64>::new(&Laplace3d, &p, 7.0, 5).unwrap();
+    assert!(e.cache_status().is_hit());
+    // ...a non-homogeneous kernel's does.
+    let k = ModifiedHelmholtz3d::new(2.0).unwrap();
+    let f = Operators::<f64>::new(&k, &p, 1.0, 3).unwrap();
+    assert_computed(f.cache_status(), false);
+    let g = Operators::<f64>::new(&k, &p, 1.0, 3).unwrap();
+    assert!(g.cache_status().is_hit());
+    assert_eq!(fingerprint(&f), fingerprint(&g));
+    let h = Operators::<f64>::new(&k, &p, 2.0, 3).unwrap();
+    assert_computed(h.cache_status(), false);
+
+    // M2L schemes.
+    let n = a.n_surface();
+    let d1 = DenseM2l::<f64>::precompute(&Laplace3d, &p, &DenseConfig, 1.0, 3).unwrap();
+    assert_computed(&d1.cache_status(), false);
+    let d2 = DenseM2l::<f64>::precompute(&Laplace3d, &p, &DenseConfig, 1.0, 3).unwrap();
+    assert!(d2.cache_status().is_hit());
+    assert_eq!(scheme_fingerprint(&d1, n), scheme_fingerprint(&d2, n));
+    let cfg = SvdConfig {
+        rank: None,
+        tolerance: 1e-4,
+    };
+    let s1 = SvdM2l::<f32>::precompute(&Laplace3d, &p, &cfg, 1.0, 3).unwrap();
+    assert_computed(&s1.cache_status(), false);
+    let s2 = SvdM2l::<f32>::precompute(&Laplace3d, &p, &cfg, 1.0, 3).unwrap();
+    assert!(s2.cache_status().is_hit());
+    assert_eq!(s1.rank(), s2.rank());
+    assert_eq!(scheme_fingerprint(&s1, n), scheme_fingerprint(&s2, n));
+    // Another tolerance is another file.
+    let s3 = SvdM2l::<f32>::precompute(
+        &Laplace3d,
+        &p,
+        &SvdConfig {
+            rank: None,
+            tolerance: 1e-3,
+        },
+        1.0,
+        3,
+    )
+    .unwrap();
+    assert_computed(&s3.cache_status(), false);
+    assert!(s3.rank() < s1.rank());
+    let _ = fs::remove_dir_all(&dir);
+}
+
+/// Damage the cache file of `Operators` p=4 with `damage`, check that the
+/// next construction rejects it for `reason`, rebuilds identical operators
+/// and rewrites a good file.
+fn damaged_file_is_rebuilt(name: &str, reason: &str, damage: impl FnOnce(&Path)) {
+    let dir = temp_dir(name);
+    let p = params(4, &dir);
+    let a = Operators::<f64>::new(&Laplace3d, &p, 1.0, 2).unwrap();
+    let path = assert_computed(a.cache_status(), false);
+    damage(&path);
+    let b = Operators::<f64>::new(&Laplace3d, &p, 1.0, 2).unwrap();
+    let why = rejection(b.cache_status());
+    assert!(
+        why.contains(reason),
+        "rejection {why:?} does not mention {reason:?}"
+    );
+    assert_eq!(fingerprint(&a), fingerprint(&b));
+    let c = Operators::<f64>::new(&Laplace3d, &p, 1.0, 2).unwrap();
+    assert!(
+        c.cache_status().is_hit(),
+        "file was not rewritten: {:?}",
+        c.cache_status()
+    );
+    assert_eq!(fingerprint(&a), fingerprint(&c));
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn truncated_file_is_rebuilt() {
+    damaged_file_is_rebuilt("truncated", "truncated", |path| {
+        let bytes = fs::read(path).unwrap();
+        fs::write(path, &bytes[..bytes.len() - 1000]).unwrap();
+    });
+    // Cut inside the header too.
+    damaged_file_is_rebuilt("truncated-header", "truncated", |path| {
+        let bytes = fs::read(path).unwrap();
+        fs::write(path, &bytes[..40]).unwrap();
+    });
+}
+
+#[test]
+fn corrupted_payload_is_rebuilt() {
+    damaged_file_is_rebuilt("corrupt", "checksum", |path| {
+        let mut bytes = fs::read(path).unwrap();
+        let i = bytes.len() - 12345;
+        bytes[i] ^= 0x10;
+        fs::write(path, &bytes).unwrap();
+    });
+}
+
+#[test]
+fn wrong_version_is_rebuilt() {
+    damaged_file_is_rebuilt("version", "format version", |path| {
+        let mut bytes = fs::read(path).unwrap();
+        bytes[8..12].copy_from_slice(&(ferrofmm_field::CACHE_FORMAT_VERSION + 1).to_le_bytes());
+        fs::write(path, &bytes).unwrap();
+    });
+    damaged_file_is_rebuilt("magic", "magic", |path| {
+        let mut bytes = fs::read(path).unwrap();
+        bytes[0] = b'X';
+        fs::write(path, &bytes).unwrap();
+    });
+}
+
+#[test]
+fn file_of_other_parameters_is_rebuilt() {
+    // A file written for p = 5 placed where the p = 4 file belongs.
+    let dir = temp_dir("other-params");
+    let other = Operators::<f64>::new(&Laplace3d, &params(5, &dir), 1.0, 2).unwrap();
+    let other_path = assert_computed(other.cache_status(), false);
+    damaged_file_is_rebuilt("other-params-order", "stale", |path| {
+        fs::copy(&other_path, path).unwrap();
+    });
+    // Another cutoff.
+    let mut p2 = params(4, &dir);
+    p2.pinv_rcond = Some(1e-6);
+    let other = Operators::<f64>::new(&Laplace3d, &p2, 1.0, 2).unwrap();
+    let other_path = assert_computed(other.cache_status(), false);
+    damaged_file_is_rebuilt("other-params-rcond", "stale", |path| {
+        fs::copy(&other_path, path).unwrap();
+    });
+    // Another kernel parameter (same name, different k) for an M2L scheme.
+    let (k1, k2) = (
+        ModifiedHelmholtz3d::new(1.0).unwrap(),
+        ModifiedHelmholtz3d::new(2.0).unwrap(),
+    );
+    let p = params(3, &dir);
+    let a = DenseM2l::<f64>::precompute(&k1, &p, &DenseConfig, 1.0, 2).unwrap();
+    let pa = assert_computed(&a.cache_status(), false);
+    let b = DenseM2l::<f64>::precompute(&k2, &p, &DenseConfig, 1.0, 2).unwrap();
+    let pb = assert_computed(&b.cache_status(), false);
+    assert_ne!(pa, pb);
+    fs::copy(&pa, &pb).unwrap();
+    let c = DenseM2l::<f64>::precompute(&k2, &p, &DenseConfig, 1.0, 2).unwrap();
+    assert!(rejection(&c.cache_status()).contains("stale"));
+    assert_eq!(scheme_fingerprint(&b, 26), scheme_fingerprint(&c, 26));
+    let _ = fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn unwritable_cache_does_not_fail_the_computation() {
+    let dir = temp_dir("unwritable");
+    let blocker = dir.join("a-file");
+    fs::write(&blocker, b"not a directory").unwrap();
+    let p = params(3, &blocker.join("sub"));
+    let a = Operators::<f64>::new(&Laplace3d, &p, 1.0, 2).unwrap();
+    match a.cache_status() {
+        CacheStatus::Computed {
+            write_error: Some(e),
+            ..
+        } => println!("write error reported: {e}"),
+        other => panic!("expected a write error, got {other:?}"),
+    }
+    let plain = Operators::<f64>::new(&Laplace3d, &OperatorParams::new(3), 1.0, 2).unwrap();
+    assert_eq!(plain.cache_status(), &CacheStatus::Disabled);
+    assert_eq!(fingerprint(&a), fingerprint(&plain));
+    let _ = fs::remove_dir_all(&dir);
+}

@@ -1,0 +1,220 @@
+//! [`FmmBuilder`]: collect the problem and the parameters, validate them,
+//! then build the tree and the operators once.
+
+use std::path::PathBuf;
+
+use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdM2l};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
+use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
+
+use crate::{Fmm, FmmError};
+
+/// Smallest supported expansion order.
+pub const MIN_ORDER: usize = 2;
+/// Largest supported expansion order (beyond it even f64 check-to-equivalent
+/// inversion has no digits left; see docs/stability.md).
+pub const MAX_ORDER: usize = 20;
+/// Default points per leaf: measured best for Laplace in f64 around p = 6 on
+/// a 2-core AVX-512 machine (docs/performance.md).
+pub const DEFAULT_LEAF_SIZE: usize = 150;
+/// Default expansion order.
+pub const DEFAULT_ORDER: usize = 6;
+
+/// Builder of an [`Fmm`].
+///
+/// ```no_run
+/// use ferrofmm_fmm::FmmBuilder;
+/// use ferrofmm_kernels::EvalMode;
+///
+/// let sources: Vec<f64> = (0..3000).map(|i| ((i * 7919) % 1000) as f64 / 1000.0).collect();
+/// let charges = vec![1.0; 1000];
+/// let fmm = FmmBuilder::new(&sources)
+///     .order(6)
+///     .leaf_size(64)
+///     .mode(EvalMode::PotentialGradient)
+///     .build_svd()
+///     .unwrap();
+/// let out = fmm.evaluate(&charges).unwrap(); // [phi, gx, gy, gz] per target
+/// assert_eq!(out.len(), 4 * 1000);
+/// ```
+#[derive(Clone, Debug)]
+pub struct FmmBuilder<'a, T: Real, K: Kernel> {
+    pub(crate) sources: &'a [T],
+    pub(crate) targets: Option<&'a [T]>,
+    pub(crate) kernel: K,
+    pub(crate) order: usize,
+    pub(crate) leaf_size: usize,
+    pub(crate) mode: EvalMode,
+    pub(crate) radii: SurfaceRadii,
+    pub(crate) pinv_rcond: Option<f64>,
+    pub(crate) cache_dir: Option<PathBuf>,
+    pub(crate) domain: Option<Domain>,
+    pub(crate) max_level: u32,
+}
+
+impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
+    /// Start from the sources (interleaved `x, y, z`), with the Laplace
+    /// kernel `1 / (4 pi r)`, order [`DEFAULT_ORDER`], leaf size
+    /// [`DEFAULT_LEAF_SIZE`], potentials only, and the targets equal to the
+    /// sources.
+    pub fn new(sources: &'a [T]) -> Self {
+        FmmBuilder {
+            sources,
+            targets: None,
+            kernel: Laplace3d,
+            order: DEFAULT_ORDER,
+            leaf_size: DEFAULT_LEAF_SIZE,
+            mode: EvalMode::Potential,
+            radii: SurfaceRadii::default(),
+            pinv_rcond: None,
+            cache_dir: None,
+            domain: None,
+            max_level: DEEPEST_LEVEL,
+        }
+    }
+}
+
+impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
+    /// Use another kernel (any [`Kernel`], including your own).
+    pub fn kernel<K2: Kernel>(self, kernel: K2) -> FmmBuilder<'a, T, K2> {
+        FmmBuilder {
+            sources: self.sources,
+            targets: self.targets,
+            kernel,
+            order: self.order,
+            leaf_size: self.leaf_size,
+            mode: self.mode,
+            radii: self.radii,
+            pinv_rcond: self.pinv_rcond,
+            cache_dir: self.cache_dir,
+            domain: self.domain,
+            max_level: self.max_level,
+        }
+    }
+
+    /// Evaluate at these targets (interleaved `x, y, z`) instead of at the sources.
+    pub fn targets(mut self, targets: &'a [T]) -> Self {
+        self.targets = Some(targets);
+        self
+    }
+
+    /// Expansion order `p`: each box carries `6 (p - 1)^2 + 2` equivalent
+    /// densities. The error falls roughly 7-10x per order.
+    pub fn order(mut self, order: usize) -> Self {
+        self.order = order;
+        self
+    }
+
+    /// Largest number of points in a leaf before it is split.
+    pub fn leaf_size(mut self, leaf_size: usize) -> Self {
+        self.leaf_size = leaf_size;
+        self
+    }
+
+    /// Potentials only, or potentials and gradients.
+    pub fn mode(mut self, mode: EvalMode) -> Self {
+        self.mode = mode;
+        self
+    }
+
+    /// Radii of the check and equivalent surfaces (multiples of the box half-width).
+    pub fn surface_radii(mut self, radii: SurfaceRadii) -> Self {
+        self.radii = radii;
+        self
+    }
+
+    /// Relative singular-value cutoff of the check-to-equivalent
+    /// pseudo-inverses (`None`: the float type's default; `Some(0.0)`: none).
+    pub fn pinv_rcond(mut self, rcond: Option<f64>) -> Self {
+        self.pinv_rcond = rcond;
+        self
+    }
+
+    /// Directory for the on-disk operator cache (none by default).
+    pub fn cache_dir(mut self, dir: impl Into<PathBuf>) -> Self {
+        self.cache_dir = Some(dir.into());
+        self
+    }
+
+    /// Use this bounding cube instead of the points' own.
+    pub fn domain(mut self, domain: Domain) -> Self {
+        self.domain = Some(domain);
+        self
+    }
+
+    /// Deepest tree level allowed (at most [`DEEPEST_LEVEL`]).
+    pub fn max_level(mut self, level: u32) -> Self {
+        self.max_level = level;
+        self
+    }
+
+    /// Operator parameters as they will be used.
+    pub(crate) fn operator_params(&self) -> OperatorParams {
+        let mut params = OperatorParams::new(self.order);
+        params.radii = self.radii;
+        params.pinv_rcond = self.pinv_rcond;
+        params.cache_dir = self.cache_dir.clone();
+        params
+    }
+
+    /// Check every parameter and every coordinate before any work.
+    pub(crate) fn validate(&self) -> Result<(), FmmError> {
+        if !(MIN_ORDER..=MAX_ORDER).contains(&self.order) {
+            return Err(FmmError::InvalidOrder {
+                order: self.order,
+                min: MIN_ORDER,
+                max: MAX_ORDER,
+            });
+        }
+        if self.leaf_size == 0 {
+            return Err(FmmError::InvalidLeafSize(0));
+        }
+        if self.max_level > DEEPEST_LEVEL {
+            return Err(FmmError::InvalidParameter(format!(
+                "max_level {} exceeds the deepest level {DEEPEST_LEVEL} a Morton key can hold",
+                self.max_level
+            )));
+        }
+        check_points("sources", self.sources)?;
+        if let Some(t) = self.targets {
+            check_points("targets", t)?;
+        }
+        Ok(())
+    }
+
+    /// Build with the M2L scheme `S` and its configuration.
+    pub fn build_with<S: M2lScheme<T>>(self, config: S::Config) -> Result<Fmm<T, K, S>, FmmError> {
+        Fmm::build(self, config)
+    }
+
+    /// Build with the SVD-compressed M2L scheme (the default choice).
+    pub fn build_svd(self) -> Result<Fmm<T, K, SvdM2l<T>>, FmmError> {
+        self.build_with(Default::default())
+    }
+
+    /// Build with the dense (reference) M2L scheme.
+    pub fn build_dense(self) -> Result<Fmm<T, K, DenseM2l<T>>, FmmError> {
+        self.build_with(Default::default())
+    }
+}
+
+/// Non-empty, a multiple of 3, all finite.
+pub(crate) fn check_points<T: Real>(what: &'static str, points: &[T]) -> Result<(), FmmError> {
+    if points.is_empty() {
+        return Err(FmmError::Empty(what));
+    }
+    if points.len() % 3 != 0 {
+        return Err(FmmError::RaggedPoints {
+            what,
+            len: points.len(),
+        });
+    }
+    if let Some(index) = points.iter().position(|x| !x.is_finite()) {
+        return Err(FmmError::NonFiniteCoordinate {
+            what,
+            index,
+            value: points[index].to_f64(),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,40 @@
+//! # ferrofmm-fmm
+//!
+//! The kernel-independent fast multipole method (KIFMM, Ying, Biros & Zorin
+//! 2004) driver: it computes
+//!
+//! ```text
+//! phi(y_j) = sum_i K(x_i, y_j) q_i        (K(x, x) := 0)
+//! ```
+//!
+//! for N sources and M targets in O(N + M) work, to an accuracy set by the
+//! expansion order `p`, for any [`ferrofmm_kernels::Kernel`] and any
+//! [`ferrofmm_field::M2lScheme`].
+//!
+//! Build once with [`FmmBuilder`], then call [`Fmm::evaluate`] for as many
+//! charge vectors as needed. All passes run in parallel with rayon (over
+//! leaves and over the boxes of a level); dense operators are applied to
+//! whole levels at once as matrix-matrix products.
+//!
+//! Each box `B` of the adaptive, 2:1-balanced octree carries an upward
+//! equivalent density `u_B` (its multipole expansion) and a downward
+//! equivalent density `d_B` (its local expansion) on `6 (p - 1)^2 + 2`
+//! points of a cube surface. The eight operators (see the `passes` module
+//! docs): P2M, M2M, M2L over V lists, P2L over X lists, L2L, L2P, M2P over
+//! W lists, P2P over U lists.
+
+pub mod accuracy;
+mod batch;
+mod builder;
+pub mod data;
+mod error;
+mod fmm;
+mod passes;
+mod timings;
+
+pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
+pub use accuracy::{ErrorReport, relative_errors, sample_indices};
+pub use data::{Geometry, charges};
+pub use error::FmmError;
+pub use fmm::{Fmm, FmmSummary};
+pub use timings::{EvalTimings, SetupTimings};

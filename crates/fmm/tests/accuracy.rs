@@ -1,0 +1,120 @@
+//! FMM against direct summation: the error bounds users are promised.
+//!
+//! Tolerances follow from the expansion order: the relative L2 error of the
+//! potential falls roughly 7-10x per order (p = 6: ~1e-5..1e-6; p = 10:
+//! ~1e-8..1e-9), and the promises (p = 6: 1e-4 potential, 1e-3
+//! gradient; p = 10: 1e-6) leave a margin for the geometry.
+
+use ferrofmm_fmm::{ErrorReport, FmmBuilder, Geometry, charges, relative_errors, sample_indices};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
+
+const N: usize = 20_000;
+
+fn run<T: Real, K: Kernel>(
+    kernel: K,
+    geometry: Geometry,
+    n: usize,
+    order: usize,
+    mode: EvalMode,
+    dense: bool,
+) -> ErrorReport {
+    let points: Vec<T> = geometry.points(n, 7);
+    let q: Vec<T> = charges(n, 11);
+    let builder = FmmBuilder::new(&points).kernel(kernel.clone()).order(order).leaf_size(64).mode(mode);
+    let values = if dense {
+        builder.build_dense().unwrap().evaluate(&q).unwrap()
+    } else {
+        builder.build_svd().unwrap().evaluate(&q).unwrap()
+    };
+    let report = relative_errors(&kernel, mode, &points, &q, &points, &values, &sample_indices(n, 1000));
+    eprintln!(
+        "{} {:?} {} n={n} p={order} {:?} dense={dense}: potential {:.2e} gradient {:?}",
+        kernel.name(),
+        geometry,
+        T::PRECISION.name(),
+        mode,
+        report.potential,
+        report.gradient
+    );
+    report
+}
+
+#[test]
+fn laplace_f64_p6_cube_and_sphere_meet_bounds() {
+    for g in [Geometry::Cube, Geometry::Sphere] {
+        let e = run::<f64, _>(Laplace3d, g, N, 6, EvalMode::PotentialGradient, false);
+        assert!(e.potential <= 1e-4, "{g:?}: potential error {:.3e}", e.potential);
+        assert!(e.gradient.unwrap() <= 1e-3, "{g:?}: gradient error {:?}", e.gradient);
+    }
+}
+
+#[test]
+fn laplace_f64_p10_reaches_1e6() {
+    let e = run::<f64, _>(Laplace3d, Geometry::Cube, N, 10, EvalMode::Potential, false);
+    assert!(e.potential <= 1e-6, "potential error {:.3e}", e.potential);
+}
+
+#[test]
+fn error_falls_with_order() {
+    let errors: Vec<f64> = [3, 5, 7, 9]
+        .iter()
+        .map(|&p| run::<f64, _>(Laplace3d, Geometry::Cube, 8000, p, EvalMode::Potential, false).potential)
+        .collect();
+    for w in errors.windows(2) {
+        // Two orders up buys at least a factor 10 (typically ~50-100).
+        assert!(w[1] < w[0] / 10.0, "errors do not fall with p: {errors:?}");
+    }
+}
+
+#[test]
+fn laplace_f32_p6_reaches_1e4() {
+    let e = run::<f32, _>(Laplace3d, Geometry::Cube, N, 6, EvalMode::PotentialGradient, false);
+    assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
+    assert!(e.gradient.unwrap() <= 1e-3, "gradient error {:?}", e.gradient);
+}
+
+#[test]
+fn adaptive_clustered_inputs_meet_bounds() {
+    for g in [Geometry::Plummer, Geometry::TwoClusters] {
+        let e = run::<f64, _>(Laplace3d, g, N, 6, EvalMode::PotentialGradient, false);
+        assert!(e.potential <= 1e-4, "{g:?}: potential error {:.3e}", e.potential);
+        assert!(e.gradient.unwrap() <= 1e-3, "{g:?}: gradient error {:?}", e.gradient);
+    }
+}
+
+#[test]
+fn dense_scheme_meets_the_same_bound() {
+    let e = run::<f64, _>(Laplace3d, Geometry::Plummer, 8000, 6, EvalMode::Potential, true);
+    assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
+}
+
+#[test]
+fn modified_helmholtz_through_the_same_driver() {
+    let k = ModifiedHelmholtz3d::new(2.0).unwrap();
+    let e = run::<f64, _>(k, Geometry::Cube, 8000, 6, EvalMode::PotentialGradient, false);
+    assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
+    assert!(e.gradient.unwrap() <= 1e-3, "gradient error {:?}", e.gradient);
+}
+
+#[test]
+fn separate_targets_and_several_charge_vectors() {
+    let sources: Vec<f64> = Geometry::Cube.points(6000, 1);
+    let targets: Vec<f64> = Geometry::Sphere.points(3000, 2);
+    let q1: Vec<f64> = charges(6000, 3);
+    let q2: Vec<f64> = charges(6000, 4);
+    let fmm = FmmBuilder::new(&sources)
+        .targets(&targets)
+        .order(6)
+        .leaf_size(64)
+        .build_svd()
+        .unwrap();
+    let both: Vec<f64> = q1.iter().chain(&q2).copied().collect();
+    let many = fmm.evaluate_many(&both, 2).unwrap();
+    let one = fmm.evaluate(&q1).unwrap();
+    let two = fmm.evaluate(&q2).unwrap();
+    assert_eq!(&many[..3000], &one[..]);
+    assert_eq!(&many[3000..], &two[..]);
+    let sample = sample_indices(3000, 500);
+    let e = relative_errors(&Laplace3d, EvalMode::Potential, &sources, &q2, &targets, &two, &sample);
+    assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
+}

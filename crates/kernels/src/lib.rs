@@ -1,0 +1,83 @@
+//! # ferrofmm-kernels
+//!
+//! The [`Kernel`] trait through which the whole FMM sees a Green's function,
+//! the kernels we ship ([`Laplace3d`], [`ModifiedHelmholtz3d`]), fast
+//! particle-to-particle (P2P) evaluation with runtime CPU dispatch
+//! ([`laplace_p2p_with`], [`modified_helmholtz_p2p_with`], [`SimdLevel`]),
+//! dense kernel matrices ([`laplace_assemble_with`]), and parallel direct
+//! summation ([`direct_sum`], [`direct_sum_checked`], [`check_inputs`]).
+//!
+//! ```
+//! use ferrofmm_kernels::{direct_sum, EvalMode, Laplace3d};
+//! // Two unit charges; potential and gradient at a third point.
+//! let sources = [0.0f64, 0.0, 0.0, 0.0, 0.0, 1.0];
+//! let charges = [1.0f64, 1.0];
+//! let targets = [0.0f64, 0.0, 0.5];
+//! let mut out = [0.0f64; 4]; // [phi, dphi/dx, dphi/dy, dphi/dz]
+//! direct_sum(&Laplace3d, EvalMode::PotentialGradient, &sources, &charges, &targets, &mut out);
+//! let k = 1.0 / (4.0 * std::f64::consts::PI);
+//! assert!((out[0] - 4.0 * k).abs() < 1e-15);
+//! assert!(out[3].abs() < 1e-15); // symmetric: no force along z
+//! ```
+//!
+//! ## Data layout
+//!
+//! * **Points are interleaved** `[x0, y0, z0, x1, y1, z1, ...]`; charges hold
+//!   one value per source; outputs hold 1 (`[phi]`) or 4 (`[phi, gx, gy, gz]`)
+//!   values per target, interleaved ([`EvalMode::values_per_target`]).
+//!   Every crate of the workspace uses this layout.
+//! * Why not structure-of-arrays? It is what users hold (`&[[f64; 3]]` casts
+//!   to it for free), the tree sorts and gathers points as one contiguous
+//!   record each, and the P2P does not need SoA: it vectorises over
+//!   **targets** ("target lanes"). A block of 8 (`f64`) or 16 (`f32`) targets
+//!   per register is de-interleaved once into registers and stays there,
+//!   together with its accumulators, while the loop streams over the sources,
+//!   each of which is just three scalar broadcasts (plus the charge) from one
+//!   cache line, whatever the layout. The de-interleave costs `O(block)` and
+//!   is amortised over all sources (a few hundred in an FMM leaf pair); no
+//!   horizontal reductions are needed, and each target's sum runs in source
+//!   order like the scalar reference. Dense assembly, which is unit-stride in
+//!   sources, de-interleaves the sources once per matrix instead.
+//!
+//! ## Vectorisation and dispatch
+//!
+//! The crate builds for the portable baseline (no `-C target-cpu`). Hot loops
+//! exist as AVX-512F and AVX2+FMA versions (`#[target_feature]`, chosen at
+//! run time by [`SimdLevel::detected`], cached) and as portable lane-chunked
+//! Rust that also serves other architectures. [`SimdLevel`] lets tests and
+//! benchmarks force a level, per call ([`laplace_p2p_with`]) or globally
+//! ([`set_simd_level`], env `FERROFMM_SIMD=scalar|avx2|avx512`). The AVX-512
+//! path uses `vrsqrt14` with a polynomial refinement to full precision; see
+//! the [`laplace_p2p_with`] docs for the error analysis. The modified
+//! Helmholtz P2P ([`modified_helmholtz_p2p_with`]) is one portable
+//! lane-chunked loop with a polynomial `exp`, compiled for each level.
+//!
+//! ## Conventions
+//!
+//! `K(x, x) := 0`: coincident pairs contribute exactly zero in every path
+//! (masked in SIMD code, never NaN or Inf). `evaluate` accumulates into its
+//! output. Everything is generic over [`Real`] (`f32`, `f64`).
+
+#![warn(missing_docs)]
+
+mod direct;
+mod error;
+mod fast_exp;
+mod helmholtz;
+mod helmholtz_p2p;
+mod kernel;
+mod laplace;
+mod laplace_simd;
+mod real;
+pub mod reference;
+mod simd;
+
+pub use direct::{DIRECT_SUM_BLOCK, check_inputs, direct_sum, direct_sum_checked};
+pub use error::KernelError;
+pub use helmholtz::ModifiedHelmholtz3d;
+pub use helmholtz_p2p::modified_helmholtz_p2p_with;
+pub use kernel::{EvalMode, Kernel};
+pub use laplace::Laplace3d;
+pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
+pub use real::{Precision, Real};
+pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};

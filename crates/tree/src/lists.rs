@@ -1,0 +1,490 @@
+//! Interaction lists of the adaptive FMM (Ying, Biros & Zorin 2004).
+//!
+//! # Definitions
+//!
+//! Two boxes are *adjacent* when they touch (share a face, edge or corner)
+//! and neither contains the other ([`MortonKey::is_adjacent`]); the
+//! *colleagues* of a box are the adjacent boxes of its own level. For a
+//! **target box** `B` of level `l`:
+//!
+//! * **U(B)**, `B` a leaf: the leaves adjacent to `B`, and `B` itself.
+//!   Direct evaluation (P2P).
+//! * **V(B)**, any box: the children of the colleagues of `parent(B)` that are
+//!   not adjacent to `B` — same-level, well-separated boxes (M2L). At most
+//!   `6^3 - 3^3 = 189`.
+//! * **W(B)**, `B` a leaf: the descendants `A` of `B`'s colleagues that are
+//!   not adjacent to `B` while `parent(A)` is. `A`'s multipole expansion is
+//!   evaluated at `B`'s targets (M2P).
+//! * **X(B)**, any box: the dual of W, `A ∈ X(B)` iff `B ∈ W(A)`. `A` is
+//!   then a leaf coarser than `B`, adjacent to `parent(B)` but not to `B`;
+//!   its sources go into `B`'s local expansion (P2L).
+//!
+//! **Pruning.** Only boxes holding a source or a target exist, and an entry
+//! `A` of a list of `B` is kept only if `A` holds at least one source and
+//! `B` at least one target. Boxes without targets have empty lists.
+//!
+//! # Why every interaction is counted exactly once
+//!
+//! Take a target leaf `B` and a source leaf `A`. If they are equal or
+//! adjacent, `A ∈ U(B)`. Otherwise look at their ancestors level by level:
+//! they are equal at level 0, and once two same-level ancestors are not
+//! adjacent, neither are their descendants. Let `m` be the first level where
+//! they are neither equal nor adjacent.
+//!
+//! * If both have an ancestor at level `m` (`A'`, `B'`), then `A' ∈ V(B')`,
+//!   because their parents are colleagues.
+//! * If `B` is coarser than `m`, `A`'s ancestor at `B`'s level is a colleague
+//!   of `B`; going down towards `A`, the first ancestor not adjacent to `B` is
+//!   in `W(B)`.
+//! * If `A` is coarser than `m`, symmetrically `A ∈ X(B')` for the first
+//!   ancestor `B'` of `B` not adjacent to `A`.
+//!
+//! The three cases exclude each other and the entry in each is unique. So
+//! the far field of `B` is: V lists of `B` and its ancestors (passed down by
+//! L2L), X lists of `B` and its ancestors (likewise), and `W(B)`; the near
+//! field is `U(B)`.
+//!
+//! # Sizes
+//!
+//! With the balance condition of [`balance`](crate::balance), internal boxes
+//! adjacent to a leaf of level `l` are at level `<= l`, so W entries are
+//! children of colleagues: at most `6·4 + 12·6 + 8·7 = 152` (the children of
+//! a face, edge or corner colleague that do not touch `B`), attained when all
+//! 26 colleagues are split into 8 children. X entries are leaves of level
+//! `l - 1` adjacent to `parent(B)` but not to `B`: at most `26 - 7 = 19`. U
+//! entries are `B` plus leaves covering the 56 cells of level `l + 1` around
+//! `B`: at most 57.
+//!
+//! # Storage and order
+//!
+//! Each list is a [`Csr`]: row `b` is `indices[offsets[b]..offsets[b + 1]]`,
+//! ascending box indices (so by level, then Morton order). Lists are built in
+//! parallel over boxes from the [colleague table](crate::Octree::colleague),
+//! without any search.
+
+use rayon::prelude::*;
+
+use crate::MortonKey;
+use crate::neighbours::{index_offset, level_coords};
+use crate::octree::Octree;
+
+/// A list per box in compressed sparse row form.
+#[derive(Clone, Debug, Default)]
+pub struct Csr {
+    offsets: Vec<usize>,
+    indices: Vec<usize>,
+}
+
+impl Csr {
+    /// Row `b`: the entries of box `b`.
+    #[inline]
+    pub fn get(&self, b: usize) -> &[usize] {
+        &self.indices[self.offsets[b]..self.offsets[b + 1]]
+    }
+
+    /// Row offsets (`n_rows() + 1` entries, starting at 0).
+    pub fn offsets(&self) -> &[usize] {
+        &self.offsets
+    }
+
+    /// All entries, row after row.
+    pub fn indices(&self) -> &[usize] {
+        &self.indices
+    }
+
+    /// Number of rows (boxes).
+    pub fn n_rows(&self) -> usize {
+        self.offsets.len().saturating_sub(1)
+    }
+
+    /// Total number of entries.
+    pub fn n_entries(&self) -> usize {
+        self.indices.len()
+    }
+
+    /// Length of the longest row (0 if none).
+    pub fn max_row_len(&self) -> usize {
+        self.offsets
+            .windows(2)
+            .map(|w| w[1] - w[0])
+            .max()
+            .unwrap_or(0)
+    }
+
+    /// Builds `n` rows in parallel; `row(b, out)` appends row `b` to `out`.
+    fn build<F>(n: usize, row: F) -> Self
+    where
+        F: Fn(usize, &mut Vec<usize>) + Sync,
+    {
+        const CHUNK: usize = 256;
+        let parts: Vec<(Vec<usize>, Vec<usize>)> = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|c| {
+                let boxes = c * CHUNK..n.min((c + 1) * CHUNK);
+                let mut lens = Vec::with_capacity(boxes.len());
+                let mut idx = Vec::new();
+                for b in boxes {
+                    let before = idx.len();
+                    row(b, &mut idx);
+                    lens.push(idx.len() - before);
+                }
+                (lens, idx)
+            })
+            .collect();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0);
+        let mut starts = Vec::with_capacity(parts.len());
+        for (lens, _) in &parts {
+            starts.push(*offsets.last().unwrap_or(&0));
+            for len in lens {
+                offsets.push(offsets.last().copied().unwrap_or(0) + len);
+            }
+        }
+        // Copy the parts into place in parallel.
+        let mut indices = vec![0usize; offsets[n]];
+        let mut slices = Vec::with_capacity(parts.len());
+        let mut rest: &mut [usize] = &mut indices;
+        for (_, idx) in &parts {
+            let (head, tail) = rest.split_at_mut(idx.len());
+            slices.push(head);
+            rest = tail;
+        }
+        slices
+            .into_par_iter()
+            .zip(parts.par_iter())
+            .for_each(|(dst, (_, src))| dst.copy_from_slice(src));
+        Csr { offsets, indices }
+    }
+}
+
+impl Csr {
+    /// Builds `n` rows in two passes: `count(b)` gives the length of row
+    /// `b`, then `fill(scratch, b, row)` writes it in place (in parallel;
+    /// `scratch` is per work chunk of consecutive boxes).
+    fn build_counted<S, C, F>(n: usize, count: C, fill: F) -> Self
+    where
+        S: Default,
+        C: Fn(usize) -> usize + Sync,
+        F: Fn(&mut S, usize, &mut [usize]) + Sync,
+    {
+        const CHUNK: usize = 256;
+        let counts: Vec<usize> = (0..n).into_par_iter().map(&count).collect();
+        let mut offsets = Vec::with_capacity(n + 1);
+        offsets.push(0);
+        for &c in &counts {
+            offsets.push(offsets.last().copied().unwrap_or(0) + c);
+        }
+        let mut indices = vec![0usize; offsets[n]];
+        let mut slices = Vec::with_capacity(n.div_ceil(CHUNK));
+        let mut rest: &mut [usize] = &mut indices;
+        for c in 0..n.div_ceil(CHUNK) {
+            let (s, e) = (c * CHUNK, n.min((c + 1) * CHUNK));
+            let (head, tail) = rest.split_at_mut(offsets[e] - offsets[s]);
+            slices.push(head);
+            rest = tail;
+        }
+        slices.into_par_iter().enumerate().for_each(|(c, slice)| {
+            let mut scratch = S::default();
+            let mut pos = 0;
+            for b in c * CHUNK..n.min((c + 1) * CHUNK) {
+                fill(&mut scratch, b, &mut slice[pos..pos + counts[b]]);
+                pos += counts[b];
+            }
+        });
+        Csr { offsets, indices }
+    }
+}
+
+/// The U, V, W and X lists of a tree (see the [module documentation](self)).
+#[derive(Clone, Debug, Default)]
+pub struct InteractionLists {
+    /// Near field: adjacent leaves and the box itself (P2P).
+    pub u: Csr,
+    /// Same-level well-separated boxes (M2L).
+    pub v: Csr,
+    /// Finer well-separated boxes near a leaf (M2P).
+    pub w: Csr,
+    /// Coarser well-separated leaves (P2L).
+    pub x: Csr,
+}
+
+impl InteractionLists {
+    /// Builds all four lists for `tree` (its structure and colleague table
+    /// must be complete).
+    pub(crate) fn build(tree: &Octree) -> Self {
+        let n = tree.n_boxes();
+        InteractionLists {
+            u: Csr::build(n, |b, out| u_row(tree, b, out)),
+            v: Csr::build_counted(n, |b| v_count(tree, b), |s, b, row| v_fill(tree, s, b, row)),
+            w: Csr::build(n, |b, out| w_row(tree, b, out)),
+            x: Csr::build(n, |b, out| x_row(tree, b, out)),
+        }
+    }
+}
+
+/// What covers the region of the same-level neighbour of `b` at table index
+/// `i`.
+enum Cover {
+    /// The neighbour exists.
+    Same(usize),
+    /// It does not, and lies in this coarser leaf.
+    CoarseLeaf(usize),
+    /// It holds no point (or lies outside the domain).
+    Empty,
+}
+
+fn cover(tree: &Octree, b: usize, i: usize) -> Cover {
+    let o = index_offset(i);
+    if let Some(n) = tree.colleague(b, o) {
+        return Cover::Same(n);
+    }
+    let level = tree.level(b);
+    let size = 1i64 << level;
+    let own = level_coords(tree, b);
+    let c: [i64; 3] = std::array::from_fn(|a| own[a] + o[a] as i64);
+    if c.iter().any(|&x| x < 0 || x >= size) {
+        return Cover::Empty;
+    }
+    let mut ancestor = b;
+    for up in 1..=level {
+        ancestor = tree.parent(ancestor).expect("ancestor above the root");
+        let off: [i32; 3] = std::array::from_fn(|a| ((c[a] >> up) - (own[a] >> up)) as i32);
+        if off == [0; 3] {
+            // Inside an ancestor of `b`: an internal box with no child there.
+            return Cover::Empty;
+        }
+        if let Some(m) = tree.colleague(ancestor, off) {
+            return if tree.is_leaf(m) {
+                Cover::CoarseLeaf(m)
+            } else {
+                Cover::Empty
+            };
+        }
+    }
+    Cover::Empty
+}
+
+/// Appends every existing leaf adjacent to `b` (`b` excluded, unpruned; a
+/// coarse leaf may appear more than once).
+pub(crate) fn adjacent_leaves(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+    let key = tree.key(b);
+    let mut stack = Vec::new();
+    for i in (0..27).filter(|&i| i != 13) {
+        match cover(tree, b, i) {
+            Cover::Same(n) => stack.push(n),
+            Cover::CoarseLeaf(m) => out.push(m),
+            Cover::Empty => {}
+        }
+        while let Some(x) = stack.pop() {
+            if tree.is_leaf(x) {
+                out.push(x);
+            } else {
+                stack.extend(tree.children(x).filter(|&c| tree.key(c).is_adjacent(key)));
+            }
+        }
+    }
+}
+
+/// Sorts and deduplicates `out[start..]`.
+fn sort_dedup_tail(out: &mut Vec<usize>, start: usize) {
+    out[start..].sort_unstable();
+    let mut w = start;
+    for r in start..out.len() {
+        if w == start || out[r] != out[w - 1] {
+            out[w] = out[r];
+            w += 1;
+        }
+    }
+    out.truncate(w);
+}
+
+fn u_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+    if !tree.is_leaf(b) || !tree.has_targets(b) {
+        return;
+    }
+    let start = out.len();
+    adjacent_leaves(tree, b, out);
+    out.push(b);
+    out.retain_tail(start, |&a| tree.has_sources(a));
+    sort_dedup_tail(out, start);
+}
+
+/// `V_MASK[o][ob]`: bit `oa` is set when child `oa` of the parent's
+/// colleague at table index `o` is *not* adjacent to child `ob` of the
+/// parent. Child coordinates differ by `2 * offset + bits(oa) - bits(ob)`
+/// per axis, and same-level boxes are adjacent when every difference is at
+/// most 1 in magnitude.
+static V_MASK: [[u8; 8]; 27] = v_mask();
+
+const fn v_mask() -> [[u8; 8]; 27] {
+    let mut table = [[0u8; 8]; 27];
+    let mut o = 0;
+    while o < 27 {
+        let off = [
+            (o % 3) as i32 - 1,
+            ((o / 3) % 3) as i32 - 1,
+            (o / 9) as i32 - 1,
+        ];
+        let mut ob: usize = 0;
+        while ob < 8 {
+            let mut oa: u32 = 0;
+            while oa < 8 {
+                let mut far = false;
+                let mut axis = 0;
+                while axis < 3 {
+                    let d = 2 * off[axis] + ((oa >> axis) & 1) as i32 - ((ob >> axis) & 1) as i32;
+                    far |= d > 1 || d < -1;
+                    axis += 1;
+                }
+                if far {
+                    table[o][ob] |= 1 << oa;
+                }
+                oa += 1;
+            }
+            ob += 1;
+        }
+        o += 1;
+    }
+    table
+}
+
+/// The existing colleagues of `parent` as (box, table index).
+fn parent_colleagues(tree: &Octree, parent: usize) -> ([(usize, usize); 26], usize) {
+    let mut colleagues = [(usize::MAX, 0usize); 26];
+    let mut n = 0;
+    for i in (0..27).filter(|&i| i != 13) {
+        if let Some(c) = tree.colleague_at(parent, i) {
+            colleagues[n] = (c, i);
+            n += 1;
+        }
+    }
+    (colleagues, n)
+}
+
+fn v_count(tree: &Octree, b: usize) -> usize {
+    let Some(parent) = tree.parent(b) else {
+        return 0;
+    };
+    if !tree.has_targets(b) {
+        return 0;
+    }
+    let ob = tree.key(b).octant();
+    let (colleagues, n) = parent_colleagues(tree, parent);
+    colleagues[..n]
+        .iter()
+        .map(|&(c, i)| (V_MASK[i][ob] & tree.source_child_mask(c)).count_ones() as usize)
+        .sum()
+}
+
+/// The last parent seen and its colleagues sorted by box index (siblings
+/// are consecutive boxes, so this is computed once per parent).
+struct VScratch {
+    parent: usize,
+    colleagues: [(usize, usize); 26],
+    n: usize,
+}
+
+impl Default for VScratch {
+    fn default() -> Self {
+        VScratch {
+            parent: usize::MAX,
+            colleagues: [(0, 0); 26],
+            n: 0,
+        }
+    }
+}
+
+fn v_fill(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [usize]) {
+    if row.is_empty() {
+        return;
+    }
+    let parent = tree.parent(b).expect("a box with a V list has a parent");
+    if scratch.parent != parent {
+        let (mut colleagues, n) = parent_colleagues(tree, parent);
+        colleagues[..n].sort_unstable();
+        *scratch = VScratch {
+            parent,
+            colleagues,
+            n,
+        };
+    }
+    let ob = tree.key(b).octant();
+    let mut k = 0;
+    for &(c, i) in &scratch.colleagues[..scratch.n] {
+        let mut bits = V_MASK[i][ob] & tree.source_child_mask(c);
+        if bits == 0 {
+            continue;
+        }
+        let first = tree.children(c).start;
+        let existing = tree.child_mask(c);
+        while bits != 0 {
+            let octant = bits.trailing_zeros();
+            bits &= bits - 1;
+            row[k] = first + (existing & ((1u8 << octant) - 1)).count_ones() as usize;
+            k += 1;
+        }
+    }
+    debug_assert_eq!(k, row.len());
+}
+
+fn w_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+    if !tree.is_leaf(b) || !tree.has_targets(b) {
+        return;
+    }
+    let start = out.len();
+    let key = tree.key(b);
+    let mut stack = Vec::new();
+    for i in (0..27).filter(|&i| i != 13) {
+        if let Some(c) = tree.colleague(b, index_offset(i)) {
+            stack.extend(tree.children(c));
+        }
+        while let Some(a) = stack.pop() {
+            if tree.key(a).is_adjacent(key) {
+                stack.extend(tree.children(a));
+            } else if tree.has_sources(a) {
+                out.push(a);
+            }
+        }
+    }
+    out[start..].sort_unstable();
+}
+
+fn x_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+    let Some(parent) = tree.parent(b) else {
+        return;
+    };
+    if !tree.has_targets(b) {
+        return;
+    }
+    let start = out.len();
+    let key: MortonKey = tree.key(b);
+    for i in (0..27).filter(|&i| i != 13) {
+        let a = match cover(tree, parent, i) {
+            Cover::Same(n) if tree.is_leaf(n) => n,
+            Cover::CoarseLeaf(m) => m,
+            _ => continue,
+        };
+        if tree.has_sources(a) && !tree.key(a).is_adjacent(key) {
+            out.push(a);
+        }
+    }
+    sort_dedup_tail(out, start);
+}
+
+/// `Vec::retain` restricted to a tail.
+trait RetainTail<T> {
+    fn retain_tail(&mut self, start: usize, keep: impl FnMut(&T) -> bool);
+}
+
+impl<T: Copy> RetainTail<T> for Vec<T> {
+    fn retain_tail(&mut self, start: usize, mut keep: impl FnMut(&T) -> bool) {
+        let mut w = start;
+        for r in start..self.len() {
+            if keep(&self[r]) {
+                self[w] = self[r];
+                w += 1;
+            }
+        }
+        self.truncate(w);
+    }
+}

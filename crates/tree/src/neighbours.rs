@@ -1,0 +1,101 @@
+//! The colleague table: for every box, its existing same-level neighbours.
+//!
+//! Row `b` holds 27 entries, one per offset `o` in `{-1, 0, 1}^3`, at index
+//! `(o_x + 1) + 3 (o_y + 1) + 9 (o_z + 1)` (entry 13 is `b` itself): the index
+//! of the box of `b`'s level at that offset, or none if it is outside the
+//! domain or does not exist (holds no point).
+//!
+//! The table is filled top-down, level by level, without any search: the
+//! neighbour at offset `o` of a box with level coordinates `i` has
+//! coordinates `c = i + o`; its parent `c / 2` is the parent of `b` or one of
+//! that parent's neighbours (offset `c / 2 - i / 2`, again in `{-1, 0, 1}^3`),
+//! already in the table, and the neighbour is that box's child of octant
+//! `c mod 2`, found among at most 8 contiguous children.
+
+use rayon::prelude::*;
+
+use crate::morton::DEEPEST_LEVEL;
+use crate::octree::Octree;
+
+const NONE: u32 = u32::MAX;
+
+/// Index of `offset` (components in `-1..=1`) in a table row.
+///
+/// # Panics
+/// If a component is outside `-1..=1`.
+pub(crate) fn offset_index(offset: [i32; 3]) -> usize {
+    assert!(
+        offset.iter().all(|o| (-1..=1).contains(o)),
+        "colleague offset {offset:?} outside -1..=1"
+    );
+    ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
+}
+
+/// Offset of table index `i` (inverse of [`offset_index`]).
+pub(crate) fn index_offset(i: usize) -> [i32; 3] {
+    let i = i as i32;
+    [i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1]
+}
+
+/// Integer coordinates of a box in units of its own width.
+pub(crate) fn level_coords(tree: &Octree, b: usize) -> [i64; 3] {
+    let key = tree.key(b);
+    let shift = DEEPEST_LEVEL - key.level();
+    key.anchor().map(|a| (a >> shift) as i64)
+}
+
+/// Existing same-level neighbours of every box.
+#[derive(Clone, Debug, Default)]
+pub(crate) struct ColleagueTable {
+    rows: Vec<[u32; 27]>,
+}
+
+impl ColleagueTable {
+    /// Fills the table for `tree` (keys, parents and children must be set).
+    pub(crate) fn build(tree: &Octree) -> Self {
+        let n = tree.n_boxes();
+        assert!(n < NONE as usize, "too many boxes for the colleague table");
+        let mut rows = vec![[NONE; 27]; n];
+        rows[0][13] = 0;
+        for level in 1..=tree.depth() {
+            let range = tree.level_range(level);
+            let (done, rest) = rows.split_at_mut(range.start);
+            let done: &[[u32; 27]] = done;
+            let size = 1i64 << level;
+            rest[..range.len()]
+                .par_iter_mut()
+                .enumerate()
+                .for_each(|(k, row)| {
+                    let b = range.start + k;
+                    let parent = tree.parent(b).expect("non-root box has a parent");
+                    let prow = &done[parent];
+                    let i = level_coords(tree, b);
+                    for (oi, entry) in row.iter_mut().enumerate() {
+                        let o = index_offset(oi);
+                        let c: [i64; 3] = std::array::from_fn(|a| i[a] + o[a] as i64);
+                        if c.iter().any(|&x| x < 0 || x >= size) {
+                            continue;
+                        }
+                        let po: [i32; 3] =
+                            std::array::from_fn(|a| ((c[a] >> 1) - (i[a] >> 1)) as i32);
+                        let p = prow[offset_index(po)];
+                        if p == NONE {
+                            continue;
+                        }
+                        let octant = (c[0] & 1) | (c[1] & 1) << 1 | (c[2] & 1) << 2;
+                        if let Some(child) = tree.child(p as usize, octant as usize) {
+                            *entry = child as u32;
+                        }
+                    }
+                });
+        }
+        ColleagueTable { rows }
+    }
+
+    /// The neighbour of `b` at table index `i`, if it exists.
+    #[inline]
+    pub(crate) fn get(&self, b: usize, i: usize) -> Option<usize> {
+        let v = self.rows[b][i];
+        (v != NONE).then_some(v as usize)
+    }
+}

@@ -1,0 +1,475 @@
+//! The linear octree: plain data in flat arrays.
+//!
+//! # Layout
+//!
+//! Boxes are numbered `0 .. n_boxes()` in **(level, Morton)** order: the
+//! root is box 0, then the boxes of level 1 in Morton order, and so on, so
+//! every level is one contiguous range ([`Octree::level_range`]) and the
+//! existing children of a box are contiguous in the next level
+//! ([`Octree::children`]), in octant order. Only boxes holding at least one
+//! source or target exist; all ancestors of an existing box exist.
+//!
+//! Points are stored sorted along the Morton curve of their finest cell, so
+//! the points of any box — leaf or not — form one range
+//! ([`Octree::source_range`], [`Octree::target_range`]). Every point lies in
+//! exactly one leaf. [`Octree::source_permutation`] maps a sorted position to
+//! the caller's index, [`Octree::source_inverse_permutation`] the other way,
+//! so results can be returned in the caller's order.
+//!
+//! Interaction lists are CSR arrays indexed by box (see
+//! [`lists`](crate::lists)).
+
+use std::ops::Range;
+
+use rayon::prelude::*;
+
+use crate::balance::balance;
+use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
+use crate::domain::{Domain, validate_points};
+use crate::error::{PointSet, TreeError};
+use crate::lists::InteractionLists;
+use crate::morton::MortonKey;
+use crate::neighbours::{ColleagueTable, offset_index};
+use crate::options::TreeOptions;
+
+/// One point set in sorted order.
+#[derive(Clone, Debug)]
+struct Sorted {
+    coords: Vec<f64>,
+    perm: Vec<usize>,
+    inverse: Vec<usize>,
+}
+
+impl Sorted {
+    fn new(s: SortedPoints) -> Self {
+        let mut inverse = vec![0; s.perm.len()];
+        for (k, &i) in s.perm.iter().enumerate() {
+            inverse[i] = k;
+        }
+        Sorted {
+            coords: s.coords,
+            perm: s.perm,
+            inverse,
+        }
+    }
+}
+
+/// A linear adaptive (or uniform) octree over sources and targets, 2:1
+/// balanced, with its U, V, W and X interaction lists.
+///
+/// ```
+/// use ferrofmm_tree::{Octree, TreeOptions};
+/// // 1000 points on a helix, at most 20 per leaf.
+/// let pts: Vec<f64> = (0..1000)
+///     .flat_map(|i| {
+///         let t = i as f64 * 0.01;
+///         [t.cos(), t.sin(), 0.1 * t]
+///     })
+///     .collect();
+/// let tree = Octree::new(&pts, None, &TreeOptions::adaptive(20)).unwrap();
+/// let total: usize = tree.leaves().iter().map(|&b| tree.source_range(b).len()).sum();
+/// assert_eq!(total, 1000);
+/// for &b in tree.leaves() {
+///     assert!(tree.u_list(b).contains(&b));
+/// }
+/// ```
+#[derive(Clone, Debug)]
+pub struct Octree {
+    domain: Domain,
+    keys: Vec<MortonKey>,
+    level_offsets: Vec<usize>,
+    parents: Vec<usize>,
+    children: Vec<[usize; 2]>,
+    child_masks: Vec<u8>,
+    source_child_masks: Vec<u8>,
+    leaves: Vec<usize>,
+    src_ranges: Vec<[usize; 2]>,
+    tgt_ranges: Vec<[usize; 2]>,
+    sources: Sorted,
+    targets: Option<Sorted>,
+    colleagues: ColleagueTable,
+    lists: InteractionLists,
+}
+
+const NONE: usize = usize::MAX;
+
+impl Octree {
+    /// Builds the tree: validates the points, computes the domain (unless
+    /// given), sorts the points along the Morton curve, refines (adaptive or
+    /// uniform, see [`TreeOptions`]), 2:1 balances adaptive trees and builds
+    /// the interaction lists.
+    ///
+    /// Sources and targets are interleaved `xyz` (`f64`). `targets == None`
+    /// means the targets are the sources.
+    ///
+    /// # Errors
+    /// Invalid options ([`TreeOptions::validate`]); a length that is not a
+    /// multiple of 3; a NaN or infinite coordinate; no sources, or an empty
+    /// target set; a point outside a given domain. See [`TreeError`].
+    pub fn new(
+        sources: &[f64],
+        targets: Option<&[f64]>,
+        options: &TreeOptions,
+    ) -> Result<Self, TreeError> {
+        options.validate()?;
+        let mut t0 = std::time::Instant::now();
+        let mut lap = |s: &str| { eprint!("{s} {:.1} | ", t0.elapsed().as_secs_f64()*1e3); t0 = std::time::Instant::now(); };
+        let mut sets = vec![(PointSet::Sources, sources)];
+        if let Some(t) = targets {
+            sets.push((PointSet::Targets, t));
+        }
+        for &(set, p) in &sets {
+            validate_points(set, p)?;
+            if p.is_empty() {
+                return Err(TreeError::Empty { set });
+            }
+        }
+        let domain = match options.domain {
+            Some(d) => {
+                for &(set, p) in &sets {
+                    check_inside(set, p, &d)?;
+                }
+                d
+            }
+            None => Domain::bounding(&sets)?,
+        };
+        lap("validate");
+        let (src, tgt) = rayon::join(
+            || sort_points(sources, &domain),
+            || targets.map(|t| sort_points(t, &domain)),
+        );
+        let pts = PointKeys {
+            src: &src.keys,
+            tgt: tgt.as_ref().map_or(&src.keys, |t| &t.keys),
+            same: tgt.is_none(),
+        };
+        let rule = match options.uniform_depth {
+            Some(d) => Refinement::Uniform(d),
+            None => Refinement::Adaptive {
+                leaf_size: options.leaf_size,
+                max_level: options.max_level,
+            },
+        };
+        lap("sort");
+        let mut levels = refine(&pts, rule);
+        lap("refine");
+        if matches!(rule, Refinement::Adaptive { .. }) {
+            balance(&mut levels, &pts);
+        }
+        lap("balance");
+        let mut tree = Self::flatten(domain, &levels);
+        tree.sources = Sorted::new(src);
+        tree.targets = tgt.map(Sorted::new);
+        lap("flatten");
+        tree.colleagues = ColleagueTable::build(&tree);
+        lap("colleagues");
+        tree.lists = InteractionLists::build(&tree);
+        lap("lists"); eprintln!();
+        Ok(tree)
+    }
+
+    /// Flat arrays from the per-level boxes.
+    fn flatten(domain: Domain, levels: &[Vec<Node>]) -> Self {
+        let n: usize = levels.iter().map(Vec::len).sum();
+        let mut level_offsets = Vec::with_capacity(levels.len() + 1);
+        let mut keys = Vec::with_capacity(n);
+        let mut src_ranges = Vec::with_capacity(n);
+        let mut tgt_ranges = Vec::with_capacity(n);
+        for lv in levels {
+            level_offsets.push(keys.len());
+            for node in lv {
+                keys.push(node.key);
+                src_ranges.push(node.src);
+                tgt_ranges.push(node.tgt);
+            }
+        }
+        level_offsets.push(n);
+
+        // Parents and children: walk each level alongside the next one.
+        let mut parents = vec![NONE; n];
+        let mut children = vec![[0usize; 2]; n];
+        for l in 0..levels.len() {
+            let (start, end) = (level_offsets[l], level_offsets[l + 1]);
+            let next_end = level_offsets.get(l + 2).copied().unwrap_or(end);
+            let mut c = end;
+            for p in start..end {
+                let first = c;
+                while c < next_end && keys[c].parent() == keys[p] {
+                    parents[c] = p;
+                    c += 1;
+                }
+                children[p] = [first, c];
+            }
+            debug_assert_eq!(c, next_end, "every box has a parent");
+        }
+        let leaves = (0..n)
+            .filter(|&b| children[b][0] == children[b][1])
+            .collect();
+        // Octant masks of the existing children, and of those with sources.
+        let mut child_masks = vec![0u8; n];
+        let mut source_child_masks = vec![0u8; n];
+        for c in 1..n {
+            let p = parents[c];
+            let bit = 1u8 << keys[c].octant();
+            child_masks[p] |= bit;
+            if src_ranges[c][0] < src_ranges[c][1] {
+                source_child_masks[p] |= bit;
+            }
+        }
+        Octree {
+            domain,
+            keys,
+            level_offsets,
+            parents,
+            children,
+            child_masks,
+            source_child_masks,
+            leaves,
+            src_ranges,
+            tgt_ranges,
+            sources: Sorted {
+                coords: Vec::new(),
+                perm: Vec::new(),
+                inverse: Vec::new(),
+            },
+            targets: None,
+            colleagues: ColleagueTable::default(),
+            lists: InteractionLists::default(),
+        }
+    }
+
+    /// The root cube.
+    pub fn domain(&self) -> &Domain {
+        &self.domain
+    }
+
+    /// The deepest level present (0 for a tree that is only the root).
+    pub fn depth(&self) -> u32 {
+        (self.level_offsets.len() - 2) as u32
+    }
+
+    /// Number of boxes (all levels).
+    pub fn n_boxes(&self) -> usize {
+        self.keys.len()
+    }
+
+    /// Keys of all boxes, sorted by (level, Morton code); box `b` is
+    /// `keys()[b]`.
+    pub fn keys(&self) -> &[MortonKey] {
+        &self.keys
+    }
+
+    /// Key of box `b`.
+    pub fn key(&self, b: usize) -> MortonKey {
+        self.keys[b]
+    }
+
+    /// Level of box `b`.
+    pub fn level(&self, b: usize) -> u32 {
+        self.keys[b].level()
+    }
+
+    /// Box indices of `level` (an empty range if the tree has no such level).
+    pub fn level_range(&self, level: u32) -> Range<usize> {
+        let l = level as usize;
+        if l + 1 < self.level_offsets.len() {
+            self.level_offsets[l]..self.level_offsets[l + 1]
+        } else {
+            self.n_boxes()..self.n_boxes()
+        }
+    }
+
+    /// Index of the box with `key`, if it exists (binary search within its
+    /// level).
+    pub fn index_of(&self, key: MortonKey) -> Option<usize> {
+        let r = self.level_range(key.level());
+        let start = r.start;
+        self.keys[r].binary_search(&key).ok().map(|i| start + i)
+    }
+
+    /// Parent of box `b` (`None` for the root).
+    pub fn parent(&self, b: usize) -> Option<usize> {
+        let p = self.parents[b];
+        (p != NONE).then_some(p)
+    }
+
+    /// The existing children of `b`: contiguous in the next level, in octant
+    /// order (empty for leaves).
+    pub fn children(&self, b: usize) -> Range<usize> {
+        let [s, e] = self.children[b];
+        s..e
+    }
+
+    /// Bit `o` is set if the child of octant `o` of box `b` exists.
+    pub fn child_mask(&self, b: usize) -> u8 {
+        self.child_masks[b]
+    }
+
+    /// Bit `o` is set if the child of octant `o` of box `b` holds sources.
+    pub(crate) fn source_child_mask(&self, b: usize) -> u8 {
+        self.source_child_masks[b]
+    }
+
+    /// The child of `b` in `octant`, if it exists.
+    #[inline]
+    pub fn child(&self, b: usize, octant: usize) -> Option<usize> {
+        let mask = self.child_masks[b];
+        (mask >> octant & 1 == 1)
+            .then(|| self.children[b][0] + (mask & ((1u8 << octant) - 1)).count_ones() as usize)
+    }
+
+    /// `true` if `b` has no children.
+    pub fn is_leaf(&self, b: usize) -> bool {
+        let [s, e] = self.children[b];
+        s == e
+    }
+
+    /// Leaf box indices, ascending (by level, then Morton code).
+    pub fn leaves(&self) -> &[usize] {
+        &self.leaves
+    }
+
+    /// The existing same-level neighbour of `b` at `offset` (each component
+    /// in `-1..=1`; `[0, 0, 0]` gives `b`), from a precomputed table.
+    ///
+    /// # Panics
+    /// If a component of `offset` is outside `-1..=1`.
+    pub fn colleague(&self, b: usize, offset: [i32; 3]) -> Option<usize> {
+        self.colleagues.get(b, offset_index(offset))
+    }
+
+    /// Colleague at a table index (see [`crate::neighbours`]).
+    #[inline]
+    pub(crate) fn colleague_at(&self, b: usize, i: usize) -> Option<usize> {
+        self.colleagues.get(b, i)
+    }
+
+    /// Number of sources.
+    pub fn n_sources(&self) -> usize {
+        self.sources.perm.len()
+    }
+
+    /// Number of targets.
+    pub fn n_targets(&self) -> usize {
+        self.target_set().perm.len()
+    }
+
+    /// The sources of box `b` (any box, descendants included) as a range of
+    /// sorted positions.
+    pub fn source_range(&self, b: usize) -> Range<usize> {
+        let [s, e] = self.src_ranges[b];
+        s..e
+    }
+
+    /// The targets of box `b` as a range of sorted positions.
+    pub fn target_range(&self, b: usize) -> Range<usize> {
+        let [s, e] = self.tgt_ranges[b];
+        s..e
+    }
+
+    /// `true` if box `b` holds at least one source.
+    pub fn has_sources(&self, b: usize) -> bool {
+        let [s, e] = self.src_ranges[b];
+        s < e
+    }
+
+    /// `true` if box `b` holds at least one target.
+    pub fn has_targets(&self, b: usize) -> bool {
+        let [s, e] = self.tgt_ranges[b];
+        s < e
+    }
+
+    /// Source coordinates in sorted order (interleaved `xyz`): sorted point
+    /// `k` is `sorted_sources()[3k..3k + 3]`.
+    pub fn sorted_sources(&self) -> &[f64] {
+        &self.sources.coords
+    }
+
+    /// Target coordinates in sorted order (the sources when
+    /// [`sources_are_targets`](Self::sources_are_targets)).
+    pub fn sorted_targets(&self) -> &[f64] {
+        &self.target_set().coords
+    }
+
+    /// Sorted position `k` holds original source `source_permutation()[k]`.
+    pub fn source_permutation(&self) -> &[usize] {
+        &self.sources.perm
+    }
+
+    /// Sorted position `k` holds original target `target_permutation()[k]`.
+    pub fn target_permutation(&self) -> &[usize] {
+        &self.target_set().perm
+    }
+
+    /// Original source `i` is at sorted position
+    /// `source_inverse_permutation()[i]`.
+    pub fn source_inverse_permutation(&self) -> &[usize] {
+        &self.sources.inverse
+    }
+
+    /// Original target `i` is at sorted position
+    /// `target_inverse_permutation()[i]`.
+    pub fn target_inverse_permutation(&self) -> &[usize] {
+        &self.target_set().inverse
+    }
+
+    /// `true` if the tree was built with `targets == None`: target ranges,
+    /// permutations and coordinates are those of the sources.
+    pub fn sources_are_targets(&self) -> bool {
+        self.targets.is_none()
+    }
+
+    fn target_set(&self) -> &Sorted {
+        self.targets.as_ref().unwrap_or(&self.sources)
+    }
+
+    /// All four interaction lists.
+    pub fn interaction_lists(&self) -> &InteractionLists {
+        &self.lists
+    }
+
+    /// U list of `b` (near field, P2P): see [`lists`](crate::lists).
+    pub fn u_list(&self, b: usize) -> &[usize] {
+        self.lists.u.get(b)
+    }
+
+    /// V list of `b` (M2L): see [`lists`](crate::lists).
+    pub fn v_list(&self, b: usize) -> &[usize] {
+        self.lists.v.get(b)
+    }
+
+    /// W list of `b` (M2P): see [`lists`](crate::lists).
+    pub fn w_list(&self, b: usize) -> &[usize] {
+        self.lists.w.get(b)
+    }
+
+    /// X list of `b` (P2L): see [`lists`](crate::lists).
+    pub fn x_list(&self, b: usize) -> &[usize] {
+        self.lists.x.get(b)
+    }
+
+    /// All existing leaves adjacent to box `b` (any box, any levels; `b`
+    /// excluded), ascending, whether or not they hold sources.
+    pub fn adjacent_leaves(&self, b: usize) -> Vec<usize> {
+        let mut out = Vec::new();
+        crate::lists::adjacent_leaves(self, b, &mut out);
+        out.sort_unstable();
+        out.dedup();
+        out
+    }
+}
+
+/// Checks that every point of `p` lies in the closed cube of `d`.
+fn check_inside(set: PointSet, p: &[f64], d: &Domain) -> Result<(), TreeError> {
+    let bad = p
+        .par_chunks_exact(3)
+        .position_first(|c| !d.contains([c[0], c[1], c[2]]));
+    match bad {
+        Some(index) => Err(TreeError::OutsideDomain {
+            set,
+            index,
+            point: [p[3 * index], p[3 * index + 1], p[3 * index + 2]],
+        }),
+        None => Ok(()),
+    }
+}
