@@ -30,7 +30,9 @@ fn bench_case<T: Real, S: M2lScheme<T>>(c: &mut Criterion, order: usize) {
         fmm.m2l_scheme().name()
     );
     let mut group = c.benchmark_group("fmm");
-    group.sample_size(10).measurement_time(Duration::from_secs(8));
+    group
+        .sample_size(10)
+        .measurement_time(Duration::from_secs(8));
     group.bench_function(BenchmarkId::new("evaluate", &id), |b| {
         b.iter(|| black_box(fmm.evaluate(black_box(&q)).unwrap()))
     });

@@ -7,7 +7,11 @@ use ferrofmm::kernels::{EvalMode, Laplace3d};
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);
-    let n: usize = args.next().map(|a| a.parse()).transpose()?.unwrap_or(200_000);
+    let n: usize = args
+        .next()
+        .map(|a| a.parse())
+        .transpose()?
+        .unwrap_or(200_000);
     let order: usize = args.next().map(|a| a.parse()).transpose()?.unwrap_or(6);
 
     let points: Vec<f64> = Geometry::Cube.points(n, 1);

@@ -38,12 +38,12 @@ impl LevelMap {
                 "depth must be at most 30, got {depth}"
             )));
         }
-        if let Some(d) = homogeneity {
-            if !d.is_finite() {
-                return Err(FieldError::InvalidGeometry(format!(
-                    "kernel homogeneity degree must be finite, got {d}"
-                )));
-            }
+        if let Some(d) = homogeneity
+            && !d.is_finite()
+        {
+            return Err(FieldError::InvalidGeometry(format!(
+                "kernel homogeneity degree must be finite, got {d}"
+            )));
         }
         Ok(LevelMap {
             homogeneity,

@@ -105,7 +105,7 @@ impl OperatorParams {
         if !r.to_array().iter().all(|x| x.is_finite()) {
             return bad(format!("surface radii must be finite: {r:?}"));
         }
-        if !(r.upward_equivalent > 1.0) {
+        if r.upward_equivalent <= 1.0 {
             return bad(format!(
                 "upward equivalent radius must exceed 1 (enclose the box), got {}",
                 r.upward_equivalent
@@ -117,7 +117,7 @@ impl OperatorParams {
                 r.upward_equivalent, r.upward_check
             ));
         }
-        if !(r.downward_check >= 1.0) {
+        if r.downward_check < 1.0 {
             return bad(format!(
                 "downward check radius must be at least 1 (enclose the box), got {}",
                 r.downward_check
@@ -129,23 +129,23 @@ impl OperatorParams {
                 r.downward_check, r.downward_equivalent
             ));
         }
-        if !(r.upward_equivalent + r.downward_check < 4.0) {
+        if r.upward_equivalent + r.downward_check >= 4.0 {
             return bad(format!(
                 "upward equivalent + downward check radii must be < 4 (surfaces of the closest \
                  M2L pair would touch), got {} + {}",
                 r.upward_equivalent, r.downward_check
             ));
         }
-        if !(r.upward_equivalent + r.downward_equivalent <= 4.0 + 1e-12) {
+        if r.upward_equivalent + r.downward_equivalent > 4.0 + 1e-12 {
             return bad(format!(
                 "upward equivalent + downward equivalent radii must be <= 4, got {} + {}",
                 r.upward_equivalent, r.downward_equivalent
             ));
         }
-        if let Some(c) = self.pinv_rcond {
-            if !(c.is_finite() && (0.0..1.0).contains(&c)) {
-                return bad(format!("pinv_rcond must be finite and in [0, 1), got {c}"));
-            }
+        if let Some(c) = self.pinv_rcond
+            && !(c.is_finite() && (0.0..1.0).contains(&c))
+        {
+            return bad(format!("pinv_rcond must be finite and in [0, 1), got {c}"));
         }
         Ok(())
     }

@@ -49,7 +49,14 @@ pub fn relative_errors<T: Real, K: Kernel>(
         .map(|x| x.to_f64())
         .collect();
     let mut reference = vec![0.0f64; w * sample.len()];
-    direct_sum(kernel, mode, &up(sources), &up(charges), &sampled, &mut reference);
+    direct_sum(
+        kernel,
+        mode,
+        &up(sources),
+        &up(charges),
+        &sampled,
+        &mut reference,
+    );
     let (mut dp, mut np, mut dg, mut ng) = (0.0, 0.0, 0.0, 0.0);
     for (k, &j) in sample.iter().enumerate() {
         for c in 0..w {

@@ -203,7 +203,7 @@ pub(crate) fn check_points<T: Real>(what: &'static str, points: &[T]) -> Result<
     if points.is_empty() {
         return Err(FmmError::Empty(what));
     }
-    if points.len() % 3 != 0 {
+    if !points.len().is_multiple_of(3) {
         return Err(FmmError::RaggedPoints {
             what,
             len: points.len(),

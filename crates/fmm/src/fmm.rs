@@ -101,7 +101,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         setup.m2l_precompute = t.elapsed();
 
         let t = Instant::now();
-        let m2l_interactions = (0..=depth).map(|level| level_interactions(&tree, level)).collect();
+        let m2l_interactions = (0..=depth)
+            .map(|level| level_interactions(&tree, level))
+            .collect();
         let sources = permute_points(b.sources, tree.source_permutation());
         let targets = match b.targets {
             Some(t) => permute_points(t, tree.target_permutation()),
@@ -149,7 +151,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// same way (vector-major). Nothing is rebuilt between vectors.
     pub fn evaluate_many(&self, charges: &[T], n_vectors: usize) -> Result<Vec<T>, FmmError> {
         self.check_charges(charges, n_vectors)?;
-        let mut out = Vec::with_capacity(n_vectors * self.n_targets * self.mode.values_per_target());
+        let mut out =
+            Vec::with_capacity(n_vectors * self.n_targets * self.mode.values_per_target());
         for q in charges.chunks_exact(self.n_sources) {
             out.extend(passes::evaluate(self, q).0);
         }
@@ -264,7 +267,11 @@ fn level_interactions(tree: &Octree, level: u32) -> M2lInteractions {
     for b in range.clone() {
         let key = tree.key(b);
         for &a in tree.v_list(b) {
-            pairs.push((b - range.start, a - range.start, key.transfer_vector(tree.key(a))));
+            pairs.push((
+                b - range.start,
+                a - range.start,
+                key.transfer_vector(tree.key(a)),
+            ));
         }
     }
     M2lInteractions::new(range.len(), range.len(), &pairs)
@@ -272,5 +279,7 @@ fn level_interactions(tree: &Octree, level: u32) -> M2lInteractions {
 
 /// Points in the tree's sorted order: `out[k] = points[perm[k]]`.
 fn permute_points<T: Real>(points: &[T], perm: &[usize]) -> Vec<T> {
-    perm.iter().flat_map(|&i| [points[3 * i], points[3 * i + 1], points[3 * i + 2]]).collect()
+    perm.iter()
+        .flat_map(|&i| [points[3 * i], points[3 * i + 1], points[3 * i + 2]])
+        .collect()
 }

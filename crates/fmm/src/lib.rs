@@ -32,8 +32,8 @@ mod fmm;
 mod passes;
 mod timings;
 
-pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
 pub use accuracy::{ErrorReport, relative_errors, sample_indices};
+pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
 pub use data::{Geometry, charges};
 pub use error::FmmError;
 pub use fmm::{Fmm, FmmSummary};

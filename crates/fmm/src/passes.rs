@@ -23,9 +23,9 @@ use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{EvalMode, Kernel, Real};
 use rayon::prelude::*;
 
+use crate::Fmm;
 use crate::batch::{gather_apply_scatter, par_columns};
 use crate::timings::EvalTimings;
-use crate::Fmm;
 
 /// One full evaluation for one charge vector (already validated).
 pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
@@ -37,7 +37,11 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     let tree = &fmm.tree;
     let n = fmm.operators.n_surface();
     let n_boxes = tree.n_boxes();
-    let q: Vec<T> = tree.source_permutation().iter().map(|&i| charges[i]).collect();
+    let q: Vec<T> = tree
+        .source_permutation()
+        .iter()
+        .map(|&i| charges[i])
+        .collect();
 
     let mut multipoles = vec![T::ZERO; n * n_boxes];
     let t = Instant::now();
@@ -87,7 +91,8 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, q: &[T], multipo
             }
             fmm.surface_of(b, radius, surface);
             let (x, qb) = source_slices(fmm, q, r);
-            fmm.kernel.evaluate(EvalMode::Potential, x, qb, surface, col);
+            fmm.kernel
+                .evaluate(EvalMode::Potential, x, qb, surface, col);
         });
     for level in 0..=tree.depth() {
         let r = tree.level_range(level);
@@ -154,7 +159,12 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         let t = Instant::now();
         let interactions = &fmm.m2l_interactions[level as usize];
         if !interactions.is_empty() {
-            fmm.m2l.apply(level, interactions, &multipoles[n * r.start..n * r.end], &mut check);
+            fmm.m2l.apply(
+                level,
+                interactions,
+                &multipoles[n * r.start..n * r.end],
+                &mut check,
+            );
         }
         timings.m2l += t.elapsed();
 
@@ -171,7 +181,8 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
                 fmm.surface_of(b, radius, surface);
                 for &a in xs {
                     let (x, qa) = source_slices(fmm, q, tree.source_range(a));
-                    fmm.kernel.evaluate(EvalMode::Potential, x, qa, surface, col);
+                    fmm.kernel
+                        .evaluate(EvalMode::Potential, x, qa, surface, col);
                 }
             });
         timings.p2l += t.elapsed();
@@ -214,22 +225,26 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
 
     let t = Instant::now();
     let down_equiv = ops.radii().downward_equivalent;
-    slices.par_iter_mut().for_each_init(Vec::new, |surface, (b, out)| {
-        fmm.surface_of(*b, down_equiv, surface);
-        let d = &locals[n * *b..n * (*b + 1)];
-        fmm.kernel.evaluate(mode, surface, d, targets_of(*b), out);
-    });
+    slices
+        .par_iter_mut()
+        .for_each_init(Vec::new, |surface, (b, out)| {
+            fmm.surface_of(*b, down_equiv, surface);
+            let d = &locals[n * *b..n * (*b + 1)];
+            fmm.kernel.evaluate(mode, surface, d, targets_of(*b), out);
+        });
     timings.l2p = t.elapsed();
 
     let t = Instant::now();
     let up_equiv = ops.radii().upward_equivalent;
-    slices.par_iter_mut().for_each_init(Vec::new, |surface, (b, out)| {
-        for &a in tree.w_list(*b) {
-            fmm.surface_of(a, up_equiv, surface);
-            let u = &multipoles[n * a..n * (a + 1)];
-            fmm.kernel.evaluate(mode, surface, u, targets_of(*b), out);
-        }
-    });
+    slices
+        .par_iter_mut()
+        .for_each_init(Vec::new, |surface, (b, out)| {
+            for &a in tree.w_list(*b) {
+                fmm.surface_of(a, up_equiv, surface);
+                let u = &multipoles[n * a..n * (a + 1)];
+                fmm.kernel.evaluate(mode, surface, u, targets_of(*b), out);
+            }
+        });
     timings.m2p = t.elapsed();
 
     let t = Instant::now();
@@ -262,7 +277,9 @@ fn leaf_output_slices<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
     let mut pos = 0;
     for b in leaves {
         let r = tree.target_range(b);
-        let tail = std::mem::take(&mut rest).split_at_mut(w * (r.start - pos)).1;
+        let tail = std::mem::take(&mut rest)
+            .split_at_mut(w * (r.start - pos))
+            .1;
         let (mine, tail) = tail.split_at_mut(w * r.len());
         rest = tail;
         pos = r.end;

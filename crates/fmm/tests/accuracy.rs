@@ -20,13 +20,25 @@ fn run<T: Real, K: Kernel>(
 ) -> ErrorReport {
     let points: Vec<T> = geometry.points(n, 7);
     let q: Vec<T> = charges(n, 11);
-    let builder = FmmBuilder::new(&points).kernel(kernel.clone()).order(order).leaf_size(64).mode(mode);
+    let builder = FmmBuilder::new(&points)
+        .kernel(kernel.clone())
+        .order(order)
+        .leaf_size(64)
+        .mode(mode);
     let values = if dense {
         builder.build_dense().unwrap().evaluate(&q).unwrap()
     } else {
         builder.build_svd().unwrap().evaluate(&q).unwrap()
     };
-    let report = relative_errors(&kernel, mode, &points, &q, &points, &values, &sample_indices(n, 1000));
+    let report = relative_errors(
+        &kernel,
+        mode,
+        &points,
+        &q,
+        &points,
+        &values,
+        &sample_indices(n, 1000),
+    );
     eprintln!(
         "{} {:?} {} n={n} p={order} {:?} dense={dense}: potential {:.2e} gradient {:?}",
         kernel.name(),
@@ -43,8 +55,16 @@ fn run<T: Real, K: Kernel>(
 fn laplace_f64_p6_cube_and_sphere_meet_bounds() {
     for g in [Geometry::Cube, Geometry::Sphere] {
         let e = run::<f64, _>(Laplace3d, g, N, 6, EvalMode::PotentialGradient, false);
-        assert!(e.potential <= 1e-4, "{g:?}: potential error {:.3e}", e.potential);
-        assert!(e.gradient.unwrap() <= 1e-3, "{g:?}: gradient error {:?}", e.gradient);
+        assert!(
+            e.potential <= 1e-4,
+            "{g:?}: potential error {:.3e}",
+            e.potential
+        );
+        assert!(
+            e.gradient.unwrap() <= 1e-3,
+            "{g:?}: gradient error {:?}",
+            e.gradient
+        );
     }
 }
 
@@ -58,7 +78,17 @@ fn laplace_f64_p10_reaches_1e6() {
 fn error_falls_with_order() {
     let errors: Vec<f64> = [3, 5, 7, 9]
         .iter()
-        .map(|&p| run::<f64, _>(Laplace3d, Geometry::Cube, 8000, p, EvalMode::Potential, false).potential)
+        .map(|&p| {
+            run::<f64, _>(
+                Laplace3d,
+                Geometry::Cube,
+                8000,
+                p,
+                EvalMode::Potential,
+                false,
+            )
+            .potential
+        })
         .collect();
     for w in errors.windows(2) {
         // Two orders up buys at least a factor 10 (typically ~50-100).
@@ -68,32 +98,69 @@ fn error_falls_with_order() {
 
 #[test]
 fn laplace_f32_p6_reaches_1e4() {
-    let e = run::<f32, _>(Laplace3d, Geometry::Cube, N, 6, EvalMode::PotentialGradient, false);
+    let e = run::<f32, _>(
+        Laplace3d,
+        Geometry::Cube,
+        N,
+        6,
+        EvalMode::PotentialGradient,
+        false,
+    );
     assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
-    assert!(e.gradient.unwrap() <= 1e-3, "gradient error {:?}", e.gradient);
+    assert!(
+        e.gradient.unwrap() <= 1e-3,
+        "gradient error {:?}",
+        e.gradient
+    );
 }
 
 #[test]
 fn adaptive_clustered_inputs_meet_bounds() {
     for g in [Geometry::Plummer, Geometry::TwoClusters] {
         let e = run::<f64, _>(Laplace3d, g, N, 6, EvalMode::PotentialGradient, false);
-        assert!(e.potential <= 1e-4, "{g:?}: potential error {:.3e}", e.potential);
-        assert!(e.gradient.unwrap() <= 1e-3, "{g:?}: gradient error {:?}", e.gradient);
+        assert!(
+            e.potential <= 1e-4,
+            "{g:?}: potential error {:.3e}",
+            e.potential
+        );
+        assert!(
+            e.gradient.unwrap() <= 1e-3,
+            "{g:?}: gradient error {:?}",
+            e.gradient
+        );
     }
 }
 
 #[test]
 fn dense_scheme_meets_the_same_bound() {
-    let e = run::<f64, _>(Laplace3d, Geometry::Plummer, 8000, 6, EvalMode::Potential, true);
+    let e = run::<f64, _>(
+        Laplace3d,
+        Geometry::Plummer,
+        8000,
+        6,
+        EvalMode::Potential,
+        true,
+    );
     assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
 }
 
 #[test]
 fn modified_helmholtz_through_the_same_driver() {
     let k = ModifiedHelmholtz3d::new(2.0).unwrap();
-    let e = run::<f64, _>(k, Geometry::Cube, 8000, 6, EvalMode::PotentialGradient, false);
+    let e = run::<f64, _>(
+        k,
+        Geometry::Cube,
+        8000,
+        6,
+        EvalMode::PotentialGradient,
+        false,
+    );
     assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
-    assert!(e.gradient.unwrap() <= 1e-3, "gradient error {:?}", e.gradient);
+    assert!(
+        e.gradient.unwrap() <= 1e-3,
+        "gradient error {:?}",
+        e.gradient
+    );
 }
 
 #[test]
@@ -115,6 +182,14 @@ fn separate_targets_and_several_charge_vectors() {
     assert_eq!(&many[..3000], &one[..]);
     assert_eq!(&many[3000..], &two[..]);
     let sample = sample_indices(3000, 500);
-    let e = relative_errors(&Laplace3d, EvalMode::Potential, &sources, &q2, &targets, &two, &sample);
+    let e = relative_errors(
+        &Laplace3d,
+        EvalMode::Potential,
+        &sources,
+        &q2,
+        &targets,
+        &two,
+        &sample,
+    );
     assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
 }

@@ -37,6 +37,7 @@
 
 pub mod balance;
 mod build;
+pub mod csr;
 pub mod domain;
 pub mod error;
 pub mod lists;
@@ -45,9 +46,10 @@ mod neighbours;
 pub mod octree;
 pub mod options;
 
+pub use csr::Csr;
 pub use domain::Domain;
 pub use error::{PointSet, TreeError};
-pub use lists::{Csr, InteractionLists};
+pub use lists::InteractionLists;
 pub use morton::{DEEPEST_LEVEL, FINEST_GRID, MortonKey};
 pub use octree::Octree;
 pub use options::TreeOptions;

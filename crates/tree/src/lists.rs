@@ -61,139 +61,26 @@
 //! ascending box indices (so by level, then Morton order). Lists are built in
 //! parallel over boxes from the [colleague table](crate::Octree::colleague),
 //! without any search.
-
-use rayon::prelude::*;
+//!
+//! # Notes for an FMM driver
+//!
+//! * U and W rows exist only for leaves; V and X rows for any box with
+//!   targets. V rows are empty at levels 0 and 1 (the root has no
+//!   colleagues), X rows at levels 0 and 1 as well.
+//! * U(B) contains B itself (when B holds sources): P2P over U is the whole
+//!   near field, self-interaction included.
+//! * V, W and X entries of a box are all at least one box width (of the
+//!   smaller box) away from it; V entries are at the box's own level, W
+//!   entries one level finer (children of colleagues), X entries one level
+//!   coarser — guaranteed by the 2:1 balance.
+//! * The transfer vector of a V entry `a` of `b` is
+//!   `key(b).transfer_vector(key(a))`, with components in `-3..=3` and at
+//!   least one of magnitude `>= 2` (316 possible vectors).
 
 use crate::MortonKey;
+use crate::csr::Csr;
 use crate::neighbours::{index_offset, level_coords};
 use crate::octree::Octree;
-
-/// A list per box in compressed sparse row form.
-#[derive(Clone, Debug, Default)]
-pub struct Csr {
-    offsets: Vec<usize>,
-    indices: Vec<usize>,
-}
-
-impl Csr {
-    /// Row `b`: the entries of box `b`.
-    #[inline]
-    pub fn get(&self, b: usize) -> &[usize] {
-        &self.indices[self.offsets[b]..self.offsets[b + 1]]
-    }
-
-    /// Row offsets (`n_rows() + 1` entries, starting at 0).
-    pub fn offsets(&self) -> &[usize] {
-        &self.offsets
-    }
-
-    /// All entries, row after row.
-    pub fn indices(&self) -> &[usize] {
-        &self.indices
-    }
-
-    /// Number of rows (boxes).
-    pub fn n_rows(&self) -> usize {
-        self.offsets.len().saturating_sub(1)
-    }
-
-    /// Total number of entries.
-    pub fn n_entries(&self) -> usize {
-        self.indices.len()
-    }
-
-    /// Length of the longest row (0 if none).
-    pub fn max_row_len(&self) -> usize {
-        self.offsets
-            .windows(2)
-            .map(|w| w[1] - w[0])
-            .max()
-            .unwrap_or(0)
-    }
-
-    /// Builds `n` rows in parallel; `row(b, out)` appends row `b` to `out`.
-    fn build<F>(n: usize, row: F) -> Self
-    where
-        F: Fn(usize, &mut Vec<usize>) + Sync,
-    {
-        const CHUNK: usize = 256;
-        let parts: Vec<(Vec<usize>, Vec<usize>)> = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|c| {
-                let boxes = c * CHUNK..n.min((c + 1) * CHUNK);
-                let mut lens = Vec::with_capacity(boxes.len());
-                let mut idx = Vec::new();
-                for b in boxes {
-                    let before = idx.len();
-                    row(b, &mut idx);
-                    lens.push(idx.len() - before);
-                }
-                (lens, idx)
-            })
-            .collect();
-        let mut offsets = Vec::with_capacity(n + 1);
-        offsets.push(0);
-        let mut starts = Vec::with_capacity(parts.len());
-        for (lens, _) in &parts {
-            starts.push(*offsets.last().unwrap_or(&0));
-            for len in lens {
-                offsets.push(offsets.last().copied().unwrap_or(0) + len);
-            }
-        }
-        // Copy the parts into place in parallel.
-        let mut indices = vec![0usize; offsets[n]];
-        let mut slices = Vec::with_capacity(parts.len());
-        let mut rest: &mut [usize] = &mut indices;
-        for (_, idx) in &parts {
-            let (head, tail) = rest.split_at_mut(idx.len());
-            slices.push(head);
-            rest = tail;
-        }
-        slices
-            .into_par_iter()
-            .zip(parts.par_iter())
-            .for_each(|(dst, (_, src))| dst.copy_from_slice(src));
-        Csr { offsets, indices }
-    }
-}
-
-impl Csr {
-    /// Builds `n` rows in two passes: `count(b)` gives the length of row
-    /// `b`, then `fill(scratch, b, row)` writes it in place (in parallel;
-    /// `scratch` is per work chunk of consecutive boxes).
-    fn build_counted<S, C, F>(n: usize, count: C, fill: F) -> Self
-    where
-        S: Default,
-        C: Fn(usize) -> usize + Sync,
-        F: Fn(&mut S, usize, &mut [usize]) + Sync,
-    {
-        const CHUNK: usize = 256;
-        let counts: Vec<usize> = (0..n).into_par_iter().map(&count).collect();
-        let mut offsets = Vec::with_capacity(n + 1);
-        offsets.push(0);
-        for &c in &counts {
-            offsets.push(offsets.last().copied().unwrap_or(0) + c);
-        }
-        let mut indices = vec![0usize; offsets[n]];
-        let mut slices = Vec::with_capacity(n.div_ceil(CHUNK));
-        let mut rest: &mut [usize] = &mut indices;
-        for c in 0..n.div_ceil(CHUNK) {
-            let (s, e) = (c * CHUNK, n.min((c + 1) * CHUNK));
-            let (head, tail) = rest.split_at_mut(offsets[e] - offsets[s]);
-            slices.push(head);
-            rest = tail;
-        }
-        slices.into_par_iter().enumerate().for_each(|(c, slice)| {
-            let mut scratch = S::default();
-            let mut pos = 0;
-            for b in c * CHUNK..n.min((c + 1) * CHUNK) {
-                fill(&mut scratch, b, &mut slice[pos..pos + counts[b]]);
-                pos += counts[b];
-            }
-        });
-        Csr { offsets, indices }
-    }
-}
 
 /// The U, V, W and X lists of a tree (see the [module documentation](self)).
 #[derive(Clone, Debug, Default)]

@@ -112,8 +112,6 @@ impl Octree {
         options: &TreeOptions,
     ) -> Result<Self, TreeError> {
         options.validate()?;
-        let mut t0 = std::time::Instant::now();
-        let mut lap = |s: &str| { eprint!("{s} {:.1} | ", t0.elapsed().as_secs_f64()*1e3); t0 = std::time::Instant::now(); };
         let mut sets = vec![(PointSet::Sources, sources)];
         if let Some(t) = targets {
             sets.push((PointSet::Targets, t));
@@ -133,7 +131,6 @@ impl Octree {
             }
             None => Domain::bounding(&sets)?,
         };
-        lap("validate");
         let (src, tgt) = rayon::join(
             || sort_points(sources, &domain),
             || targets.map(|t| sort_points(t, &domain)),
@@ -150,21 +147,15 @@ impl Octree {
                 max_level: options.max_level,
             },
         };
-        lap("sort");
         let mut levels = refine(&pts, rule);
-        lap("refine");
         if matches!(rule, Refinement::Adaptive { .. }) {
             balance(&mut levels, &pts);
         }
-        lap("balance");
         let mut tree = Self::flatten(domain, &levels);
         tree.sources = Sorted::new(src);
         tree.targets = tgt.map(Sorted::new);
-        lap("flatten");
         tree.colleagues = ColleagueTable::build(&tree);
-        lap("colleagues");
         tree.lists = InteractionLists::build(&tree);
-        lap("lists"); eprintln!();
         Ok(tree)
     }
 

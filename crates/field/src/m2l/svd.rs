@@ -321,7 +321,8 @@ fn compress_set<K: Kernel>(
     let vectors = transfer_vectors();
     // First TSQR level: R factors of blocks of the tall stack [K_v] and of
     // the transposed fat stack [K_v^T].
-    let blocks: Vec<Result<(Mat<f64>, Mat<f64>), FieldError>> = vectors
+    type RPair = Result<(Mat<f64>, Mat<f64>), FieldError>;
+    let blocks: Vec<RPair> = vectors
         .par_chunks(TSQR_BLOCK)
         .map(|vs| {
             let rows = vs.len() * n;

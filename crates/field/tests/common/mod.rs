@@ -305,7 +305,7 @@ pub fn full_chain_error<T: Real, K: Kernel>(
     for (i, v) in CHAIN_VECTORS.iter().enumerate() {
         let cs = box_center(level, [t_idx[0] + v[0], t_idx[1] + v[1], t_idx[2] + v[2]]);
         // Children closest to each other: the hardest case.
-        let so = (0..3).fold(0, |o, d| o | (if v[d] < 0 { 1 << d } else { 0 })) ^ (i & 1) * 7;
+        let so = (0..3).fold(0, |o, d| o | (if v[d] < 0 { 1 << d } else { 0 })) ^ ((i & 1) * 7);
         let to = (0..3).fold(0, |o, d| o | (if v[d] > 0 { 1 << d } else { 0 }));
         let (oso, oto) = (
             ferrofmm_field::octant_offset(so),

@@ -354,6 +354,22 @@ pub fn check_lists(tree: &Octree) {
         assert_eq!(tree.v_list(b), &brute.v[b][..], "V({})", tree.key(b));
         assert_eq!(tree.w_list(b), &brute.w[b][..], "W({})", tree.key(b));
         assert_eq!(tree.x_list(b), &brute.x[b][..], "X({})", tree.key(b));
+        // Levels and transfer vectors promised to the driver.
+        let kb = tree.key(b);
+        for &a in tree.v_list(b) {
+            let t = kb.transfer_vector(tree.key(a));
+            assert!(t.iter().all(|x| x.abs() <= 3) && t.iter().any(|x| x.abs() >= 2));
+        }
+        for &a in tree.w_list(b) {
+            assert_eq!(tree.level(a), kb.level() + 1, "W entry not one level finer");
+        }
+        for &a in tree.x_list(b) {
+            assert_eq!(
+                tree.level(a) + 1,
+                kb.level(),
+                "X entry not one level coarser"
+            );
+        }
     }
     check_coverage(tree);
 }
