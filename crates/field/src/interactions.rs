@@ -1,5 +1,7 @@
 //! Transfer vectors and the grouped V-list interactions of one level.
 
+use rayon::slice::ParallelSliceMut;
+
 use crate::FieldError;
 
 /// Number of distinct M2L transfer vectors: `7^3 - 3^3 = 316`.
@@ -164,7 +166,7 @@ impl M2lInteractions {
             let c = t / chunk_size;
             keyed.push(((c * N_TRANSFER_VECTORS + vi) as u64, t as u32, s as u32));
         }
-        keyed.sort_unstable();
+        keyed.par_sort_unstable();
         let n_chunks = n_target_cols.div_ceil(chunk_size);
         let mut chunks = Vec::with_capacity(n_chunks);
         let mut groups = Vec::new();

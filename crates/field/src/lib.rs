@@ -71,6 +71,8 @@
 //! matches; anything stale, truncated or corrupt is recomputed and rewritten.
 //! See [`CacheStatus`].
 
+#![warn(missing_docs)]
+
 mod cache;
 mod error;
 mod gemm;

@@ -22,6 +22,7 @@ use crate::{
 /// ```
 /// assert_eq!(ferrofmm_field::octant_offset(0), [-1.0, -1.0, -1.0]);
 /// assert_eq!(ferrofmm_field::octant_offset(5), [1.0, -1.0, 1.0]);
+/// assert_eq!(ferrofmm_field::octant_offset(2), [-1.0, 1.0, -1.0]);
 /// ```
 pub fn octant_offset(octant: usize) -> [f64; 3] {
     assert!(octant < 8, "octant must be < 8, got {octant}");
@@ -59,16 +60,8 @@ pub fn octant_offset(octant: usize) -> [f64; 3] {
 ///
 /// ```
 /// use ferrofmm_field::{OperatorParams, Operators};
-/// # use ferrofmm_kernels::{Kernel, Real};
-/// # #[derive(Clone)] struct Laplace;
-/// # impl Kernel for Laplace {
-/// #     fn name(&self) -> String { "doc-laplace".into() }
-/// #     fn homogeneity(&self) -> Option<f64> { Some(-1.0) }
-/// #     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
-/// #         T::INV_4PI / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() }
-/// #     fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] { unimplemented!() }
-/// # }
-/// let ops = Operators::<f64>::new(&Laplace, &OperatorParams::new(4), 1.0, 3).unwrap();
+/// use ferrofmm_kernels::Laplace3d;
+/// let ops = Operators::<f64>::new(&Laplace3d, &OperatorParams::new(4), 1.0, 3).unwrap();
 /// let n = ops.n_surface();
 /// let check = vec![1.0; 2 * n]; // two boxes at level 3
 /// let mut equiv = vec![0.0; 2 * n];

@@ -228,7 +228,9 @@ fn tolerances() -> Vec<f64> {
     if std::env::var_os("FERROFMM_SVD_DEFAULT_ONLY").is_some() {
         vec![0.0]
     } else {
-        vec![0.0, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12]
+        vec![
+            0.0, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-7, 1e-8, 1e-9, 1e-10, 1e-12,
+        ]
     }
 }
 

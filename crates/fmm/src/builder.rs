@@ -3,11 +3,11 @@
 
 use std::path::PathBuf;
 
-use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdM2l};
+use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdConfig, SvdM2l};
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
-use crate::{Fmm, FmmError};
+use crate::{Fmm, FmmError, tuning};
 
 /// Smallest supported expansion order.
 pub const MIN_ORDER: usize = 2;
@@ -50,6 +50,7 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) cache_dir: Option<PathBuf>,
     pub(crate) domain: Option<Domain>,
     pub(crate) max_level: u32,
+    pub(crate) tolerance: Option<f64>,
 }
 
 impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
@@ -70,6 +71,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             cache_dir: None,
             domain: None,
             max_level: DEEPEST_LEVEL,
+            tolerance: None,
         }
     }
 }
@@ -89,7 +91,36 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             cache_dir: self.cache_dir,
             domain: self.domain,
             max_level: self.max_level,
+            tolerance: self.tolerance,
         }
+    }
+
+    /// Ask for a relative L2 error `eps` of the potential instead of giving
+    /// the parameters: the order, the leaf size and (with
+    /// [`FmmBuilder::build_svd`]) the SVD tolerance of the M2L operators are
+    /// chosen from `eps`, the float type and the points, as the cheapest
+    /// setting the measured error model admits (see [`crate::tuning`]; the
+    /// choice is reported by [`Fmm::chosen_parameters`] and in
+    /// [`Fmm::summary`]). It replaces [`FmmBuilder::order`] and
+    /// [`FmmBuilder::leaf_size`]; [`FmmBuilder::build_with`] keeps the M2L
+    /// configuration it is given.
+    ///
+    /// `eps` must lie in `(0, 1)` ([`FmmError::InvalidTolerance`]) and be
+    /// reachable in the float type ([`FmmError::ToleranceBeyondPrecision`]:
+    /// `f32` reaches about `5e-6`, see [`tuning::f32_reaches`]; `f64` about
+    /// `3e-12`). The promise (measured on uniform, sphere-surface, Plummer
+    /// and two-cluster points) is for the Laplace kernel's potential.
+    ///
+    /// ```no_run
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry};
+    /// let points: Vec<f64> = Geometry::Plummer.points(100_000, 1);
+    /// let fmm = FmmBuilder::new(&points).tolerance(1e-7).build_svd().unwrap();
+    /// let chosen = fmm.chosen_parameters().unwrap();
+    /// println!("order {} leaf {} svd {:e}", chosen.order, chosen.leaf_size, chosen.svd_tolerance);
+    /// ```
+    pub fn tolerance(mut self, eps: f64) -> Self {
+        self.tolerance = Some(eps);
+        self
     }
 
     /// Evaluate at these targets (interleaved `x, y, z`) instead of at the sources.
@@ -125,6 +156,12 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Relative singular-value cutoff of the check-to-equivalent
     /// pseudo-inverses (`None`: the float type's default; `Some(0.0)`: none).
+    ///
+    /// A cutoff too small for the float type at the chosen order (rounding
+    /// errors amplified more than
+    /// [`AMPLIFICATION_WARNING`](ferrofmm_field::AMPLIFICATION_WARNING)-fold,
+    /// e.g. no cutoff in `f32` from `p = 7` on) makes the build fail with
+    /// [`FmmError::IllConditioned`] rather than return noise.
     pub fn pinv_rcond(mut self, rcond: Option<f64>) -> Self {
         self.pinv_rcond = rcond;
         self
@@ -159,6 +196,9 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Check every parameter and every coordinate before any work.
     pub(crate) fn validate(&self) -> Result<(), FmmError> {
+        if let Some(eps) = self.tolerance {
+            tuning::validate_tolerance(eps, T::PRECISION)?;
+        }
         if !(MIN_ORDER..=MAX_ORDER).contains(&self.order) {
             return Err(FmmError::InvalidOrder {
                 order: self.order,
@@ -184,12 +224,24 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Build with the M2L scheme `S` and its configuration.
     pub fn build_with<S: M2lScheme<T>>(self, config: S::Config) -> Result<Fmm<T, K, S>, FmmError> {
-        Fmm::build(self, config)
+        Fmm::build(self, |_| config)
     }
 
-    /// Build with the SVD-compressed M2L scheme (the default choice).
+    /// Build with the SVD-compressed M2L scheme (the default choice). With
+    /// a [`FmmBuilder::tolerance`], the SVD tolerance is chosen too.
     pub fn build_svd(self) -> Result<Fmm<T, K, SvdM2l<T>>, FmmError> {
-        self.build_with(Default::default())
+        let mut fmm: Fmm<T, K, SvdM2l<T>> = Fmm::build(self, |chosen| match chosen {
+            Some(c) => SvdConfig {
+                rank: None,
+                tolerance: c.svd_tolerance,
+            },
+            None => SvdConfig::default(),
+        })?;
+        let rank = fmm.m2l.rank();
+        if let Some(c) = fmm.chosen.as_mut() {
+            c.svd_rank = Some(rank);
+        }
+        Ok(fmm)
     }
 
     /// Build with the dense (reference) M2L scheme.

@@ -68,9 +68,67 @@ pub enum FmmError {
         /// The offending value.
         value: f64,
     },
+    /// The domain is so small or so large that squared distances between
+    /// points and expansion surfaces underflow or overflow the float type
+    /// (every pair would count as coincident, or every value as infinite).
+    #[error(
+        "domain width {width:e} is outside the range {min:e} ..= {max:e} that {precision} \
+         resolves at tree depth {depth} (squared distances would underflow or overflow): \
+         rescale the coordinates"
+    )]
+    DomainOutOfRange {
+        /// Width of the (computed or given) domain.
+        width: f64,
+        /// Smallest width accepted at this depth.
+        min: f64,
+        /// Largest width accepted.
+        max: f64,
+        /// Depth of the tree.
+        depth: u32,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
+    },
+    /// The check-to-equivalent pseudo-inverses amplify rounding errors of
+    /// the float type so much that results would be noise (a pseudo-inverse
+    /// cutoff set below what the float type supports; see
+    /// docs/stability.md).
+    #[error(
+        "order {order} with pseudo-inverse cutoff {rcond:e} is ill-conditioned in {precision}: \
+         rounding errors would be amplified {amplification:.1e}-fold (limit {limit:.0e}); use the \
+         default cutoff (pinv_rcond(None)) or a lower order"
+    )]
+    IllConditioned {
+        /// Expansion order.
+        order: usize,
+        /// Cutoff used.
+        rcond: f64,
+        /// `eps_T * condition` of the worst pseudo-inverse.
+        amplification: f64,
+        /// The largest amplification accepted
+        /// ([`ferrofmm_field::AMPLIFICATION_WARNING`]).
+        limit: f64,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
+    },
     /// A tolerance outside (0, 1) or otherwise unreachable.
     #[error("invalid tolerance {0}: use a value in (0, 1), e.g. 1e-6")]
     InvalidTolerance(f64),
+    /// A tolerance the float type (or the measured error model) cannot
+    /// promise: ask for a larger one, or use `f64` (see
+    /// [`crate::tuning::f32_reaches`]).
+    #[error(
+        "tolerance {tolerance:e} is beyond what {precision} can promise (smallest: {limit:.1e}); \
+         use a larger tolerance{}",
+        if *precision == "f32" { " or f64" } else { "" }
+    )]
+    ToleranceBeyondPrecision {
+        /// The tolerance asked for.
+        tolerance: f64,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
+        /// The smallest tolerance that precision can promise.
+        limit: f64,
+    },
     /// Any other impossible parameter.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),

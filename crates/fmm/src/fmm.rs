@@ -3,12 +3,17 @@
 
 use std::time::Instant;
 
-use ferrofmm_field::{M2lInteractions, M2lScheme, Operators, surface_points};
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_field::{
+    AMPLIFICATION_WARNING, M2lInteractions, M2lScheme, Operators, surface_points,
+};
+use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
 use ferrofmm_tree::{Octree, TreeOptions};
+use rayon::prelude::*;
 
 use crate::builder::FmmBuilder;
+use crate::memory::MemoryReport;
 use crate::timings::{EvalTimings, SetupTimings};
+use crate::tuning::{ChosenParameters, Tuner};
 use crate::{FmmError, passes};
 
 /// A kernel-independent FMM, built once for fixed sources, targets, kernel
@@ -25,10 +30,15 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) m2l: S,
     /// V-list interactions per level (index = level).
     pub(crate) m2l_interactions: Vec<M2lInteractions>,
-    /// Sources in Morton (leaf) order, interleaved.
+    /// Sources in Morton (leaf) order, interleaved, relative to `centre`.
     pub(crate) sources: Vec<T>,
-    /// Targets in Morton (leaf) order, interleaved.
+    /// Targets in Morton (leaf) order, interleaved, relative to `centre`.
     pub(crate) targets: Vec<T>,
+    /// Centre of the tree's domain: all coordinates the passes see (points
+    /// and surfaces) are relative to it, so that far from the origin (say
+    /// at 1e8 + [0, 1)^3, or 1e4 + [0, 1)^3 in f32) they keep the digits
+    /// that resolve the problem instead of those of the offset.
+    pub(crate) centre: [f64; 3],
     /// Unit-cube surface grid (centre 0, half-width 1, radius 1), interleaved, f64.
     pub(crate) unit_surface: Vec<f64>,
     pub(crate) n_sources: usize,
@@ -36,6 +46,8 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) order: usize,
     pub(crate) leaf_size: usize,
     pub(crate) setup: SetupTimings,
+    /// Parameters chosen for a tolerance (`None`: given by the caller).
+    pub(crate) chosen: Option<ChosenParameters>,
 }
 
 /// Figures that describe a built [`Fmm`] (for reports and JSON output).
@@ -67,10 +79,20 @@ pub struct FmmSummary {
     pub kernel: String,
     /// `f32` or `f64`.
     pub precision: String,
+    /// The parameters chosen for [`FmmBuilder::tolerance`] (`null` when
+    /// they were given).
+    pub chosen: Option<ChosenParameters>,
+    /// Bytes of the big buffers (see [`Fmm::memory`]).
+    pub memory: MemoryReport,
 }
 
 impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
-    pub(crate) fn build(b: FmmBuilder<'_, T, K>, config: S::Config) -> Result<Self, FmmError> {
+    /// Build; `config` makes the scheme's configuration, given the
+    /// parameters chosen for a tolerance (if one was asked for).
+    pub(crate) fn build(
+        mut b: FmmBuilder<'_, T, K>,
+        config: impl FnOnce(Option<&ChosenParameters>) -> S::Config,
+    ) -> Result<Self, FmmError> {
         b.validate()?;
         let t0 = Instant::now();
         let mut setup = SetupTimings::default();
@@ -78,6 +100,24 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let to_f64 = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
         let src64 = to_f64(b.sources);
         let tgt64 = b.targets.map(to_f64);
+        let chosen = match b.tolerance {
+            Some(eps) => {
+                let t = Instant::now();
+                let c = Tuner::new(T::PRECISION).choose(
+                    eps,
+                    &src64,
+                    tgt64.as_deref(),
+                    b.domain,
+                    b.max_level,
+                )?;
+                b.order = c.order;
+                b.leaf_size = c.leaf_size;
+                setup.tuning = t.elapsed();
+                Some(c)
+            }
+            None => None,
+        };
+        let config = config(chosen.as_ref());
         let options = TreeOptions {
             leaf_size: b.leaf_size,
             max_level: b.max_level,
@@ -87,13 +127,34 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let tree = Octree::new(&src64, tgt64.as_deref(), &options)?;
         drop(src64);
         drop(tgt64);
-        setup.tree = t0.elapsed();
+        setup.tree = t0.elapsed() - setup.tuning;
+        let (min, max) = width_range::<T>(tree.depth());
+        let width = tree.domain().width;
+        if !(min..=max).contains(&width) {
+            return Err(FmmError::DomainOutOfRange {
+                width,
+                min,
+                max,
+                depth: tree.depth(),
+                precision: T::PRECISION.name(),
+            });
+        }
 
         let t = Instant::now();
         let params = b.operator_params();
         let width = tree.domain().width;
         let depth = tree.depth();
         let operators = Operators::<T>::new(&b.kernel, &params, width, depth)?;
+        let diagnostics = operators.diagnostics();
+        if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
+            return Err(FmmError::IllConditioned {
+                order: b.order,
+                rcond: diagnostics.rcond,
+                amplification: diagnostics.rounding_amplification,
+                limit: AMPLIFICATION_WARNING,
+                precision: T::PRECISION.name(),
+            });
+        }
         setup.operators = t.elapsed();
 
         let t = Instant::now();
@@ -104,9 +165,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let m2l_interactions = (0..=depth)
             .map(|level| level_interactions(&tree, level))
             .collect();
-        let sources = permute_points(b.sources, tree.source_permutation());
+        let centre = tree.domain().center();
+        let sources = permute_points(b.sources, tree.source_permutation(), centre);
         let targets = match b.targets {
-            Some(t) => permute_points(t, tree.target_permutation()),
+            Some(t) => permute_points(t, tree.target_permutation(), centre),
             None => sources.clone(),
         };
         let unit_surface = surface_points::<f64>(b.order, [0.0; 3], 1.0, 1.0);
@@ -124,10 +186,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             m2l_interactions,
             sources,
             targets,
+            centre,
             unit_surface,
             order: b.order,
             leaf_size: b.leaf_size,
             setup,
+            chosen,
         })
     }
 
@@ -181,6 +245,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         &self.tree
     }
 
+    /// The check-to-equivalent and parent/child operators (their
+    /// [`Operators::diagnostics`] and [`Operators::cache_status`]).
+    pub fn operators(&self) -> &Operators<T> {
+        &self.operators
+    }
+
     /// The kernel.
     pub fn kernel(&self) -> &K {
         &self.kernel
@@ -209,6 +279,31 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// Expansion order.
     pub fn order(&self) -> usize {
         self.order
+    }
+
+    /// The parameters chosen for [`FmmBuilder::tolerance`] (with the built
+    /// SVD rank when built by [`FmmBuilder::build_svd`]); `None` when the
+    /// caller gave them.
+    pub fn chosen_parameters(&self) -> Option<&ChosenParameters> {
+        self.chosen.as_ref()
+    }
+
+    /// Leaf size the tree was built with.
+    pub fn leaf_size(&self) -> usize {
+        self.leaf_size
+    }
+
+    /// An accounting of the big buffers, in bytes: what is held between
+    /// evaluations and what one evaluation allocates. Every per-box buffer
+    /// is sized by the boxes that exist (boxes holding points), never by
+    /// `8^depth`.
+    pub fn memory(&self) -> MemoryReport {
+        MemoryReport::of(self)
+    }
+
+    /// Total of [`Fmm::memory`]: bytes held plus bytes one evaluation allocates.
+    pub fn memory_bytes(&self) -> usize {
+        self.memory().total
     }
 
     /// Time spent building.
@@ -240,15 +335,21 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             m2l_bytes: self.m2l.memory_bytes(),
             kernel: self.kernel.name(),
             precision: T::PRECISION.name().to_string(),
+            chosen: self.chosen.clone(),
+            memory: self.memory(),
         }
     }
 
     /// Check or equivalent surface of box `b` scaled by `radius` (a multiple
-    /// of the half-width), written into `out` (interleaved).
+    /// of the half-width), written into `out` (interleaved, relative to the
+    /// domain's centre like the points).
     pub(crate) fn surface_of(&self, b: usize, radius: f64, out: &mut Vec<T>) {
         let key = self.tree.key(b);
         let domain = self.tree.domain();
-        let c = key.center(domain);
+        let c: [f64; 3] = {
+            let a = key.center(domain);
+            std::array::from_fn(|i| a[i] - self.centre[i])
+        };
         let r = key.half_width(domain) * radius;
         out.clear();
         out.extend(
@@ -263,23 +364,44 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 /// `(target column, source column, transfer vector)` for every V-list pair of a level.
 fn level_interactions(tree: &Octree, level: u32) -> M2lInteractions {
     let range = tree.level_range(level);
-    let mut pairs = Vec::new();
-    for b in range.clone() {
-        let key = tree.key(b);
-        for &a in tree.v_list(b) {
-            pairs.push((
-                b - range.start,
-                a - range.start,
-                key.transfer_vector(tree.key(a)),
-            ));
-        }
-    }
+    let start = range.start;
+    let pairs: Vec<(usize, usize, [i32; 3])> = range
+        .clone()
+        .into_par_iter()
+        .flat_map_iter(|b| {
+            let key = tree.key(b);
+            tree.v_list(b)
+                .iter()
+                .map(move |&a| (b - start, a - start, key.transfer_vector(tree.key(a))))
+        })
+        .collect();
     M2lInteractions::new(range.len(), range.len(), &pairs)
 }
 
-/// Points in the tree's sorted order: `out[k] = points[perm[k]]`.
-fn permute_points<T: Real>(points: &[T], perm: &[usize]) -> Vec<T> {
+/// Points in the tree's sorted order, relative to `centre`:
+/// `out[k] = points[perm[k]] - centre` (the difference in f64, then rounded
+/// to `T`).
+fn permute_points<T: Real>(points: &[T], perm: &[usize], centre: [f64; 3]) -> Vec<T> {
     perm.iter()
-        .flat_map(|&i| [points[3 * i], points[3 * i + 1], points[3 * i + 2]])
+        .flat_map(|&i| {
+            std::array::from_fn::<T, 3, _>(|c| T::from_f64(points[3 * i + c].to_f64() - centre[c]))
+        })
         .collect()
+}
+
+/// Domain widths `T` resolves in a tree of depth `depth`, `(min, max)`.
+///
+/// Kernel evaluations in the passes involve distances from about a quarter
+/// of the deepest boxes' width (points to the surfaces of their own or
+/// neighbouring boxes) up to a few domain widths (surfaces of level-1 boxes
+/// and their check surfaces): with `W` the width and `h = W / 2^(depth+1)`,
+/// `(h / 2)^2` must not underflow (`>= MIN_POSITIVE`, else pairs silently
+/// count as coincident) and `64 W^2` must not overflow.
+pub(crate) fn width_range<T: Real>(depth: u32) -> (f64, f64) {
+    let largest = match T::PRECISION {
+        Precision::F32 => f32::MAX as f64,
+        Precision::F64 => f64::MAX,
+    };
+    let min = T::MIN_POSITIVE.to_f64().sqrt() * 2f64.powi(depth as i32 + 2);
+    (min, largest.sqrt() / 8.0)
 }

@@ -5,6 +5,9 @@ use std::time::Duration;
 /// Time spent building an [`crate::Fmm`].
 #[derive(Clone, Copy, Debug, Default, serde::Serialize)]
 pub struct SetupTimings {
+    /// Choosing the parameters for a tolerance (the occupancy pre-pass of
+    /// [`crate::tuning`]; zero when the parameters were given).
+    pub tuning: Duration,
     /// Octree: sort, refine, 2:1 balance, interaction lists.
     pub tree: Duration,
     /// Check/equivalent pseudo-inverses and M2M/L2L operators.

@@ -31,16 +31,8 @@ pub struct DenseConfig;
 ///
 /// ```
 /// use ferrofmm_field::{DenseConfig, DenseM2l, M2lInteractions, M2lScheme, OperatorParams};
-/// # use ferrofmm_kernels::{Kernel, Real};
-/// # #[derive(Clone)] struct Laplace;
-/// # impl Kernel for Laplace {
-/// #     fn name(&self) -> String { "doc-laplace".into() }
-/// #     fn homogeneity(&self) -> Option<f64> { Some(-1.0) }
-/// #     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
-/// #         T::INV_4PI / (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt() }
-/// #     fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] { unimplemented!() }
-/// # }
-/// let m2l = DenseM2l::<f64>::precompute(&Laplace, &OperatorParams::new(3), &DenseConfig, 1.0, 3).unwrap();
+/// use ferrofmm_kernels::Laplace3d;
+/// let m2l = DenseM2l::<f64>::precompute(&Laplace3d, &OperatorParams::new(3), &DenseConfig, 1.0, 3).unwrap();
 /// let n = ferrofmm_field::n_surface_points(3);
 /// let inter = M2lInteractions::new(1, 1, &[(0, 0, [2, 0, 0])]);
 /// let mut check = vec![0.0; n];

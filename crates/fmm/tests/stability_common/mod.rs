@@ -67,12 +67,7 @@ pub fn evaluate<T: Real>(
 
 /// Relative L2 potential error of `values` against direct summation at (a
 /// sample of at most 1000 of) the targets.
-pub fn potential_error<T: Real>(
-    sources: &[T],
-    targets: &[T],
-    charges: &[T],
-    values: &[T],
-) -> f64 {
+pub fn potential_error<T: Real>(sources: &[T], targets: &[T], charges: &[T], values: &[T]) -> f64 {
     let m = targets.len() / 3;
     relative_errors(
         &Laplace3d,

@@ -1,0 +1,115 @@
+//! [`MemoryReport`]: an accounting of the big buffers of an [`Fmm`].
+//!
+//! Nothing is allocated for empty space: the tree holds only boxes that
+//! contain points, expansions are `n` values per existing box, and M2L
+//! interactions exist only between existing boxes. So memory grows with the
+//! number of occupied boxes (about `N / leaf_size` times a small factor),
+//! not with the depth: two clusters 1000x apart in size need a tree 17
+//! levels deep, where `8^17` boxes could not be stored, but as many boxes as
+//! uniform points of the same `N`.
+
+use std::mem::size_of;
+
+use ferrofmm_field::M2lScheme;
+use ferrofmm_kernels::{Kernel, Real};
+
+use crate::Fmm;
+
+/// Bytes of the big buffers of an [`Fmm`] (see [`Fmm::memory`]).
+///
+/// The tree's figures count its arrays from their lengths (keys, parents,
+/// children, masks, point ranges, the 27-entry colleague table, the four
+/// CSR lists, sorted coordinates and permutations); small fixed-size parts
+/// are left out.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct MemoryReport {
+    /// Boxes the buffers below are sized by.
+    pub n_boxes: usize,
+    /// Values per expansion (`n = 6 (p - 1)^2 + 2`).
+    pub n_surface: usize,
+    /// Multipole and local expansions of one evaluation:
+    /// `2 n n_boxes size_of::<T>()`.
+    pub expansions: usize,
+    /// Other buffers of one evaluation: check potentials of the upward
+    /// pass (`n n_boxes`), charges in tree order, sorted and returned
+    /// outputs.
+    pub evaluation_scratch: usize,
+    /// Points kept by the FMM (sorted, in `T`) and by the tree (sorted,
+    /// `f64`, with the permutations).
+    pub points: usize,
+    /// Tree structure: per-box arrays, colleague table, U/V/W/X lists.
+    pub tree: usize,
+    /// M2L interaction groups of every level.
+    pub m2l_interactions: usize,
+    /// Check-to-equivalent, M2M and L2L operators.
+    pub operators: usize,
+    /// M2L operators ([`M2lScheme::memory_bytes`]).
+    pub m2l: usize,
+    /// Everything above.
+    pub total: usize,
+}
+
+impl MemoryReport {
+    pub(crate) fn of<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
+        let t = size_of::<T>();
+        let us = size_of::<usize>();
+        let tree = &fmm.tree;
+        let n_boxes = tree.n_boxes();
+        let n = fmm.operators.n_surface();
+        let w = fmm.mode.values_per_target();
+
+        let expansions = 2 * n * n_boxes * t;
+        let evaluation_scratch = n * n_boxes * t + fmm.n_sources * t + 2 * w * fmm.n_targets * t;
+
+        let sorted = |count: usize| count * (3 * size_of::<f64>() + 2 * us);
+        let tree_points = sorted(tree.n_sources())
+            + if tree.sources_are_targets() {
+                0
+            } else {
+                sorted(tree.n_targets())
+            };
+        let points = (fmm.sources.len() + fmm.targets.len()) * t + tree_points;
+
+        // keys, parents, children (2), source and target ranges (4), two
+        // masks, colleague table (27 u32), leaves.
+        let per_box = size_of::<u64>() + us + 2 * us + 4 * us + 2 + 27 * 4;
+        let lists = tree.interaction_lists();
+        let csr = |c: &ferrofmm_tree::Csr| (c.offsets().len() + c.indices().len()) * us;
+        let tree_bytes = n_boxes * per_box
+            + std::mem::size_of_val(tree.leaves())
+            + csr(&lists.u)
+            + csr(&lists.v)
+            + csr(&lists.w)
+            + csr(&lists.x);
+
+        // Per pair a source column and a local target (u32 each); per
+        // group a vector index and a pair range; per chunk four bounds.
+        let m2l_interactions = fmm
+            .m2l_interactions
+            .iter()
+            .map(|i| 8 * i.len() + 3 * us * i.n_groups() + 4 * us * i.n_chunks())
+            .sum();
+
+        let operators = fmm.operators.memory_bytes();
+        let m2l = fmm.m2l.memory_bytes();
+        let total = expansions
+            + evaluation_scratch
+            + points
+            + tree_bytes
+            + m2l_interactions
+            + operators
+            + m2l;
+        MemoryReport {
+            n_boxes,
+            n_surface: n,
+            expansions,
+            evaluation_scratch,
+            points,
+            tree: tree_bytes,
+            m2l_interactions,
+            operators,
+            m2l,
+            total,
+        }
+    }
+}
