@@ -10,10 +10,14 @@
 //!   (default cube).
 //! * `MODE`:
 //!   * `grid` (default): every order x leaf size with the library's default
-//!     SVD tolerance; for each tolerance in 1e-3, 1e-5, 1e-7, 1e-9 the
-//!     fastest grid setting that meets it against the chosen setting; and
-//!     the cost model fitted to the grid's runs.
-//!   * `fit`: as `grid`, printing only the fitted cost model.
+//!     SVD tolerance; the cost model fitted to the grid's runs; and for each
+//!     tolerance in 1e-3, 1e-5, 1e-7, 1e-9 the fastest grid setting that
+//!     meets it against the chosen setting (both re-measured three times in
+//!     alternation, the fastest of each counts).
+//!   * `fit`: the grid on every geometry given (default: all four) and
+//!     the cost model fitted to all of their runs, to paste into
+//!     `CostModel::default` (with `TOLERANCE_GRID_CSV=path` the raw runs
+//!     are written to a CSV file too).
 //!   * `chosen`: only the chosen settings (time, error, prediction).
 //!   * `errors`: the error of every order x leaf size on all four
 //!     geometries (the error model's table), N points each.
@@ -38,6 +42,8 @@ use ferrofmm::fmm::{EvalTimings, Fmm, FmmBuilder, Geometry, charges, sample_indi
 use ferrofmm::kernels::{EvalMode, Laplace3d, Precision, direct_sum};
 
 const CACHE: &str = "target/tolerance-cache";
+/// Alternating re-measurements of the fastest and the chosen setting.
+const ROUNDS: usize = 3;
 /// Targets compared with direct summation.
 const SAMPLE: usize = 997;
 
@@ -209,6 +215,7 @@ fn main() {
     let mut leaves: Vec<usize> = vec![16, 32, 64, 128, 256, 512, 1024];
     let mut tolerances: Vec<f64> = vec![1e-3, 1e-5, 1e-7, 1e-9];
     let mut repeats = 3usize;
+    let mut given: Vec<Geometry> = Vec::new();
     for a in &args {
         if let Some(v) = a.strip_prefix("orders=") {
             orders = list(v);
@@ -222,29 +229,141 @@ fn main() {
             n = v as usize;
         } else if let Some(g) = Geometry::from_name(a) {
             geometry = g;
+            given.push(g);
         } else {
             mode = a.clone();
         }
     }
+    let geometries = if given.is_empty() {
+        Geometry::ALL.to_vec()
+    } else {
+        given
+    };
     println!(
         "# N = {n}, geometry {}, mode {mode}, {} threads",
         geometry.name(),
         rayon::current_num_threads()
     );
     match mode.as_str() {
-        "grid" | "fit" => grid(
-            n,
-            geometry,
-            &orders,
-            &leaves,
-            &tolerances,
-            repeats,
-            mode == "fit",
-        ),
+        "fit" => fit(n, &geometries, &orders, &leaves, repeats),
+        "grid" => grid(n, geometry, &orders, &leaves, &tolerances, repeats),
         "chosen" => chosen(n, geometry, &tolerances, repeats),
         "errors" => errors(n, &orders, &leaves),
         "memory" => memory(n, geometry, tolerances[tolerances.len().min(2) - 1]),
         other => panic!("unknown mode {other}"),
+    }
+}
+
+/// Every order x leaf size on `p`, printed as a table row each.
+fn run_grid(
+    p: &Problem,
+    orders: &[usize],
+    leaves: &[usize],
+    repeats: usize,
+    label: &str,
+) -> Vec<Run> {
+    let model = CostModel::default();
+    let mut runs = Vec::new();
+    for &order in orders {
+        for &leaf in leaves {
+            let fmm = build_grid(p, order, leaf, repeats);
+            let r = measure(p, &fmm, repeats, &model);
+            drop(fmm);
+            println!(
+                "| {label}{} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.1e} |",
+                r.order,
+                r.leaf,
+                r.depth,
+                r.n_boxes,
+                r.rank,
+                r.tree_s,
+                r.eval_s,
+                r.time(),
+                r.predicted_s,
+                r.precompute_s,
+                r.error
+            );
+            runs.push(r);
+        }
+    }
+    runs
+}
+
+const GRID_HEADER: &str = "| p | leaf | depth | boxes | rank | tree s | eval s | time s | predicted s | precompute s | error |\n|---|---|---|---|---|---|---|---|---|---|---|";
+
+/// Mean relative error of `m`'s predictions (geometric mean of the ratios).
+fn prediction_error(m: &CostModel, runs: &[Run]) -> f64 {
+    let e: Vec<f64> = runs
+        .iter()
+        .map(|r| {
+            (m.predict(&r.sample.work, r.order, r.rank).total / r.time())
+                .ln()
+                .abs()
+        })
+        .collect();
+    (e.iter().sum::<f64>() / e.len().max(1) as f64).exp() - 1.0
+}
+
+/// Fit the cost model to grids on several geometries.
+fn fit(n: usize, geometries: &[Geometry], orders: &[usize], leaves: &[usize], repeats: usize) {
+    let mut all: Vec<(Geometry, Vec<Run>)> = Vec::new();
+    println!("{GRID_HEADER}");
+    for &g in geometries {
+        let p = Problem::new(g, n);
+        let label = format!("{} p=", g.name());
+        all.push((g, run_grid(&p, orders, leaves, repeats, &label)));
+    }
+    let runs: Vec<Run> = all.iter().flat_map(|(_, r)| r.iter().cloned()).collect();
+    if let Ok(path) = std::env::var("TOLERANCE_GRID_CSV") {
+        // Raw samples, to try other forms of the model offline.
+        let mut csv = String::from(
+            "geometry,order,leaf,n,rank,boxes,m2l_boxes,leaves,depth,p2p_pairs,m2l_pairs,far_points,points,tree_s,p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,eval_s\n",
+        );
+        for (g, rs) in &all {
+            for r in rs {
+                let w = &r.sample.work;
+                let e = &r.sample.eval;
+                csv += &format!(
+                    "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n",
+                    g.name(),
+                    r.order,
+                    r.leaf,
+                    ferrofmm::field::n_surface_points(r.order),
+                    r.rank,
+                    w.n_boxes,
+                    w.m2l_boxes,
+                    w.n_leaves,
+                    w.depth,
+                    w.p2p_pairs,
+                    w.m2l_pairs,
+                    w.far_points,
+                    w.n_sources + w.n_targets,
+                    r.tree_s,
+                    e.p2m.as_secs_f64(),
+                    e.m2m.as_secs_f64(),
+                    e.m2l.as_secs_f64(),
+                    e.p2l.as_secs_f64(),
+                    e.l2l.as_secs_f64(),
+                    e.l2p.as_secs_f64(),
+                    e.m2p.as_secs_f64(),
+                    e.p2p.as_secs_f64(),
+                    e.total.as_secs_f64()
+                );
+            }
+        }
+        std::fs::write(&path, csv).expect("write the CSV");
+    }
+    let samples: Vec<CostSample> = runs.iter().map(|r| r.sample).collect();
+    let fitted = CostModel::fit(&samples);
+    println!("\nfitted cost model ({} runs): {fitted:#?}", samples.len());
+    println!("\n| geometry | default model error | fitted model error |\n|---|---|---|");
+    for (g, r) in &all {
+        println!(
+            "| {} | {:.0}% | {:.0}% |",
+            g.name(),
+            100.0 * prediction_error(&CostModel::default(), r),
+            100.0 * prediction_error(&fitted, r)
+        );
     }
 }
 
@@ -255,63 +374,18 @@ fn grid(
     leaves: &[usize],
     tolerances: &[f64],
     repeats: usize,
-    fit_only: bool,
 ) {
     let p = Problem::new(g, n);
     let model = CostModel::default();
-    let mut runs = Vec::new();
-    if !fit_only {
-        println!(
-            "| p | leaf | depth | boxes | rank | tree s | eval s | time s | predicted s | precompute s | error |"
-        );
-        println!("|---|---|---|---|---|---|---|---|---|---|---|");
-    }
-    for &order in orders {
-        for &leaf in leaves {
-            let fmm = build_grid(&p, order, leaf, repeats);
-            let r = measure(&p, &fmm, repeats, &model);
-            drop(fmm);
-            if !fit_only {
-                println!(
-                    "| {} | {} | {} | {} | {} | {:.3} | {:.3} | {:.3} | {:.3} | {:.2} | {:.1e} |",
-                    r.order,
-                    r.leaf,
-                    r.depth,
-                    r.n_boxes,
-                    r.rank,
-                    r.tree_s,
-                    r.eval_s,
-                    r.time(),
-                    r.predicted_s,
-                    r.precompute_s,
-                    r.error
-                );
-            }
-            runs.push(r);
-        }
-    }
+    println!("{GRID_HEADER}");
+    let runs = run_grid(&p, orders, leaves, repeats, "");
     let samples: Vec<CostSample> = runs.iter().map(|r| r.sample).collect();
     let fitted = CostModel::fit(&samples);
-    println!("\nfitted cost model ({} runs): {fitted:#?}", samples.len());
-    let rel = |m: &CostModel| {
-        let e: Vec<f64> = runs
-            .iter()
-            .map(|r| {
-                (m.predict(&r.sample.work, r.order, r.rank).total / r.time())
-                    .ln()
-                    .abs()
-            })
-            .collect();
-        (e.iter().sum::<f64>() / e.len() as f64).exp() - 1.0
-    };
     println!(
-        "mean relative prediction error: default model {:.0}%, fitted {:.0}%",
-        100.0 * rel(&model),
-        100.0 * rel(&fitted)
+        "\ncost model error on these runs: default {:.0}%, refitted {:.0}%",
+        100.0 * prediction_error(&model, &runs),
+        100.0 * prediction_error(&fitted, &runs)
     );
-    if fit_only {
-        return;
-    }
     println!(
         "\n| tolerance | fastest in grid (p, leaf) | time s | error | chosen (p, leaf, svd tol, rank) | time s | error | chosen / fastest |"
     );
@@ -321,9 +395,29 @@ fn grid(
             .iter()
             .filter(|r| r.error <= eps)
             .min_by(|a, b| a.time().total_cmp(&b.time()));
-        let fmm = build_chosen(&p, eps, repeats);
-        let c = measure(&p, &fmm, repeats, &model);
-        let (f_desc, f_time, f_err, ratio) = match fastest {
+        // Re-measure the fastest grid setting and the chosen one in
+        // alternation, so that both see the same machine.
+        let mut c: Option<Run> = None;
+        let mut f: Option<Run> = None;
+        for _ in 0..ROUNDS {
+            let r = measure(&p, &build_chosen(&p, eps, repeats), repeats, &model);
+            if c.as_ref().is_none_or(|c| r.time() < c.time()) {
+                c = Some(r);
+            }
+            if let Some(g) = fastest {
+                let r = measure(
+                    &p,
+                    &build_grid(&p, g.order, g.leaf, repeats),
+                    repeats,
+                    &model,
+                );
+                if f.as_ref().is_none_or(|f| r.time() < f.time()) {
+                    f = Some(r);
+                }
+            }
+        }
+        let c = c.expect("measured");
+        let (f_desc, f_time, f_err, ratio) = match f {
             Some(f) => (
                 format!("p={}, leaf {}", f.order, f.leaf),
                 format!("{:.3}", f.time()),

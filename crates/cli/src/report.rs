@@ -35,6 +35,12 @@ pub struct RunReport {
     pub order: usize,
     /// Points per leaf at most.
     pub leaf_size: usize,
+    /// Requested accuracy (`--tolerance`), when given.
+    #[serde(default)]
+    pub tolerance: Option<f64>,
+    /// The library's predicted error for the chosen parameters (with `--tolerance`).
+    #[serde(default)]
+    pub predicted_error: Option<f64>,
     /// M2L scheme (`svd` / `dense`).
     pub scheme: String,
     /// Float type (`f32` / `f64`).

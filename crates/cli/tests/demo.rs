@@ -192,3 +192,32 @@ fn help_is_readable() {
         }
     }
 }
+
+#[test]
+fn demo_tolerance_chooses_parameters_that_meet_it() {
+    for (eps, precision) in [("1e-3", "f32"), ("1e-7", "f64")] {
+        let out = ferrofmm(&[
+            "demo",
+            "--n",
+            "3000",
+            "--tolerance",
+            eps,
+            "--precision",
+            "auto",
+            "--json",
+        ]);
+        let (stdout, stderr) = texts(&out);
+        assert!(out.status.success(), "{stderr}");
+        let v: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+        let eps: f64 = eps.parse().unwrap();
+        assert_eq!(v["tolerance"].as_f64(), Some(eps));
+        assert_eq!(v["precision"], precision, "auto precision for {eps}");
+        let achieved = v["errors"]["potential"].as_f64().expect("error");
+        assert!(achieved <= eps, "asked {eps}, got {achieved}");
+        assert!(v["predicted_error"].as_f64().expect("prediction") <= eps);
+    }
+    let out = ferrofmm(&["demo", "--n", "100", "--tolerance", "0"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(texts(&out).1.contains("tolerance"));
+}

@@ -15,7 +15,7 @@
 //! Plummer sphere and two clusters 1000x apart in size, leaf sizes 32 to
 //! 400 and N = 2e4 to 1e5, the worst error at an order is within about 3x
 //! of the best. So the model is a table `E_p` of the **worst** error
-//! measured at each order (with the default SVD tolerance of the order),
+//! measured at each order (with a tight SVD tolerance `10^-(0.9 p + 0.6)`),
 //! plus what a looser SVD tolerance `tau` adds:
 //!
 //! ```text
@@ -35,7 +35,7 @@
 //! [`MAX_TUNED_ORDER`], beyond which errors stop falling.
 //!
 //! For an admissible order the SVD tolerance is the loosest `tau` that keeps
-//! `S predicted(p, tau) <= eps`, never tighter than the library's default
+//! `S predicted(p, tau) <= eps`, never tighter than that measured one
 //! for the order and never looser than [`MAX_SVD_TOLERANCE`]: at a loose
 //! `eps` the M2L rank, and with it the M2L time, drops several-fold.
 //!
@@ -74,7 +74,7 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-use ferrofmm_field::{default_svd_tolerance, n_surface_points};
+use ferrofmm_field::n_surface_points;
 use ferrofmm_kernels::{Precision, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain, MortonKey, Octree};
 use rayon::prelude::*;
@@ -123,7 +123,7 @@ pub const LEAF_SIZE_CANDIDATES: [usize; 14] = [
 ];
 
 /// Worst relative L2 potential error measured at orders 2..=12 (f64, SVD
-/// M2L at the default tolerance of the order, four geometries, leaf sizes
+/// M2L at tolerance `10^-(0.9 p + 0.6)`, four geometries, leaf sizes
 /// 32..400, N = 2e4 and 1e5; `docs/tolerance.md`).
 const F64_ORDER_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 1] = [
     3.6e-2,  // p = 2
@@ -153,7 +153,7 @@ const SVD_RANKS: [f64; 10] = [
 pub struct ErrorModel {
     /// Float type the model is for.
     pub precision: Precision,
-    /// `(order, E_p)`: worst measured error per order (f64, default SVD
+    /// `(order, E_p)`: worst measured error per order (f64, base SVD
     /// tolerance), for the orders this precision may use.
     pub order_errors: Vec<(usize, f64)>,
     /// Error floor of the float type for well-centred points (0 in `f64`,
@@ -191,7 +191,7 @@ impl ErrorModel {
         }
     }
 
-    /// `E_p`: the worst measured error at `order` with the default SVD
+    /// `E_p`: the worst measured error at `order` with the base SVD
     /// tolerance (`None` outside the orders of this precision).
     pub fn order_error(&self, order: usize) -> Option<f64> {
         self.order_errors
@@ -223,7 +223,7 @@ impl ErrorModel {
     }
 
     /// `e_svd(tau)`: error added by an SVD tolerance `tau` looser than the
-    /// default.
+    /// base ([`ErrorModel::base_svd_tolerance`]).
     pub fn svd_error(tau: f64) -> f64 {
         0.15 * tau * (tau / 1e-3).powf(0.15).min(1.0)
     }
@@ -239,10 +239,16 @@ impl ErrorModel {
         }
     }
 
-    /// Default SVD tolerance of the library for `order` (what `E_p` was
-    /// measured with).
-    pub fn default_svd_tolerance(&self, order: usize) -> f64 {
-        default_svd_tolerance(self.precision, order)
+    /// The tightest SVD tolerance the chooser uses at `order`, the one
+    /// `E_p` was measured with: `max(10^-(0.9 p + 0.6), floor)`, floor
+    /// `1e-13` in `f64` and `1e-6` in `f32` (fixed here, independent of the
+    /// library's default for hand-set parameters, which may change).
+    pub fn base_svd_tolerance(&self, order: usize) -> f64 {
+        let floor = match self.precision {
+            Precision::F64 => 1e-13,
+            Precision::F32 => 1e-6,
+        };
+        10f64.powf(-(0.9 * order as f64 + 0.6)).max(floor)
     }
 
     /// Predicted error at `order` with SVD tolerance `svd_tolerance` on a
@@ -250,7 +256,7 @@ impl ErrorModel {
     /// precision): `E_p + e_svd(tau) + rounding_floor(ratio)`.
     pub fn predicted_error(&self, order: usize, svd_tolerance: f64, ratio: f64) -> Option<f64> {
         let e = self.order_error(order)?;
-        let extra = if svd_tolerance > self.default_svd_tolerance(order) {
+        let extra = if svd_tolerance > self.base_svd_tolerance(order) {
             Self::svd_error(svd_tolerance)
         } else {
             0.0
@@ -258,10 +264,10 @@ impl ErrorModel {
         Some(e + extra + self.rounding_floor(ratio))
     }
 
-    /// Whether `order` reaches `eps` (with the safety factor) at the default
+    /// Whether `order` reaches `eps` (with the safety factor) at the base
     /// SVD tolerance on a tree with rounding ratio `ratio`.
     pub fn admissible(&self, order: usize, eps: f64, ratio: f64) -> bool {
-        let d = self.default_svd_tolerance(order);
+        let d = self.base_svd_tolerance(order);
         self.predicted_error(order, d, ratio)
             .is_some_and(|e| self.safety * e <= eps * (1.0 + 1e-9))
     }
@@ -275,8 +281,9 @@ impl ErrorModel {
     }
 
     /// The loosest SVD tolerance with which `order` still reaches `eps`:
-    /// between the default for the order and [`MAX_SVD_TOLERANCE`] (the
-    /// default when the order has no room to spare or is not admissible).
+    /// between [`ErrorModel::base_svd_tolerance`] and [`MAX_SVD_TOLERANCE`]
+    /// (the base when the order has no room to spare or is not
+    /// admissible).
     ///
     /// ```
     /// use ferrofmm_fmm::tuning::ErrorModel;
@@ -284,11 +291,11 @@ impl ErrorModel {
     /// let m = ErrorModel::laplace(Precision::F64);
     /// // Order 6 reaches 1e-5 with room to spare: compress harder.
     /// let tau = m.svd_tolerance(6, 1e-5, 0.0);
-    /// assert!(tau > m.default_svd_tolerance(6));
+    /// assert!(tau > m.base_svd_tolerance(6));
     /// assert!(2.0 * m.predicted_error(6, tau, 0.0).unwrap() <= 1e-5 * (1.0 + 1e-9));
     /// ```
     pub fn svd_tolerance(&self, order: usize, eps: f64, ratio: f64) -> f64 {
-        let default = self.default_svd_tolerance(order);
+        let default = self.base_svd_tolerance(order);
         let Some(e) = self.order_error(order) else {
             return default;
         };
@@ -695,7 +702,7 @@ impl Occupancy {
     }
 
     /// The non-empty children of a box.
-    fn split(&self, n: &SimNode) -> Vec<SimNode> {
+    fn split(&self, n: &SimNode) -> impl Iterator<Item = SimNode> + use<> {
         let level = n.0.level();
         let shift = 3 * (DEEPEST_LEVEL - level - 1);
         let digit = |c: u64| ((c >> shift) & 7) as usize;
@@ -716,15 +723,13 @@ impl Occupancy {
         n.0.children()
             .into_iter()
             .enumerate()
-            .filter(|&(d, _)| bs[d] < bs[d + 1] || bt[d] < bt[d + 1])
-            .map(|(d, k)| (k, [bs[d], bs[d + 1]], [bt[d], bt[d + 1]]))
-            .collect()
+            .filter(move |&(d, _)| bs[d] < bs[d + 1] || bt[d] < bt[d + 1])
+            .map(move |(d, k)| (k, [bs[d], bs[d + 1]], [bt[d], bt[d + 1]]))
     }
 
-    /// The adaptive refinement for `leaf_size`, then 2:1 balanced with the
-    /// rule of `ferrofmm_tree::balance` (a leaf adjacent to an internal box
-    /// one level deeper is split), level by level.
-    fn simulate(&self, leaf_size: usize) -> Vec<SimLevel> {
+    /// The adaptive refinement for `leaf_size` (before balancing), level by
+    /// level, without the lookup tables.
+    fn refine(&self, leaf_size: usize) -> Vec<SimLevel> {
         let mut levels: Vec<SimLevel> = Vec::new();
         let mut current: Vec<SimNode> = vec![(
             MortonKey::ROOT,
@@ -733,29 +738,41 @@ impl Occupancy {
         )];
         loop {
             let level = levels.len() as u32;
-            let children: Vec<Vec<SimNode>> = current
+            let children: Vec<(u32, SimNode)> = current
                 .par_iter()
-                .map(|n| {
-                    if self.count(n) > leaf_size && level < self.max_level {
-                        self.split(n)
-                    } else {
-                        Vec::new()
-                    }
-                })
+                .enumerate()
+                .filter(|(_, n)| self.count(n) > leaf_size && level < self.max_level)
+                .flat_map_iter(|(i, n)| self.split(n).map(move |c| (i as u32, c)))
                 .collect();
-            let mut lv = SimLevel::default();
-            lv.index.reserve(current.len());
-            for (n, ch) in current.iter().zip(&children) {
-                let i = lv.push(*n);
-                lv.masks[i] = ch.iter().fold(0u8, |m, c| m | 1 << c.0.octant());
+            let mut lv = SimLevel {
+                masks: vec![0; current.len()],
+                ..Default::default()
+            };
+            for &(i, c) in &children {
+                lv.masks[i as usize] |= 1 << c.0.octant();
             }
+            lv.keys = current.iter().map(|n| n.0).collect();
+            lv.sources = current.iter().map(|n| n.1).collect();
+            lv.targets = current.iter().map(|n| n.2).collect();
             levels.push(lv);
-            let next: Vec<SimNode> = children.into_iter().flatten().collect();
-            if next.is_empty() {
+            if children.is_empty() {
                 break;
             }
-            current = next;
+            current = children.into_iter().map(|(_, c)| c).collect();
         }
+        levels
+    }
+
+    /// The refinement for `leaf_size`, 2:1 balanced with the rule of
+    /// `ferrofmm_tree::balance` (a leaf adjacent to an internal box one
+    /// level deeper is split), with lookup tables.
+    fn balanced(&self, mut levels: Vec<SimLevel>) -> Vec<SimLevel> {
+        levels.par_iter_mut().for_each(|lv| {
+            lv.index.reserve(lv.keys.len());
+            for (i, k) in lv.keys.iter().enumerate() {
+                lv.index.insert(k.raw(), i as u32);
+            }
+        });
         self.balance(&mut levels);
         levels
     }
@@ -790,7 +807,7 @@ impl Occupancy {
                     levels[l].sources[i],
                     levels[l].targets[i],
                 );
-                let children = self.split(&node);
+                let children: Vec<SimNode> = self.split(&node).collect();
                 if levels.len() == l + 1 {
                     levels.push(SimLevel::default());
                 }
@@ -827,7 +844,12 @@ impl Occupancy {
     /// strongly clustered ones; the differences come from boxes holding
     /// only sources or only targets and from balancing details).
     pub fn work(&self, leaf_size: usize) -> WorkCounts {
-        let levels = self.simulate(leaf_size.max(1));
+        self.work_of(self.refine(leaf_size.max(1)))
+    }
+
+    /// [`Occupancy::work`] of a refinement.
+    fn work_of(&self, refined: Vec<SimLevel>) -> WorkCounts {
+        let levels = self.balanced(refined);
         let nonadj = non_adjacent_masks();
         let adj = adjacent_child_masks();
         let depth = (levels.len() - 1) as u32;
@@ -1342,27 +1364,52 @@ impl Tuner {
 
     /// Every `(order, leaf size)` weighed for `eps` on `occupancy`, in
     /// order of increasing leaf size then order. Leaf sizes giving the same
-    /// tree appear once (with the smallest of them); the scan from large
-    /// to small leaves stops once two trees in a row are predicted more
-    /// than 1.5x slower than the best so far. Empty when no setting reaches
-    /// `eps` on these points.
+    /// tree appear once (with the smallest of them). The scan runs from
+    /// large to small leaves and stops when the work that grows with the
+    /// number of boxes alone is predicted to cost more than the best
+    /// setting so far (it only grows as leaves shrink), or when two trees in
+    /// a row are predicted more than 1.5x slower than the best. Empty when
+    /// no setting reaches `eps` on these points.
     pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
         validate_tolerance(eps, self.error.precision)?;
         let mut sizes = self.leaf_sizes.clone();
         sizes.sort_unstable_by(|a, b| b.cmp(a));
         sizes.dedup();
+        let permissive = self.orders_for(eps, 0.0);
         let mut trees: Vec<(usize, WorkCounts)> = Vec::new();
+        let mut previous: Vec<usize> = Vec::new();
         let mut best = f64::INFINITY;
         let mut worse = 0;
         for &s in &sizes {
-            let w = occupancy.work(s);
-            if let Some(last) = trees.last_mut()
-                && same_tree(&last.1, &w)
+            let refined = occupancy.refine(s.max(1));
+            let shape: Vec<usize> = refined.iter().map(|l| l.keys.len()).collect();
+            if shape == previous
+                && let Some(last) = trees.last_mut()
             {
                 // The same tree: report the smallest leaf size giving it.
                 last.0 = s;
                 continue;
             }
+            // Boxes only grow as leaves shrink: once the work that grows
+            // with the boxes alone costs more than the best so far, no
+            // smaller leaf size can win.
+            let boxes: usize = shape.iter().sum();
+            let bound = WorkCounts {
+                n_sources: occupancy.n_sources(),
+                n_targets: occupancy.n_targets(),
+                n_boxes: boxes,
+                m2l_boxes: shape.iter().skip(2).sum(),
+                ..Default::default()
+            };
+            let lower = permissive
+                .iter()
+                .map(|&(p, _, k, _)| self.cost.predict(&bound, p, k).total)
+                .fold(f64::INFINITY, f64::min);
+            if lower > best {
+                break;
+            }
+            previous = shape;
+            let w = occupancy.work_of(refined);
             let cost = self
                 .orders_for(eps, w.rounding_ratio)
                 .iter()
@@ -1497,10 +1544,6 @@ pub fn choose_parameters<T: Real>(
     let src = up(sources);
     let tgt = targets.map(up);
     Tuner::new(T::PRECISION).choose(eps, &src, tgt.as_deref(), None, DEEPEST_LEVEL)
-}
-
-fn same_tree(a: &WorkCounts, b: &WorkCounts) -> bool {
-    a.n_boxes == b.n_boxes && a.n_leaves == b.n_leaves && a.p2p_pairs == b.p2p_pairs
 }
 
 #[cfg(test)]

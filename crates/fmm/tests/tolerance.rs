@@ -265,7 +265,7 @@ fn error_model_is_consistent() {
             for eps in [0.5, 1e-2, 1e-3, 1e-4, 1e-5, 1e-6, 1e-8, 1e-10] {
                 if let Some(p) = m.smallest_order(eps, ratio) {
                     let tau = m.svd_tolerance(p, eps, ratio);
-                    assert!(tau >= m.default_svd_tolerance(p));
+                    assert!(tau >= m.base_svd_tolerance(p));
                     let predicted = m.predicted_error(p, tau, ratio).unwrap();
                     assert!(
                         m.safety * predicted <= eps * (1.0 + 1e-9),
@@ -284,5 +284,5 @@ fn error_model_is_consistent() {
     }
     // A loose tolerance compresses harder than the default.
     let m = ErrorModel::laplace(Precision::F64);
-    assert!(m.svd_tolerance(6, 1e-4, 0.0) > 10.0 * m.default_svd_tolerance(6));
+    assert!(m.svd_tolerance(6, 1e-4, 0.0) > 10.0 * m.base_svd_tolerance(6));
 }

@@ -66,6 +66,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         repeats: args.repeats,
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),
+        tolerance: args.fmm.tolerance,
     };
     let report = run(input, &settings, None)?;
     if args.json {

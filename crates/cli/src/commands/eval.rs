@@ -80,6 +80,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         repeats: 1,
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),
+        tolerance: args.fmm.tolerance,
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {

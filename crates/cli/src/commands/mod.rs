@@ -15,6 +15,9 @@ pub enum PrecisionArg {
     F32,
     /// Double precision.
     F64,
+    /// With `--tolerance EPS`: f32 where it still reaches EPS on these
+    /// points, else f64. Without a tolerance: f64.
+    Auto,
 }
 
 impl PrecisionArg {
@@ -23,6 +26,7 @@ impl PrecisionArg {
         match self {
             PrecisionArg::F32 => "f32",
             PrecisionArg::F64 => "f64",
+            PrecisionArg::Auto => "auto",
         }
     }
 }
@@ -96,4 +100,9 @@ pub struct FmmArgs {
     /// Directory of the on-disk operator cache (off by default).
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
+    /// Requested relative L2 error of the potential, e.g. 1e-6: the order,
+    /// leaf size and SVD rank are then chosen for these points (overriding
+    /// --order and --leaf-size) and reported.
+    #[arg(long, value_name = "EPS")]
+    pub tolerance: Option<f64>,
 }

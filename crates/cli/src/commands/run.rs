@@ -8,8 +8,9 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ferrofmm_field::{DenseM2l, M2lScheme, SvdM2l};
+use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{EvalTimings, FmmBuilder, Geometry, charges, relative_errors, sample_indices};
-use ferrofmm_kernels::{EvalMode, Laplace3d, Real};
+use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
 use super::{PrecisionArg, SchemeArg};
 use crate::error::Result;
@@ -64,19 +65,49 @@ pub struct Settings {
     pub check: usize,
     /// Operator cache directory.
     pub cache_dir: Option<PathBuf>,
+    /// Requested accuracy: parameters chosen by the library.
+    pub tolerance: Option<f64>,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
 /// `output` when given (format by extension).
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
-    use PrecisionArg::{F32, F64};
+    use PrecisionArg::{Auto, F32, F64};
     use SchemeArg::{Dense, Svd};
+    let precision = match (settings.precision, settings.tolerance) {
+        (Auto, Some(eps)) => auto_precision(&input, eps)?,
+        (Auto, None) => F64,
+        (p, _) => p,
+    };
+    let settings = &Settings {
+        precision,
+        ..settings.clone()
+    };
     match (settings.precision, settings.scheme) {
         (F64, Svd) => run_typed::<f64, SvdM2l<f64>>(input, settings, output),
         (F64, Dense) => run_typed::<f64, DenseM2l<f64>>(input, settings, output),
         (F32, Svd) => run_typed::<f32, SvdM2l<f32>>(input, settings, output),
         (F32, Dense) => run_typed::<f32, DenseM2l<f32>>(input, settings, output),
+        (Auto, _) => unreachable!("auto precision is resolved above"),
     }
+}
+
+/// f32 where it still reaches `eps` on these points, else f64.
+fn auto_precision(input: &Input, eps: f64) -> Result<PrecisionArg> {
+    let generated;
+    let (sources, targets): (&[f64], Option<&[f64]>) = match input {
+        Input::Generated { geometry, n, seed } => {
+            generated = geometry.points::<f64>(*n, *seed);
+            (&generated, None)
+        }
+        Input::Given {
+            sources, targets, ..
+        } => (sources, targets.as_deref()),
+    };
+    Ok(match choose_precision(eps, sources, targets)? {
+        Precision::F32 => PrecisionArg::F32,
+        Precision::F64 => PrecisionArg::F64,
+    })
 }
 
 /// Column names of the output for a run with or without gradients.
@@ -142,6 +173,9 @@ where
         if let Some(dir) = &settings.cache_dir {
             builder = builder.cache_dir(dir);
         }
+        if let Some(eps) = settings.tolerance {
+            builder = builder.tolerance(eps);
+        }
         builder.build_with::<S>(S::Config::default())
     })?;
 
@@ -201,8 +235,10 @@ where
         geometry,
         n_sources: fmm.n_sources(),
         n_targets: fmm.n_targets(),
-        order: settings.order,
-        leaf_size: settings.leaf_size,
+        order: fmm.order(),
+        leaf_size: summary.leaf_size,
+        tolerance: settings.tolerance,
+        predicted_error: fmm.chosen_parameters().map(|c| c.predicted_error),
         scheme: settings.scheme.name().to_string(),
         precision: settings.precision.name().to_string(),
         gradients: settings.gradients,
