@@ -577,6 +577,8 @@ pub(crate) mod tests {
             n_targets: 2000,
             order,
             leaf_size: leaf,
+            tolerance: None,
+            predicted_error: None,
             scheme: scheme.into(),
             precision: precision.into(),
             gradients: true,
