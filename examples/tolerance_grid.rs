@@ -20,9 +20,12 @@
 //!     are written to a CSV file too).
 //!   * `chosen`: only the chosen settings (time, error, prediction).
 //!   * `errors`: the error of every order x leaf size on all four
-//!     geometries (the error model's table), N points each.
-//!   * `memory`: the memory accounting of the chosen setting for 1e-5 and
-//!     the process's peak resident memory (run once per geometry).
+//!     geometries with the SVD tolerance of the error model
+//!     (`ErrorModel::base_svd_tolerance`), N points each: the table behind
+//!     `E_p`.
+//!   * `memory`: the memory accounting (`Fmm::memory`) of the setting chosen
+//!     for 1e-5 (or of `orders=P leaves=L`) and the process's peak resident
+//!     memory (run once per geometry, each in its own process).
 //! * `OPTIONS`: `orders=2,3,...`, `leaves=16,32,...`, `tolerances=1e-3,...`,
 //!   `repeats=3` (evaluations per setting, the fastest counts).
 //!
@@ -216,11 +219,14 @@ fn main() {
     let mut tolerances: Vec<f64> = vec![1e-3, 1e-5, 1e-7, 1e-9];
     let mut repeats = 3usize;
     let mut given: Vec<Geometry> = Vec::new();
+    let (mut given_orders, mut given_leaves) = (false, false);
     for a in &args {
         if let Some(v) = a.strip_prefix("orders=") {
             orders = list(v);
+            given_orders = true;
         } else if let Some(v) = a.strip_prefix("leaves=") {
             leaves = list(v);
+            given_leaves = true;
         } else if let Some(v) = a.strip_prefix("tolerances=") {
             tolerances = list(v);
         } else if let Some(v) = a.strip_prefix("repeats=") {
@@ -234,6 +240,7 @@ fn main() {
             mode = a.clone();
         }
     }
+    let given_setting = (given_orders && given_leaves).then(|| (orders[0], leaves[0]));
     let geometries = if given.is_empty() {
         Geometry::ALL.to_vec()
     } else {
@@ -249,7 +256,12 @@ fn main() {
         "grid" => grid(n, geometry, &orders, &leaves, &tolerances, repeats),
         "chosen" => chosen(n, geometry, &tolerances, repeats),
         "errors" => errors(n, &orders, &leaves),
-        "memory" => memory(n, geometry, tolerances[tolerances.len().min(2) - 1]),
+        "memory" => memory(
+            n,
+            geometry,
+            tolerances[tolerances.len().min(2) - 1],
+            given_setting,
+        ),
         other => panic!("unknown mode {other}"),
     }
 }
@@ -470,6 +482,7 @@ fn chosen(n: usize, g: Geometry, tolerances: &[f64], repeats: usize) {
 }
 
 fn errors(n: usize, orders: &[usize], leaves: &[usize]) {
+    let model = tuning::ErrorModel::laplace(Precision::F64);
     let mut worst: BTreeMap<usize, (f64, String)> = BTreeMap::new();
     let mut best: BTreeMap<usize, f64> = BTreeMap::new();
     print!("| p | geometry |");
@@ -486,11 +499,15 @@ fn errors(n: usize, orders: &[usize], leaves: &[usize]) {
         for (g, p) in &problems {
             print!("| {order} | {} |", g.name());
             for &leaf in leaves {
+                // The SVD tolerance the error model's E_p is defined with.
                 let fmm = FmmBuilder::new(&p.points)
                     .order(order)
                     .leaf_size(leaf)
                     .cache_dir(CACHE)
-                    .build_svd()
+                    .build_with::<SvdM2l<f64>>(SvdConfig {
+                        rank: None,
+                        tolerance: model.base_svd_tolerance(order),
+                    })
                     .expect("build");
                 let e = p.error(&fmm.evaluate(&p.q).expect("evaluate"));
                 print!(" {e:.2e} |");
@@ -504,7 +521,6 @@ fn errors(n: usize, orders: &[usize], leaves: &[usize]) {
             println!();
         }
     }
-    let model = tuning::ErrorModel::laplace(Precision::F64);
     println!("\n| p | worst measured | where | best measured | model E_p |");
     println!("|---|---|---|---|---|");
     for (p, (e, at)) in &worst {
@@ -516,19 +532,23 @@ fn errors(n: usize, orders: &[usize], leaves: &[usize]) {
     }
 }
 
-fn memory(n: usize, g: Geometry, eps: f64) {
+/// With `orders=P leaves=L`: that setting; otherwise the one chosen for
+/// `eps`.
+fn memory(n: usize, g: Geometry, eps: f64, setting: Option<(usize, usize)>) {
     let points: Vec<f64> = g.points(n, 7);
     let q: Vec<f64> = charges(n, 11);
-    let fmm = FmmBuilder::new(&points)
-        .tolerance(eps)
-        .build_svd()
-        .expect("build");
+    let builder = FmmBuilder::new(&points);
+    let builder = match setting {
+        Some((p, l)) => builder.order(p).leaf_size(l),
+        None => builder.tolerance(eps),
+    };
+    let fmm = builder.build_svd().expect("build");
     let _ = fmm.evaluate(&q).expect("evaluate");
     let s = fmm.summary();
     let m = fmm.memory();
     let mb = |b: usize| b as f64 / 1e6;
     println!(
-        "{}: N {n}, tolerance {eps:.0e}: p {} leaf {} depth {} boxes {} (8^depth = {:.1e})",
+        "{}: N {n}, p {} leaf {} depth {} boxes {} (8^depth = {:.1e})",
         g.name(),
         s.order,
         s.leaf_size,

@@ -108,7 +108,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// `eps` must lie in `(0, 1)` ([`FmmError::InvalidTolerance`]) and be
     /// reachable in the float type ([`FmmError::ToleranceBeyondPrecision`]:
     /// `f32` reaches about `5e-6`, see [`tuning::f32_reaches`]; `f64` about
-    /// `3e-12`). The promise (measured on uniform, sphere-surface, Plummer
+    /// `5e-12`). The promise (measured on uniform, sphere-surface, Plummer
     /// and two-cluster points) is for the Laplace kernel's potential.
     ///
     /// ```no_run
