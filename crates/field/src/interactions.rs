@@ -1,6 +1,8 @@
 //! Transfer vectors and the grouped V-list interactions of one level.
 
-use rayon::slice::ParallelSliceMut;
+use std::ops::Range;
+
+use rayon::prelude::*;
 
 use crate::FieldError;
 
@@ -126,8 +128,7 @@ impl M2lInteractions {
         n_source_cols: usize,
         pairs: &[(usize, usize, [i32; 3])],
     ) -> Result<Self, FieldError> {
-        let threads = rayon::current_num_threads().max(1);
-        let chunk = n_target_cols.div_ceil(4 * threads).clamp(32, 256);
+        let chunk = Self::default_chunk_size(n_target_cols);
         Self::with_chunk_size(n_target_cols, n_source_cols, pairs, chunk)
     }
 
@@ -140,6 +141,59 @@ impl M2lInteractions {
         pairs: &[(usize, usize, [i32; 3])],
         chunk_size: usize,
     ) -> Result<Self, FieldError> {
+        if let Some((i, &(t, s, v))) = pairs.iter().enumerate().find(|(_, p)| p.0 >= n_target_cols)
+        {
+            return Err(out_of_range(i, t, s, v, n_target_cols, n_source_cols));
+        }
+        // Pair indices bucketed by target column (CSR, input order kept).
+        let mut offsets = vec![0usize; n_target_cols + 1];
+        for &(t, _, _) in pairs {
+            offsets[t + 1] += 1;
+        }
+        for t in 0..n_target_cols {
+            offsets[t + 1] += offsets[t];
+        }
+        let mut next = offsets.clone();
+        let mut order = vec![0u32; pairs.len()];
+        for (i, &(t, _, _)) in pairs.iter().enumerate() {
+            order[next[t]] = i as u32;
+            next[t] += 1;
+        }
+        Self::from_targets(n_target_cols, n_source_cols, chunk_size, |t| {
+            order[offsets[t]..offsets[t + 1]].iter().map(|&i| {
+                let (_, s, v) = pairs[i as usize];
+                (s, v)
+            })
+        })
+    }
+
+    /// Build from the V list of each target column: `list(t)` yields the
+    /// `(source column, transfer vector)` pairs of target column `t`. The
+    /// lists are read chunk by chunk in parallel and grouped by a counting
+    /// sort on the transfer vector, so no list of all pairs is ever held
+    /// (the fast path of the FMM setup: 6M pairs at N = 1e6).
+    ///
+    /// ```
+    /// use ferrofmm_field::M2lInteractions;
+    /// // Target 0 hears sources 1 and 2, target 1 hears source 0.
+    /// let lists = [vec![(1, [2, 0, 0]), (2, [0, 3, -1])], vec![(0, [-2, 0, 0])]];
+    /// let inter = M2lInteractions::from_targets(2, 3, 64, |t| lists[t].iter().copied()).unwrap();
+    /// assert_eq!(inter.len(), 3);
+    /// ```
+    ///
+    /// # Errors
+    /// [`FieldError::InvalidInteractions`] for a zero chunk size, a column
+    /// out of range or a vector that is not a V-list transfer vector.
+    pub fn from_targets<F, I>(
+        n_target_cols: usize,
+        n_source_cols: usize,
+        chunk_size: usize,
+        list: F,
+    ) -> Result<Self, FieldError>
+    where
+        F: Fn(usize) -> I + Sync,
+        I: IntoIterator<Item = (usize, [i32; 3])>,
+    {
         if chunk_size == 0 {
             return Err(FieldError::InvalidInteractions(
                 "chunk size must be positive".into(),
@@ -150,55 +204,37 @@ impl M2lInteractions {
                 "more than 2^32 columns".into(),
             ));
         }
-        let mut keyed = Vec::with_capacity(pairs.len());
-        for (i, &(t, s, v)) in pairs.iter().enumerate() {
-            if t >= n_target_cols || s >= n_source_cols {
-                return Err(FieldError::InvalidInteractions(format!(
-                    "pair {i} = ({t}, {s}, {v:?}): column out of range ({n_target_cols} targets, \
-                     {n_source_cols} sources)"
-                )));
-            }
-            let Some(vi) = transfer_vector_index(v) else {
-                return Err(FieldError::InvalidInteractions(format!(
-                    "pair {i}: {v:?} is not a V-list transfer vector"
-                )));
-            };
-            let c = t / chunk_size;
-            keyed.push(((c * N_TRANSFER_VECTORS + vi) as u64, t as u32, s as u32));
-        }
-        keyed.par_sort_unstable();
         let n_chunks = n_target_cols.div_ceil(chunk_size);
+        let built: Vec<ChunkPairs> = (0..n_chunks)
+            .into_par_iter()
+            .map(|c| {
+                let start = c * chunk_size;
+                let end = ((c + 1) * chunk_size).min(n_target_cols);
+                ChunkPairs::build(start..end, (n_target_cols, n_source_cols), &list)
+            })
+            .collect::<Result<_, _>>()?;
+        let total: usize = built.iter().map(|c| c.sources.len()).sum();
         let mut chunks = Vec::with_capacity(n_chunks);
         let mut groups = Vec::new();
-        let mut sources = Vec::with_capacity(pairs.len());
-        let mut local_targets = Vec::with_capacity(pairs.len());
-        let mut p = 0;
-        for c in 0..n_chunks {
-            let target_start = c * chunk_size;
-            let target_end = ((c + 1) * chunk_size).min(n_target_cols);
+        let mut sources = Vec::with_capacity(total);
+        let mut local_targets = Vec::with_capacity(total);
+        for (c, b) in built.into_iter().enumerate() {
             let group_start = groups.len();
-            while p < keyed.len() && keyed[p].0 as usize / N_TRANSFER_VECTORS == c {
-                let key = keyed[p].0;
-                let pair_start = p;
-                while p < keyed.len() && keyed[p].0 == key {
-                    sources.push(keyed[p].2);
-                    local_targets.push(keyed[p].1 - target_start as u32);
-                    p += 1;
-                }
-                groups.push(Group {
-                    vector: (key as usize % N_TRANSFER_VECTORS) as u16,
-                    pair_start,
-                    pair_end: p,
-                });
-            }
+            let base = sources.len();
+            groups.extend(b.groups.iter().map(|g| Group {
+                vector: g.vector,
+                pair_start: base + g.pair_start,
+                pair_end: base + g.pair_end,
+            }));
+            sources.extend_from_slice(&b.sources);
+            local_targets.extend_from_slice(&b.local_targets);
             chunks.push(Chunk {
-                target_start,
-                target_end,
+                target_start: c * chunk_size,
+                target_end: ((c + 1) * chunk_size).min(n_target_cols),
                 group_start,
                 group_end: groups.len(),
             });
         }
-        debug_assert_eq!(p, keyed.len());
         Ok(M2lInteractions {
             n_target_cols,
             n_source_cols,
@@ -207,6 +243,14 @@ impl M2lInteractions {
             sources,
             local_targets,
         })
+    }
+
+    /// The automatic chunk size of [`M2lInteractions::new`] for
+    /// `n_target_cols` columns: about four chunks per rayon thread, 32 to
+    /// 256 columns each.
+    pub fn default_chunk_size(n_target_cols: usize) -> usize {
+        let threads = rayon::current_num_threads().max(1);
+        n_target_cols.div_ceil(4 * threads).clamp(32, 256)
     }
 
     /// Number of `(target, source)` pairs.
@@ -248,6 +292,83 @@ impl M2lInteractions {
     }
 }
 
+/// The pairs of one chunk grouped by transfer vector (pair indices local to
+/// the chunk).
+struct ChunkPairs {
+    groups: Vec<Group>,
+    sources: Vec<u32>,
+    local_targets: Vec<u32>,
+}
+
+impl ChunkPairs {
+    /// Read the lists of `targets` and counting-sort them by transfer
+    /// vector (stable: within a group, pairs stay in target order).
+    fn build<F, I>(
+        targets: Range<usize>,
+        (n_target_cols, n_source_cols): (usize, usize),
+        list: &F,
+    ) -> Result<Self, FieldError>
+    where
+        F: Fn(usize) -> I,
+        I: IntoIterator<Item = (usize, [i32; 3])>,
+    {
+        let mut raw: Vec<(u16, u32, u32)> = Vec::new();
+        let mut counts = [0usize; N_TRANSFER_VECTORS + 1];
+        for t in targets.clone() {
+            for (i, (s, v)) in list(t).into_iter().enumerate() {
+                if s >= n_source_cols {
+                    return Err(out_of_range(i, t, s, v, n_target_cols, n_source_cols));
+                }
+                let Some(vi) = transfer_vector_index(v) else {
+                    return Err(FieldError::InvalidInteractions(format!(
+                        "target {t}, pair {i}: {v:?} is not a V-list transfer vector"
+                    )));
+                };
+                counts[vi + 1] += 1;
+                raw.push((vi as u16, (t - targets.start) as u32, s as u32));
+            }
+        }
+        for v in 0..N_TRANSFER_VECTORS {
+            counts[v + 1] += counts[v];
+        }
+        let groups = (0..N_TRANSFER_VECTORS)
+            .filter(|&v| counts[v + 1] > counts[v])
+            .map(|v| Group {
+                vector: v as u16,
+                pair_start: counts[v],
+                pair_end: counts[v + 1],
+            })
+            .collect();
+        let mut sources = vec![0u32; raw.len()];
+        let mut local_targets = vec![0u32; raw.len()];
+        for (vi, t, s) in raw {
+            let at = &mut counts[vi as usize];
+            sources[*at] = s;
+            local_targets[*at] = t;
+            *at += 1;
+        }
+        Ok(ChunkPairs {
+            groups,
+            sources,
+            local_targets,
+        })
+    }
+}
+
+fn out_of_range(
+    i: usize,
+    t: usize,
+    s: usize,
+    v: [i32; 3],
+    n_target_cols: usize,
+    n_source_cols: usize,
+) -> FieldError {
+    FieldError::InvalidInteractions(format!(
+        "pair {i} = ({t}, {s}, {v:?}): column out of range ({n_target_cols} targets, \
+         {n_source_cols} sources)"
+    ))
+}
+
 /// One chunk as seen by a scheme's apply.
 #[derive(Clone, Copy)]
 pub(crate) struct ChunkView<'a> {
@@ -279,7 +400,7 @@ impl<'a> ChunkView<'a> {
         self.chunk.group_start == self.chunk.group_end
     }
 
-    pub fn groups(&self) -> impl Iterator<Item = GroupView<'a>> + 'a {
+    pub fn groups(&self) -> impl Iterator<Item = GroupView<'a>> + use<'a> {
         let inter = self.inter;
         inter.groups[self.chunk.group_start..self.chunk.group_end]
             .iter()

@@ -8,7 +8,6 @@ use ferrofmm_field::{
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
 use ferrofmm_tree::{Octree, TreeOptions};
-use rayon::prelude::*;
 
 use crate::builder::FmmBuilder;
 use crate::memory::MemoryReport;
@@ -164,7 +163,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let t = Instant::now();
         let m2l_interactions = (0..=depth)
             .map(|level| level_interactions(&tree, level))
-            .collect();
+            .collect::<Result<_, _>>()?;
         let centre = tree.domain().center();
         let sources = permute_points(b.sources, tree.source_permutation(), centre);
         let targets = match b.targets {
@@ -361,21 +360,21 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     }
 }
 
-/// `(target column, source column, transfer vector)` for every V-list pair of a level.
-fn level_interactions(tree: &Octree, level: u32) -> M2lInteractions {
+/// The V-list pairs of a level (`(target column, source column, transfer
+/// vector)`, columns counted from the level's first box), grouped for M2L.
+fn level_interactions(
+    tree: &Octree,
+    level: u32,
+) -> Result<M2lInteractions, ferrofmm_field::FieldError> {
     let range = tree.level_range(level);
     let start = range.start;
-    let pairs: Vec<(usize, usize, [i32; 3])> = range
-        .clone()
-        .into_par_iter()
-        .flat_map_iter(|b| {
-            let key = tree.key(b);
-            tree.v_list(b)
-                .iter()
-                .map(move |&a| (b - start, a - start, key.transfer_vector(tree.key(a))))
-        })
-        .collect();
-    M2lInteractions::new(range.len(), range.len(), &pairs)
+    let chunk = M2lInteractions::default_chunk_size(range.len());
+    M2lInteractions::from_targets(range.len(), range.len(), chunk, |t| {
+        let key = tree.key(start + t);
+        tree.v_list(start + t)
+            .iter()
+            .map(move |&a| (a - start, key.transfer_vector(tree.key(a))))
+    })
 }
 
 /// Points in the tree's sorted order, relative to `centre`:

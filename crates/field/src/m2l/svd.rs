@@ -63,12 +63,21 @@ pub fn default_svd_tolerance(precision: Precision, order: usize) -> f64 {
 /// 20 blocks of 16 matrices QR-factorised, then the stacked `R`s), so the
 /// stack itself is never held in memory; all in `f64`.
 ///
+/// Each `C_v` is then compressed again on its own (when the rank comes
+/// from the tolerance): `C_v ≈ A_v B_v^T` with `A_v = U_r S_r` (`k x r_v`)
+/// and `B_v = V_r` (`k x r_v`) from the SVD of `C_v`, keeping the singular
+/// values above `0.3 tol s_max` (`s_max` the largest over all `C_v`). The
+/// shared bases must serve the nearest transfer vectors; a far vector needs
+/// far fewer directions (p = 6: `k = 94`, `r_v` 9 to 39, mean 18). A `C_v`
+/// whose `r_v >= k / 2` is kept whole.
+///
 /// Application: compress all multipoles once (`V_k^T M`, one GEMM per
 /// column block), then per target chunk and transfer vector one GEMM with
-/// `C_v` over all pairs sharing it, accumulated in the compressed check
-/// potentials of the chunk's targets, which are expanded once (`U_k *`,
-/// one GEMM per chunk) and added to `check`. Flops: `2 k^2` per pair plus
-/// `2 n k` per source and per target box, against `2 n^2` per pair for
+/// `C_v` (or two, `B_v^T` then `A_v`) over all pairs sharing it,
+/// accumulated in the compressed check potentials of the chunk's targets,
+/// which are expanded once (`U_k *`, one GEMM per chunk) and added to
+/// `check`. Flops: `4 k r_v` (or `2 k^2`) per pair plus `2 n k` per source
+/// and per target box, against `2 n^2` per pair for
 /// [`DenseM2l`](crate::DenseM2l).
 ///
 /// The approximation error of `K_v` is about `sigma_k / sigma_0` of the
@@ -90,30 +99,77 @@ pub struct SvdM2l<T: Real> {
     n: usize,
     levels: LevelMap,
     store: SvdStore<T>,
+    /// Per set: start of the set in the store and the 316 operators.
+    layout: Vec<(usize, Vec<VectorOp>)>,
     tolerance: f64,
     cache_status: CacheStatus,
 }
 
 /// Per-set compression summary.
-#[derive(Clone, Copy, Debug, PartialEq)]
+/// Per-vector truncation of `C_v` relative to the set's tolerance: singular
+/// values of `C_v` below `RECOMPRESSION_FACTOR * tolerance * s_max` (with
+/// `s_max` the largest singular value of all 316 `C_v`) are dropped. The
+/// per-vector ranks are 5-6x below `k` (p = 6: mean 18 of 94), and
+/// dropping a third of the tolerance keeps the FMM error within a few
+/// percent of the unfactored scheme's (`docs/algorithms.md`).
+const RECOMPRESSION_FACTOR: f64 = 0.3;
+
+#[derive(Clone, Debug, PartialEq)]
 struct SvdSetInfo {
     rank: usize,
     /// `sigma_k / sigma_0` of the fat and tall stacks (first dropped value,
     /// 0 when nothing is dropped).
     dropped_fat: f64,
     dropped_tall: f64,
+    /// Rank `r_v` of each `C_v`; `r_v == rank` means `C_v` is stored whole.
+    vector_ranks: Vec<u32>,
+}
+
+impl SvdSetInfo {
+    /// Values stored for transfer vector `v`: `k^2` whole, `2 k r_v`
+    /// factored.
+    fn vector_len(&self, v: usize) -> usize {
+        let (k, r) = (self.rank, self.vector_ranks[v] as usize);
+        if r == k { k * k } else { 2 * k * r }
+    }
+
+    /// Values of the whole set: `U_k`, `V_k^T` and the 316 `C_v`.
+    fn len(&self, n: usize) -> usize {
+        2 * n * self.rank
+            + (0..N_TRANSFER_VECTORS)
+                .map(|v| self.vector_len(v))
+                .sum::<usize>()
+    }
+
+    /// Flops of one pair at transfer vector `v`.
+    fn pair_flops(&self, v: usize) -> f64 {
+        let (k, r) = (self.rank as f64, self.vector_ranks[v] as f64);
+        if self.vector_ranks[v] as usize == self.rank {
+            2.0 * k * k
+        } else {
+            4.0 * k * r
+        }
+    }
+}
+
+/// Where one `C_v` lies in the store, and its rank.
+#[derive(Clone, Copy, Debug)]
+struct VectorOp {
+    offset: usize,
+    rank: usize,
 }
 
 struct SvdStore<T> {
     n: usize,
     sets: Vec<SvdSetInfo>,
-    /// Per set: `U_k` (`n x k`), `V_k^T` (`k x n`), then 316 `C_v` (`k x k`).
+    /// Per set: `U_k` (`n x k`), `V_k^T` (`k x n`), then per transfer
+    /// vector either `C_v` (`k x k`) or its factors `A_v` (`k x r_v`) and
+    /// `B_v^T` (`r_v x k`), all column-major.
     data: Vec<T>,
 }
 
-fn set_len(n: usize, k: usize) -> usize {
-    2 * n * k + N_TRANSFER_VECTORS * k * k
-}
+/// Metadata words per set: rank, two truncation estimates, 316 ranks.
+const META_PER_SET: usize = 3 + N_TRANSFER_VECTORS;
 
 impl<T: Real> CachePayload<T> for SvdStore<T> {
     fn meta(&self) -> Vec<u64> {
@@ -124,6 +180,7 @@ impl<T: Real> CachePayload<T> for SvdStore<T> {
                 s.dropped_fat.to_bits(),
                 s.dropped_tall.to_bits(),
             ]);
+            m.extend(s.vector_ranks.iter().map(|&r| r as u64));
         }
         m
     }
@@ -137,20 +194,32 @@ impl<T: Real> CachePayload<T> for SvdStore<T> {
             return Err("short metadata".into());
         }
         let (n, n_sets) = (meta[0] as usize, meta[1] as usize);
-        if meta.len() != 2 + 3 * n_sets {
+        if meta.len() != 2 + META_PER_SET * n_sets {
             return Err("metadata length".into());
         }
-        let sets: Vec<SvdSetInfo> = (0..n_sets)
-            .map(|s| SvdSetInfo {
-                rank: meta[2 + 3 * s] as usize,
-                dropped_fat: f64::from_bits(meta[3 + 3 * s]),
-                dropped_tall: f64::from_bits(meta[4 + 3 * s]),
+        let sets: Vec<SvdSetInfo> = meta[2..]
+            .chunks_exact(META_PER_SET)
+            .map(|m| SvdSetInfo {
+                rank: m[0] as usize,
+                dropped_fat: f64::from_bits(m[1]),
+                dropped_tall: f64::from_bits(m[2]),
+                vector_ranks: m[3..]
+                    .iter()
+                    .map(|&r| r.min(u32::MAX as u64) as u32)
+                    .collect(),
             })
             .collect();
         if sets.iter().any(|s| s.rank == 0 || s.rank > n) {
             return Err("rank outside 1..=n".into());
         }
-        if sets.iter().map(|s| set_len(n, s.rank)).sum::<usize>() != data.len() {
+        if sets.iter().any(|s| {
+            s.vector_ranks
+                .iter()
+                .any(|&r| r == 0 || r as usize > s.rank)
+        }) {
+            return Err("transfer-vector rank outside 1..=k".into());
+        }
+        if sets.iter().map(|s| s.len(n)).sum::<usize>() != data.len() {
             return Err("payload length disagrees with layout".into());
         }
         Ok(SvdStore { n, sets, data })
@@ -185,13 +254,42 @@ impl<T: Real> SvdM2l<T> {
             .fold(0.0, f64::max)
     }
 
-    /// Start of set `set` and its rank.
-    fn set(&self, set: usize) -> (usize, usize) {
-        let start = self.store.sets[..set]
+    /// Mean rank `r_v` of the 316 per-vector operators `C_v` (largest over
+    /// sets): the M2L work per pair is `4 k r_v` for a factored `C_v`,
+    /// `2 k^2` for one stored whole.
+    pub fn mean_vector_rank(&self) -> f64 {
+        self.store
+            .sets
             .iter()
-            .map(|s| set_len(self.n, s.rank))
-            .sum();
-        (start, self.store.sets[set].rank)
+            .map(|s| {
+                s.vector_ranks.iter().map(|&r| r as f64).sum::<f64>() / s.vector_ranks.len() as f64
+            })
+            .fold(0.0, f64::max)
+    }
+
+    /// Start of each set in the store and where its 316 operators lie.
+    fn layout_of(store: &SvdStore<T>) -> Vec<(usize, Vec<VectorOp>)> {
+        let mut start = 0;
+        store
+            .sets
+            .iter()
+            .map(|s| {
+                let mut offset = start + 2 * store.n * s.rank;
+                let ops = (0..N_TRANSFER_VECTORS)
+                    .map(|v| {
+                        let op = VectorOp {
+                            offset,
+                            rank: s.vector_ranks[v] as usize,
+                        };
+                        offset += s.vector_len(v);
+                        op
+                    })
+                    .collect();
+                let set_start = start;
+                start += s.len(store.n);
+                (set_start, ops)
+            })
+            .collect()
     }
 }
 
@@ -231,7 +329,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         let mut key =
             CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array());
         key.scheme_config = format!(
-            "rank={:?};tolerance={:?}",
+            "rank={:?};tolerance={:?};recompression={RECOMPRESSION_FACTOR:?}",
             config.rank.map(|r| r.min(n)),
             tolerance
         );
@@ -257,10 +355,12 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
                 }
                 Ok(SvdStore { n, sets, data })
             })?;
+        let layout = Self::layout_of(&store);
         Ok(SvdM2l {
             n,
             levels,
             store,
+            layout,
             tolerance,
             cache_status,
         })
@@ -273,10 +373,11 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             return;
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
-        let (start, k) = self.set(set);
-        let data = &self.store.data[start..start + set_len(n, k)];
+        let k = self.store.sets[set].rank;
+        let (start, ops) = &self.layout[set];
+        let data = &self.store.data[*start..];
         let (u, rest) = data.split_at(n * k);
-        let (vt, c) = rest.split_at(k * n);
+        let vt = &rest[..k * n];
         // Compress all multipoles: mc = V_k^T M (k x n_source_cols).
         let ns = interactions.n_source_cols();
         let mut mc = vec![T::ZERO; k * ns];
@@ -285,17 +386,28 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             .zip(multipoles.par_chunks(n * COLS))
             .for_each(|(out, m)| gemm(k, m.len() / n, n, vt, m, out, false));
         let mc = &mc;
+        let store = &self.store.data;
+        let max_rank = ops.iter().map(|o| o.rank).max().unwrap_or(k);
         for_each_chunk(interactions, n, check, |chunk, out| {
             let nt = chunk.n_targets();
             let m = chunk.max_group_len();
             let mut acc = vec![T::ZERO; k * nt];
             let mut src = vec![T::ZERO; k * m];
+            let mut mid = vec![T::ZERO; max_rank * m];
             let mut dst = vec![T::ZERO; k * m];
             for g in chunk.groups() {
                 let len = g.sources.len();
                 gather(k, mc, g.sources, &mut src[..k * len]);
-                let cv = &c[g.vector * k * k..(g.vector + 1) * k * k];
-                gemm(k, len, k, cv, &src[..k * len], &mut dst[..k * len], false);
+                let VectorOp { offset, rank: r } = ops[g.vector];
+                if r == k {
+                    let cv = &store[offset..offset + k * k];
+                    gemm(k, len, k, cv, &src[..k * len], &mut dst[..k * len], false);
+                } else {
+                    // C_v = A_v B_v^T: mid = B_v^T src, dst = A_v mid.
+                    let (av, bt) = store[offset..offset + 2 * k * r].split_at(k * r);
+                    gemm(r, len, k, bt, &src[..k * len], &mut mid[..r * len], false);
+                    gemm(k, len, r, av, &mid[..r * len], &mut dst[..k * len], false);
+                }
                 scatter_add(k, &dst[..k * len], g.targets, &mut acc);
             }
             gemm_scaled(n, nt, k, scale, u, &acc, out, true);
@@ -307,11 +419,18 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
-        // Assumes the level's set; ranks are equal or close across sets.
-        let k = self.rank() as f64;
+        // Assumes the first set; ranks are equal or close across sets.
+        let Some(set) = self.store.sets.first() else {
+            return 0.0;
+        };
+        let k = set.rank as f64;
         let n = self.n as f64;
-        2.0 * k * k * interactions.len() as f64
-            + 2.0 * n * k * (interactions.n_source_cols() + interactions.n_target_cols()) as f64
+        let pairs: f64 = interactions
+            .chunk_views()
+            .flat_map(|c| c.groups())
+            .map(|g| g.sources.len() as f64 * set.pair_flops(g.vector))
+            .sum();
+        pairs + 2.0 * n * k * (interactions.n_source_cols() + interactions.n_target_cols()) as f64
     }
 
     fn cache_status(&self) -> CacheStatus {
@@ -401,16 +520,8 @@ fn compress_set<K: Kernel>(
             0.0
         }
     };
-    let info = SvdSetInfo {
-        rank: k,
-        dropped_fat: dropped(&sf.s),
-        dropped_tall: dropped(&st.s),
-    };
     let uk = sf.v.as_ref().subcols(0, k);
     let vk = st.v.as_ref().subcols(0, k);
-    let mut out = Vec::with_capacity(set_len(n, k));
-    out.extend(col_major(uk));
-    out.extend(col_major(vk.transpose()));
     // C_v = U_k^T K_v V_k.
     let cs: Vec<Result<Vec<f64>, FieldError>> = vectors
         .par_iter()
@@ -419,9 +530,58 @@ fn compress_set<K: Kernel>(
             Ok(project(uk, kv.as_ref(), vk))
         })
         .collect();
-    for c in cs {
-        out.extend(c?);
+    let cs = cs.into_iter().collect::<Result<Vec<_>, _>>()?;
+    // Factor each C_v at its own rank (only when the rank was chosen by
+    // tolerance: a fixed rank is kept as asked).
+    let factored: Vec<Option<(usize, Vec<f64>)>> = if rank.is_some() {
+        vec![None; cs.len()]
+    } else {
+        let svds = cs
+            .par_iter()
+            .map(|c| {
+                svd(
+                    MatRef::from_column_major_slice(c, k, k),
+                    "a compressed M2L operator",
+                )
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let s_max = svds.iter().map(|d| d.s[0]).fold(0.0, f64::max);
+        let cutoff = RECOMPRESSION_FACTOR * tolerance * s_max;
+        svds.iter()
+            .map(|d| {
+                let r = d.s.iter().take_while(|&&x| x > cutoff).count().max(1);
+                (2 * r < k).then(|| {
+                    let mut f = Vec::with_capacity(2 * k * r);
+                    for j in 0..r {
+                        f.extend((0..k).map(|i| d.u[(i, j)] * d.s[j]));
+                    }
+                    for i in 0..k {
+                        f.extend((0..r).map(|j| d.v[(i, j)]));
+                    }
+                    (r, f)
+                })
+            })
+            .collect()
+    };
+    let info = SvdSetInfo {
+        rank: k,
+        dropped_fat: dropped(&sf.s),
+        dropped_tall: dropped(&st.s),
+        vector_ranks: factored
+            .iter()
+            .map(|f| f.as_ref().map_or(k, |(r, _)| *r) as u32)
+            .collect(),
+    };
+    let mut out = Vec::with_capacity(info.len(n));
+    out.extend(col_major(uk));
+    out.extend(col_major(vk.transpose()));
+    for (c, f) in cs.iter().zip(&factored) {
+        match f {
+            Some((_, f)) => out.extend_from_slice(f),
+            None => out.extend_from_slice(c),
+        }
     }
+    debug_assert_eq!(out.len(), info.len(n));
     Ok((info, out))
 }
 
