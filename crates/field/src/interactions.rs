@@ -205,32 +205,46 @@ impl M2lInteractions {
             ));
         }
         let n_chunks = n_target_cols.div_ceil(chunk_size);
-        let built: Vec<ChunkPairs> = (0..n_chunks)
+        let targets_of = |c: usize| c * chunk_size..((c + 1) * chunk_size).min(n_target_cols);
+        // Two passes: count each chunk's pairs, then fill each chunk's
+        // slice of the final arrays in place (no second copy of the pairs).
+        let counts: Vec<usize> = (0..n_chunks)
             .into_par_iter()
-            .map(|c| {
-                let start = c * chunk_size;
-                let end = ((c + 1) * chunk_size).min(n_target_cols);
-                ChunkPairs::build(start..end, (n_target_cols, n_source_cols), &list)
+            .map(|c| targets_of(c).map(|t| list(t).into_iter().count()).sum())
+            .collect();
+        let total: usize = counts.iter().sum();
+        let mut sources = vec![0u32; total];
+        let mut local_targets = vec![0u32; total];
+        let mut slices = Vec::with_capacity(n_chunks);
+        let (mut s_rest, mut t_rest) = (&mut sources[..], &mut local_targets[..]);
+        for &len in &counts {
+            let (s, s_next) = s_rest.split_at_mut(len);
+            let (t, t_next) = t_rest.split_at_mut(len);
+            slices.push((s, t));
+            (s_rest, t_rest) = (s_next, t_next);
+        }
+        let chunk_groups: Vec<Vec<Group>> = slices
+            .into_par_iter()
+            .enumerate()
+            .map(|(c, (s, t))| {
+                fill_chunk(targets_of(c), (n_target_cols, n_source_cols), &list, s, t)
             })
             .collect::<Result<_, _>>()?;
-        let total: usize = built.iter().map(|c| c.sources.len()).sum();
         let mut chunks = Vec::with_capacity(n_chunks);
         let mut groups = Vec::new();
-        let mut sources = Vec::with_capacity(total);
-        let mut local_targets = Vec::with_capacity(total);
-        for (c, b) in built.into_iter().enumerate() {
+        let mut base = 0;
+        for (c, (g, len)) in chunk_groups.into_iter().zip(counts).enumerate() {
             let group_start = groups.len();
-            let base = sources.len();
-            groups.extend(b.groups.iter().map(|g| Group {
+            groups.extend(g.into_iter().map(|g| Group {
                 vector: g.vector,
                 pair_start: base + g.pair_start,
                 pair_end: base + g.pair_end,
             }));
-            sources.extend_from_slice(&b.sources);
-            local_targets.extend_from_slice(&b.local_targets);
+            base += len;
+            let r = targets_of(c);
             chunks.push(Chunk {
-                target_start: c * chunk_size,
-                target_end: ((c + 1) * chunk_size).min(n_target_cols),
+                target_start: r.start,
+                target_end: r.end,
                 group_start,
                 group_end: groups.len(),
             });
@@ -292,67 +306,62 @@ impl M2lInteractions {
     }
 }
 
-/// The pairs of one chunk grouped by transfer vector (pair indices local to
-/// the chunk).
-struct ChunkPairs {
-    groups: Vec<Group>,
-    sources: Vec<u32>,
-    local_targets: Vec<u32>,
-}
-
-impl ChunkPairs {
-    /// Read the lists of `targets` and counting-sort them by transfer
-    /// vector (stable: within a group, pairs stay in target order).
-    fn build<F, I>(
-        targets: Range<usize>,
-        (n_target_cols, n_source_cols): (usize, usize),
-        list: &F,
-    ) -> Result<Self, FieldError>
-    where
-        F: Fn(usize) -> I,
-        I: IntoIterator<Item = (usize, [i32; 3])>,
-    {
-        let mut raw: Vec<(u16, u32, u32)> = Vec::new();
-        let mut counts = [0usize; N_TRANSFER_VECTORS + 1];
-        for t in targets.clone() {
-            for (i, (s, v)) in list(t).into_iter().enumerate() {
-                if s >= n_source_cols {
-                    return Err(out_of_range(i, t, s, v, n_target_cols, n_source_cols));
-                }
-                let Some(vi) = transfer_vector_index(v) else {
-                    return Err(FieldError::InvalidInteractions(format!(
-                        "target {t}, pair {i}: {v:?} is not a V-list transfer vector"
-                    )));
-                };
-                counts[vi + 1] += 1;
-                raw.push((vi as u16, (t - targets.start) as u32, s as u32));
+/// Read the lists of `targets` and counting-sort them by transfer vector
+/// into `sources` and `local_targets` (exactly the chunk's pair count
+/// long). Returns the chunk's groups, with pair indices local to the chunk.
+/// Stable: within a group, pairs stay in target order.
+fn fill_chunk<F, I>(
+    targets: Range<usize>,
+    (n_target_cols, n_source_cols): (usize, usize),
+    list: &F,
+    sources: &mut [u32],
+    local_targets: &mut [u32],
+) -> Result<Vec<Group>, FieldError>
+where
+    F: Fn(usize) -> I,
+    I: IntoIterator<Item = (usize, [i32; 3])>,
+{
+    let mut raw: Vec<(u16, u32, u32)> = Vec::with_capacity(sources.len());
+    let mut counts = [0usize; N_TRANSFER_VECTORS + 1];
+    for t in targets.clone() {
+        for (i, (s, v)) in list(t).into_iter().enumerate() {
+            if s >= n_source_cols {
+                return Err(out_of_range(i, t, s, v, n_target_cols, n_source_cols));
             }
+            let Some(vi) = transfer_vector_index(v) else {
+                return Err(FieldError::InvalidInteractions(format!(
+                    "target {t}, pair {i}: {v:?} is not a V-list transfer vector"
+                )));
+            };
+            counts[vi + 1] += 1;
+            raw.push((vi as u16, (t - targets.start) as u32, s as u32));
         }
-        for v in 0..N_TRANSFER_VECTORS {
-            counts[v + 1] += counts[v];
-        }
-        let groups = (0..N_TRANSFER_VECTORS)
-            .filter(|&v| counts[v + 1] > counts[v])
-            .map(|v| Group {
-                vector: v as u16,
-                pair_start: counts[v],
-                pair_end: counts[v + 1],
-            })
-            .collect();
-        let mut sources = vec![0u32; raw.len()];
-        let mut local_targets = vec![0u32; raw.len()];
-        for (vi, t, s) in raw {
-            let at = &mut counts[vi as usize];
-            sources[*at] = s;
-            local_targets[*at] = t;
-            *at += 1;
-        }
-        Ok(ChunkPairs {
-            groups,
-            sources,
-            local_targets,
-        })
     }
+    if raw.len() != sources.len() {
+        return Err(FieldError::InvalidInteractions(format!(
+            "the lists of targets {targets:?} gave {} pairs, then {}",
+            sources.len(),
+            raw.len()
+        )));
+    }
+    for v in 0..N_TRANSFER_VECTORS {
+        counts[v + 1] += counts[v];
+    }
+    let groups = (0..N_TRANSFER_VECTORS)
+        .filter(|&v| counts[v + 1] > counts[v])
+        .map(|v| Group {
+            vector: v as u16,
+            pair_start: counts[v],
+            pair_end: counts[v + 1],
+        })
+        .collect();
+    for (vi, t, s) in raw {
+        let at = &mut counts[vi as usize];
+        sources[*at] = s;
+        local_targets[*at] = t;
+        *at += 1;
+    }
+    Ok(groups)
 }
 
 fn out_of_range(

@@ -258,8 +258,8 @@ fn non_homogeneous_level_out_of_range_panics() {
 #[test]
 fn svd_factors_each_transfer_vector_at_its_own_rank() {
     let params = OperatorParams::new(6);
-    let tol = SvdM2l::<f64>::precompute(&Laplace3d, &params, &SvdConfig::default(), 1.0, LEVEL)
-        .unwrap();
+    let tol =
+        SvdM2l::<f64>::precompute(&Laplace3d, &params, &SvdConfig::default(), 1.0, LEVEL).unwrap();
     // Per-vector ranks are well below k (measured mean 18 of 94), so the
     // factored C_v = A_v B_v^T (4 k r_v flops per pair) beats k^2.
     let (k, r) = (tol.rank(), tol.mean_vector_rank());

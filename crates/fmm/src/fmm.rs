@@ -31,8 +31,9 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) m2l_interactions: Vec<M2lInteractions>,
     /// Sources in Morton (leaf) order, interleaved, relative to `centre`.
     pub(crate) sources: Vec<T>,
-    /// Targets in Morton (leaf) order, interleaved, relative to `centre`.
-    pub(crate) targets: Vec<T>,
+    /// Targets in Morton (leaf) order, interleaved, relative to `centre`;
+    /// `None` when the targets are the sources (not stored twice).
+    pub(crate) targets: Option<Vec<T>>,
     /// Centre of the tree's domain: all coordinates the passes see (points
     /// and surfaces) are relative to it, so that far from the origin (say
     /// at 1e8 + [0, 1)^3, or 1e4 + [0, 1)^3 in f32) they keep the digits
@@ -102,7 +103,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let chosen = match b.tolerance {
             Some(eps) => {
                 let t = Instant::now();
-                let c = Tuner::new(T::PRECISION).choose(
+                let c = Tuner::new(T::PRECISION).for_mode(b.mode).choose(
                     eps,
                     &src64,
                     tgt64.as_deref(),
@@ -166,10 +167,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             .collect::<Result<_, _>>()?;
         let centre = tree.domain().center();
         let sources = permute_points(b.sources, tree.source_permutation(), centre);
-        let targets = match b.targets {
-            Some(t) => permute_points(t, tree.target_permutation(), centre),
-            None => sources.clone(),
-        };
+        let targets = b
+            .targets
+            .map(|t| permute_points(t, tree.target_permutation(), centre));
         let unit_surface = surface_points::<f64>(b.order, [0.0; 3], 1.0, 1.0);
         setup.layout = t.elapsed();
         setup.total = t0.elapsed();
@@ -178,7 +178,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             kernel: b.kernel,
             mode: b.mode,
             n_sources: b.sources.len() / 3,
-            n_targets: targets.len() / 3,
+            n_targets: b.targets.map_or(b.sources.len(), <[T]>::len) / 3,
             tree,
             operators,
             m2l,
@@ -237,6 +237,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             });
         }
         Ok(())
+    }
+
+    /// Target coordinates in the tree's order (relative to the domain
+    /// centre): the sources' when no separate targets were given.
+    pub(crate) fn target_points(&self) -> &[T] {
+        self.targets.as_deref().unwrap_or(&self.sources)
     }
 
     /// The octree (plain data: keys, ranges, lists).

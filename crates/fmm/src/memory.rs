@@ -68,7 +68,8 @@ impl MemoryReport {
             } else {
                 sorted(tree.n_targets())
             };
-        let points = (fmm.sources.len() + fmm.targets.len()) * t + tree_points;
+        let points =
+            (fmm.sources.len() + fmm.targets.as_ref().map_or(0, Vec::len)) * t + tree_points;
 
         // keys, parents, children (2), source and target ranges (4), two
         // masks, colleague table (27 u32), leaves.

@@ -220,7 +220,7 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     let mut slices = leaf_output_slices(fmm, w, sorted);
     let targets_of = |b: usize| {
         let r = tree.target_range(b);
-        &fmm.targets[3 * r.start..3 * r.end]
+        &fmm.target_points()[3 * r.start..3 * r.end]
     };
 
     let t = Instant::now();
