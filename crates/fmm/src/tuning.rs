@@ -136,6 +136,12 @@ const STOP_FACTOR: f64 = 1.5;
 /// what it chooses for.
 pub const CHOICE_BUDGET: f64 = 0.05;
 
+/// The search may always spend this many seconds (estimated), whatever
+/// [`CHOICE_BUDGET`] allows: on small problems 5% of a 50 ms run is too
+/// little to reach the trees of small leaves, and a wrong leaf size there
+/// costs 2x (N = 1e5 cube at 1e-3, `docs/tolerance.md`).
+pub const MIN_CHOICE_SECONDS: f64 = 0.01;
+
 /// Seconds to simulate one box of a candidate tree (refine, balance, count
 /// the work; measured 0.2 to 0.8 us on the 2-core machine, Plummer the
 /// costliest).
@@ -1652,7 +1658,8 @@ impl Tuner {
     /// more than the best setting so far (it only grows as leaves shrink),
     /// after two trees in a row predicted more than 1.5x slower than the
     /// best, or before simulating a tree would take the search past
-    /// [`CHOICE_BUDGET`] of the best predicted time.
+    /// [`CHOICE_BUDGET`] of the best predicted time (or
+    /// [`MIN_CHOICE_SECONDS`], whichever is larger).
     pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
         validate_tolerance(eps, self.error.precision)?;
         let mut sizes = self.leaf_sizes.clone();
@@ -1688,7 +1695,8 @@ impl Tuner {
             }
             // The search may spend CHOICE_BUDGET of the best time so far.
             if !trees.is_empty()
-                && (spent + boxes as f64) * SECONDS_PER_SIMULATED_BOX > CHOICE_BUDGET * *best
+                && (spent + boxes as f64) * SECONDS_PER_SIMULATED_BOX
+                    > (CHOICE_BUDGET * *best).max(MIN_CHOICE_SECONDS)
             {
                 return None;
             }
