@@ -59,7 +59,8 @@
 //!
 //! [`M2lScheme`] is the seam: [`DenseM2l`] (one `n x n` matrix per transfer
 //! vector, the reference) and [`SvdM2l`] (Fong–Darve: one pair of bases for
-//! all 316 transfer vectors, `k x k` cores). Interactions of a level are
+//! all 316 transfer vectors, `k x k` cores, each factored again at its own
+//! rank `C_v = A_v B_v^T`). Interactions of a level are
 //! grouped by [`M2lInteractions`] so that every transfer vector is applied
 //! as one GEMM over all boxes that share it.
 //!
