@@ -1481,9 +1481,10 @@ fn fit_nonnegative(rows: &[(Vec<f64>, f64)]) -> Option<Vec<f64>> {
     }
 }
 
-/// Least squares on the columns `idx` by the normal equations (columns
-/// scaled to unit norm, Gauss-Jordan elimination with partial pivoting; a
-/// column dependent on the others gets coefficient 0).
+/// Least squares on the columns `idx` (scaled to unit norm) through faer's
+/// thin SVD: `c = V diag(1 / s) U^T y` over the singular values above
+/// `1e-10 s_0`, so a column that depends on the others takes no weight
+/// instead of blowing up. `None` when the SVD fails.
 fn solve_normal(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<Vec<f64>> {
     let d = idx.len();
     let scale: Vec<f64> = idx
@@ -1493,49 +1494,22 @@ fn solve_normal(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<Vec<f64>> {
             if s > 0.0 { s } else { 1.0 }
         })
         .collect();
-    let mut a = vec![vec![0.0; d + 1]; d];
-    for (x, y) in rows {
-        for r in 0..d {
-            let xr = x[idx[r]] / scale[r];
-            for c in 0..d {
-                a[r][c] += xr * x[idx[c]] / scale[c];
-            }
-            a[r][d] += xr * y;
-        }
-    }
-    let mut pivot_of = vec![None; d];
-    let mut row = 0;
-    for col in 0..d {
-        let Some(piv) = (row..d).max_by(|&i, &j| a[i][col].abs().total_cmp(&a[j][col].abs()))
-        else {
-            break;
-        };
-        if a[piv][col].abs() < 1e-10 {
+    let x = faer::Mat::<f64>::from_fn(rows.len(), d, |r, c| rows[r].0[idx[c]] / scale[c]);
+    let svd = x.thin_svd().ok()?;
+    let (u, sv, v) = (svd.U(), svd.S(), svd.V());
+    let s0 = if sv.dim() > 0 { sv[0] } else { 0.0 };
+    let mut c = vec![0.0; d];
+    for k in 0..sv.dim() {
+        let sk = sv[k];
+        if sk.is_nan() || sk <= 1e-10 * s0 {
             continue;
         }
-        a.swap(row, piv);
-        let pivot_row = a[row].clone();
-        for (r, ar) in a.iter_mut().enumerate() {
-            if r != row {
-                let f = ar[col] / pivot_row[col];
-                if f != 0.0 {
-                    for (x, &y) in ar[col..=d].iter_mut().zip(&pivot_row[col..=d]) {
-                        *x -= f * y;
-                    }
-                }
-            }
+        let uty: f64 = (0..rows.len()).map(|r| u[(r, k)] * rows[r].1).sum();
+        for (j, cj) in c.iter_mut().enumerate() {
+            *cj += v[(j, k)] * uty / sk;
         }
-        pivot_of[col] = Some(row);
-        row += 1;
     }
-    Some(
-        (0..d)
-            .map(|c| match pivot_of[c] {
-                Some(r) => a[r][d] / a[r][c] / scale[c],
-                None => 0.0,
-            })
-            .collect(),
-    )
+    Some(c.iter().zip(&scale).map(|(c, s)| c / s).collect())
 }
 
 // ---------------------------------------------------------------------------
