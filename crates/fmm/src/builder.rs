@@ -215,11 +215,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
                 self.max_level
             )));
         }
-        check_points("sources", self.sources)?;
-        if let Some(t) = self.targets {
-            check_points("targets", t)?;
-        }
-        Ok(())
+        check_sources_and_targets(self.sources, self.targets)
     }
 
     /// Build with the M2L scheme `S` and its configuration.
@@ -248,6 +244,18 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     pub fn build_dense(self) -> Result<Fmm<T, K, DenseM2l<T>>, FmmError> {
         self.build_with(Default::default())
     }
+}
+
+/// [`check_points`] on the sources and, when given, the targets.
+pub(crate) fn check_sources_and_targets<T: Real>(
+    sources: &[T],
+    targets: Option<&[T]>,
+) -> Result<(), FmmError> {
+    check_points("sources", sources)?;
+    if let Some(t) = targets {
+        check_points("targets", t)?;
+    }
+    Ok(())
 }
 
 /// Non-empty, a multiple of 3, all finite.

@@ -424,10 +424,7 @@ pub fn choose_precision(
     targets: Option<&[f64]>,
 ) -> Result<Precision, FmmError> {
     validate_tolerance(eps, Precision::F64)?;
-    crate::builder::check_points("sources", sources)?;
-    if let Some(t) = targets {
-        crate::builder::check_points("targets", t)?;
-    }
+    crate::builder::check_sources_and_targets(sources, targets)?;
     let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
     if f32_reaches(eps)
         && Tuner::new(Precision::F32)
@@ -1464,7 +1461,7 @@ fn fit_nonnegative(rows: &[(Vec<f64>, f64)]) -> Option<Vec<f64>> {
     let mut active: Vec<bool> = vec![true; dim];
     loop {
         let idx: Vec<usize> = (0..dim).filter(|&i| active[i]).collect();
-        let c = solve_normal(&rows, &idx)?;
+        let c = least_squares(&rows, &idx)?;
         let mut full = vec![0.0; dim];
         for (&i, &v) in idx.iter().zip(&c) {
             full[i] = v;
@@ -1485,7 +1482,7 @@ fn fit_nonnegative(rows: &[(Vec<f64>, f64)]) -> Option<Vec<f64>> {
 /// thin SVD: `c = V diag(1 / s) U^T y` over the singular values above
 /// `1e-10 s_0`, so a column that depends on the others takes no weight
 /// instead of blowing up. `None` when the SVD fails.
-fn solve_normal(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<Vec<f64>> {
+fn least_squares(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<Vec<f64>> {
     let d = idx.len();
     let scale: Vec<f64> = idx
         .iter()
@@ -1842,10 +1839,7 @@ pub fn choose_parameters<T: Real>(
     targets: Option<&[T]>,
 ) -> Result<ChosenParameters, FmmError> {
     validate_tolerance(eps, T::PRECISION)?;
-    crate::builder::check_points("sources", sources)?;
-    if let Some(t) = targets {
-        crate::builder::check_points("targets", t)?;
-    }
+    crate::builder::check_sources_and_targets(sources, targets)?;
     let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
     let src = up(sources);
     let tgt = targets.map(up);

@@ -105,15 +105,15 @@ pub struct SvdM2l<T: Real> {
     cache_status: CacheStatus,
 }
 
-/// Per-set compression summary.
 /// Per-vector truncation of `C_v` relative to the set's tolerance: singular
 /// values of `C_v` below `RECOMPRESSION_FACTOR * tolerance * s_max` (with
 /// `s_max` the largest singular value of all 316 `C_v`) are dropped. The
-/// per-vector ranks are 5-6x below `k` (p = 6: mean 18 of 94), and
+/// per-vector ranks are 4.7-5.6x below `k` (p = 6: mean 18 of 94), and
 /// dropping a third of the tolerance keeps the FMM error within a few
 /// percent of the unfactored scheme's (`docs/algorithms.md`).
 const RECOMPRESSION_FACTOR: f64 = 0.3;
 
+/// Per-set compression summary.
 #[derive(Clone, Debug, PartialEq)]
 struct SvdSetInfo {
     rank: usize,
