@@ -10,6 +10,13 @@
 //! setup:      { tree_s, operators_s, m2l_precompute_s, layout_s, total_s },
 //! evaluation: { repeats, best_s, median_s,
 //!               operators_s: { p2m, m2m, m2l, p2l, l2l, l2p, m2p, p2p } },
+//! charges (demo: "signed" or "positive"; eval: null),
+//! verification: { tolerance, met, rebuild_s,
+//!                 attempts: [ { order, svd_tolerance, predicted_error,
+//!                               measured: { n_sampled, potential, gradient },
+//!                               evaluation_s, check_s } ] }
+//!               or null (no --tolerance, or --verify off; see verify),
+//! verify ("on", "off", or "n/a" without --tolerance),
 //! errors:     { n_sampled, potential, gradient } or null,
 //! direct_check_s, peak_rss_bytes (null where unknown), wall_s
 //! ```
@@ -38,9 +45,21 @@ pub struct RunReport {
     /// Requested accuracy (`--tolerance`), when given.
     #[serde(default)]
     pub tolerance: Option<f64>,
-    /// The library's predicted error for the chosen parameters (with `--tolerance`).
+    /// The library's predicted error for the chosen parameters (with
+    /// `--tolerance`; after verification raised the order, the last
+    /// order's).
     #[serde(default)]
     pub predicted_error: Option<f64>,
+    /// Built-in charges (`signed` / `positive`; `None` for charges from a file).
+    #[serde(default)]
+    pub charges: Option<String>,
+    /// `"on"` or `"off"` with `--tolerance`, `"n/a"` without.
+    #[serde(default)]
+    pub verify: String,
+    /// The after-the-fact check of the tolerance (with `--tolerance` and
+    /// `--verify on`).
+    #[serde(default)]
+    pub verification: Option<ferrofmm_fmm::Verification>,
     /// M2L scheme (`svd` / `dense`).
     pub scheme: String,
     /// Float type (`f32` / `f64`).
@@ -258,6 +277,14 @@ impl RunReport {
             None => thousands(self.n_sources),
         };
         row(&mut o, "sources", points);
+        if let Some(c) = &self.charges {
+            let what = match c.as_str() {
+                "signed" => "uniform in [-0.5, 0.5) (zero mean)",
+                "positive" => "uniform in [0, 1) (all positive)",
+                other => other,
+            };
+            row(&mut o, "charges", what.to_string());
+        }
         row(&mut o, "targets", thousands(self.n_targets));
         row(
             &mut o,
@@ -327,6 +354,50 @@ impl RunReport {
             "setup + evaluation   {:>10}",
             seconds(self.setup.total_s + e.best_s)
         );
+        if let Some(eps) = self.tolerance {
+            let predicted = self
+                .predicted_error
+                .map(|e| format!(", predicted {e:.1e}"))
+                .unwrap_or_default();
+            row(&mut o, "tolerance", format!("{eps:.1e} requested{predicted}"));
+            match &self.verification {
+                Some(v) => {
+                    for (i, a) in v.attempts.iter().enumerate() {
+                        let grad = a
+                            .measured
+                            .gradient
+                            .map(|g| format!(", gradient {g:.2e}"))
+                            .unwrap_or_default();
+                        let label = if i == 0 { "verified" } else { "  raised order" };
+                        row(
+                            &mut o,
+                            label,
+                            format!(
+                                "order {}: potential {:.2e}{grad} on {} sampled targets ({})",
+                                a.order,
+                                a.measured.potential,
+                                a.measured.n_sampled,
+                                seconds(a.check_s)
+                            ),
+                        );
+                    }
+                    let verdict = if v.met {
+                        "met".to_string()
+                    } else {
+                        format!(
+                            "NOT met after {} attempts: the result is less accurate than asked",
+                            v.attempts.len()
+                        )
+                    };
+                    row(&mut o, "  tolerance", verdict);
+                }
+                None => row(
+                    &mut o,
+                    "verified",
+                    "off (--verify off): the error is only predicted".to_string(),
+                ),
+            }
+        }
         match &self.errors {
             Some(err) => {
                 let check = self

@@ -9,11 +9,32 @@
 //!
 //! computed separately for the potential and (when evaluated) the gradient,
 //! with the direct sums in `f64` whatever the FMM's float type.
+//!
+//! # Scaling
+//!
+//! `e` does not change when every charge is multiplied by the same `s`, but
+//! its sums of squares do: charges of `1e200` overflow them, charges of
+//! `1e-300` underflow them. Both the reference and the compared values are
+//! therefore divided by `s = max |q_i|` first (exact up to one rounding),
+//! so that `e` is right for any representable charges.
+//!
+//! # Cost
+//!
+//! The reference of one target costs one pass over all N sources. The sums
+//! run in parallel over blocks of sources (each block adds its share to all
+//! sampled targets), so a sample of a few dozen targets still uses every
+//! core. [`estimate_errors`] picks the sample size from a time budget (the
+//! after-the-fact verification of [`crate::Fmm::evaluate_verified`]).
 
-use ferrofmm_kernels::{EvalMode, Kernel, Real, direct_sum};
+use std::time::{Duration, Instant};
+
+use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+use rayon::prelude::*;
 
 /// Relative L2 errors of an FMM result on sampled targets.
-#[derive(Clone, Copy, Debug, Default, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ErrorReport {
     /// Targets compared.
     pub n_sampled: usize,
@@ -23,14 +44,55 @@ pub struct ErrorReport {
     pub gradient: Option<f64>,
 }
 
+impl ErrorReport {
+    /// The larger of the potential and the gradient error (the gradient's
+    /// only when evaluated): the error of everything the caller asked for.
+    pub fn worst(&self) -> f64 {
+        self.gradient
+            .map_or(self.potential, |g| self.potential.max(g))
+    }
+}
+
 /// Evenly spaced sample of at most `count` target indices out of `n`.
 pub fn sample_indices(n: usize, count: usize) -> Vec<usize> {
     let count = count.min(n).max(1);
     (0..count).map(|k| k * n / count).collect()
 }
 
+/// `count` distinct target indices out of `n` (all of them when
+/// `count >= n`), drawn at random with a fixed seed: the same for the same
+/// `(n, count)`, and free of the patterns an evenly spaced sample can pick
+/// up (every other point, one row of a grid). A prefix of the result is
+/// itself such a sample, which [`estimate_errors`] relies on.
+pub fn random_sample(n: usize, count: usize) -> Vec<usize> {
+    if count >= n {
+        return (0..n).collect();
+    }
+    let mut rng = StdRng::seed_from_u64(0x5a17_e5ed ^ n as u64);
+    let mut seen = std::collections::HashSet::with_capacity(2 * count);
+    let mut out = Vec::with_capacity(count);
+    while out.len() < count {
+        let j = rng.random_range(0..n);
+        if seen.insert(j) {
+            out.push(j);
+        }
+    }
+    out
+}
+
 /// Compare `values` (the FMM output for all targets in original order, `mode`
 /// layout) with direct summation at the targets `sample`.
+///
+/// ```
+/// use ferrofmm_fmm::{relative_errors, sample_indices};
+/// use ferrofmm_kernels::{direct_sum, EvalMode, Laplace3d};
+/// let points = [0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 2.0, 0.0];
+/// let charges = [1e200, -2e200, 3e200]; // sums of squares would overflow
+/// let mut exact = [0.0; 3];
+/// direct_sum(&Laplace3d, EvalMode::Potential, &points, &charges, &points, &mut exact);
+/// let e = relative_errors(&Laplace3d, EvalMode::Potential, &points, &charges, &points, &exact, &[0, 1, 2]);
+/// assert!(e.potential < 1e-15);
+/// ```
 #[allow(clippy::too_many_arguments)]
 pub fn relative_errors<T: Real, K: Kernel>(
     kernel: &K,
@@ -41,40 +103,262 @@ pub fn relative_errors<T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> ErrorReport {
-    let w = mode.values_per_target();
-    let up = |v: &[T]| v.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
-    let sampled: Vec<f64> = sample
-        .iter()
-        .flat_map(|&j| [targets[3 * j], targets[3 * j + 1], targets[3 * j + 2]])
-        .map(|x| x.to_f64())
-        .collect();
-    let mut reference = vec![0.0f64; w * sample.len()];
-    direct_sum(
+    let scale = charge_scale(charges);
+    let mut sums = ErrorSums::default();
+    sums.add(
+        kernel, mode, sources, charges, scale, targets, values, sample,
+    );
+    sums.report(mode)
+}
+
+/// Estimate the relative L2 errors of `values` on a random sample of
+/// targets whose direct sums take about `budget` (at least `min_sample`
+/// and at most `max_sample` targets, fewer only when there are fewer
+/// targets).
+///
+/// The first 16 targets are summed and timed; the rest of the sample is
+/// sized from that rate to fill what is left of the budget. The sample is
+/// a prefix of [`random_sample`]`(n_targets, max_sample)`, so the same
+/// targets are used for the same problem whatever the budget.
+#[allow(clippy::too_many_arguments)]
+pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
+    kernel: &K,
+    mode: EvalMode,
+    sources: &[P],
+    charges: &[T],
+    targets: &[P],
+    values: &[T],
+    budget: Duration,
+    min_sample: usize,
+    max_sample: usize,
+) -> ErrorReport {
+    const PROBE: usize = 16;
+    let n_targets = targets.len() / 3;
+    let max_sample = max_sample.max(min_sample).max(1);
+    let sample = random_sample(n_targets, max_sample);
+    let scale = charge_scale(charges);
+    let mut sums = ErrorSums::default();
+    let first = PROBE.min(sample.len());
+    let t = Instant::now();
+    sums.add(
         kernel,
         mode,
-        &up(sources),
-        &up(charges),
-        &sampled,
-        &mut reference,
+        sources,
+        charges,
+        scale,
+        targets,
+        values,
+        &sample[..first],
     );
-    let (mut dp, mut np, mut dg, mut ng) = (0.0, 0.0, 0.0, 0.0);
-    for (k, &j) in sample.iter().enumerate() {
-        for c in 0..w {
-            let e = values[w * j + c].to_f64() - reference[w * k + c];
-            let r = reference[w * k + c];
-            if c == 0 {
-                dp += e * e;
-                np += r * r;
-            } else {
-                dg += e * e;
-                ng += r * r;
+    let spent = t.elapsed().as_secs_f64();
+    let per_target = spent / first.max(1) as f64;
+    let left = budget.as_secs_f64() - spent;
+    let affordable = if per_target > 0.0 {
+        (left / per_target).max(0.0).min(sample.len() as f64) as usize
+    } else {
+        sample.len()
+    };
+    let end = (first + affordable).max(min_sample).min(sample.len());
+    if end > first {
+        sums.add(
+            kernel,
+            mode,
+            sources,
+            charges,
+            scale,
+            targets,
+            values,
+            &sample[first..end],
+        );
+    }
+    sums.report(mode)
+}
+
+/// `max |q_i|` (1 when all charges are zero): the scale that keeps the
+/// sums of squares of [`relative_errors`] representable.
+fn charge_scale<T: Real>(charges: &[T]) -> f64 {
+    let m = charges
+        .par_iter()
+        .map(|q| q.to_f64().abs())
+        .reduce(|| 0.0, f64::max);
+    if m > 0.0 && m.is_finite() { m } else { 1.0 }
+}
+
+/// Sums of squared differences and of squared references, potential and
+/// gradient apart.
+#[derive(Default)]
+struct ErrorSums {
+    n: usize,
+    diff_pot: f64,
+    ref_pot: f64,
+    diff_grad: f64,
+    ref_grad: f64,
+}
+
+impl ErrorSums {
+    #[allow(clippy::too_many_arguments)]
+    fn add<P: Real, T: Real, K: Kernel>(
+        &mut self,
+        kernel: &K,
+        mode: EvalMode,
+        sources: &[P],
+        charges: &[T],
+        scale: f64,
+        targets: &[P],
+        values: &[T],
+        sample: &[usize],
+    ) {
+        let w = mode.values_per_target();
+        let at: Vec<f64> = sample
+            .iter()
+            .flat_map(|&j| [targets[3 * j], targets[3 * j + 1], targets[3 * j + 2]])
+            .map(|x| x.to_f64())
+            .collect();
+        let reference = scaled_reference(kernel, mode, sources, charges, scale, &at);
+        for (k, &j) in sample.iter().enumerate() {
+            for c in 0..w {
+                let r = reference[w * k + c];
+                let e = values[w * j + c].to_f64() / scale - r;
+                if c == 0 {
+                    self.diff_pot += e * e;
+                    self.ref_pot += r * r;
+                } else {
+                    self.diff_grad += e * e;
+                    self.ref_grad += r * r;
+                }
             }
         }
+        self.n += sample.len();
     }
-    let ratio = |d: f64, n: f64| if n > 0.0 { (d / n).sqrt() } else { d.sqrt() };
-    ErrorReport {
-        n_sampled: sample.len(),
-        potential: ratio(dp, np),
-        gradient: (w == 4).then(|| ratio(dg, ng)),
+
+    fn report(&self, mode: EvalMode) -> ErrorReport {
+        let ratio = |d: f64, n: f64| if n > 0.0 { (d / n).sqrt() } else { d.sqrt() };
+        ErrorReport {
+            n_sampled: self.n,
+            potential: ratio(self.diff_pot, self.ref_pot),
+            gradient: (mode.values_per_target() == 4).then(|| ratio(self.diff_grad, self.ref_grad)),
+        }
+    }
+}
+
+/// Sources per block of the parallel reference sum.
+const REFERENCE_BLOCK: usize = 4096;
+
+/// Direct sums in `f64` at the points `at` (interleaved) for the charges
+/// divided by `scale`: every block of sources adds its share to all
+/// targets, blocks in parallel.
+fn scaled_reference<P: Real, T: Real, K: Kernel>(
+    kernel: &K,
+    mode: EvalMode,
+    sources: &[P],
+    charges: &[T],
+    scale: f64,
+    at: &[f64],
+) -> Vec<f64> {
+    let len = mode.values_per_target() * (at.len() / 3);
+    sources
+        .par_chunks(3 * REFERENCE_BLOCK)
+        .zip(charges.par_chunks(REFERENCE_BLOCK))
+        .fold(
+            || vec![0.0f64; len],
+            |mut acc, (s, q)| {
+                let s: Vec<f64> = s.iter().map(|x| x.to_f64()).collect();
+                let q: Vec<f64> = q.iter().map(|x| x.to_f64() / scale).collect();
+                let mut part = vec![0.0f64; len];
+                kernel.evaluate(mode, &s, &q, at, &mut part);
+                acc.iter_mut().zip(&part).for_each(|(a, p)| *a += p);
+                acc
+            },
+        )
+        .reduce(
+            || vec![0.0f64; len],
+            |mut a, b| {
+                a.iter_mut().zip(&b).for_each(|(x, y)| *x += y);
+                a
+            },
+        )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrofmm_kernels::{Laplace3d, direct_sum};
+
+    fn problem(n: usize) -> (Vec<f64>, Vec<f64>) {
+        let points: Vec<f64> = crate::Geometry::Cube.points(n, 3);
+        let q: Vec<f64> = crate::charges(n, 4);
+        (points, q)
+    }
+
+    #[test]
+    fn reference_matches_direct_sum_for_any_charge_scale() {
+        let (points, q) = problem(9000);
+        let mode = EvalMode::PotentialGradient;
+        let mut exact = vec![0.0; 4 * 9000];
+        direct_sum(&Laplace3d, mode, &points, &q, &points, &mut exact);
+        // A perturbation of relative size 1e-6 everywhere.
+        let perturbed: Vec<f64> = exact
+            .iter()
+            .enumerate()
+            .map(|(i, v)| v * (1.0 + 1e-6 * if i % 2 == 0 { 1.0 } else { -1.0 }))
+            .collect();
+        let sample = sample_indices(9000, 101);
+        for s in [1.0, 1e200, 1e-300] {
+            let qs: Vec<f64> = q.iter().map(|x| x * s).collect();
+            let vs: Vec<f64> = perturbed.iter().map(|x| x * s).collect();
+            let e = relative_errors(&Laplace3d, mode, &points, &qs, &points, &vs, &sample);
+            assert!(
+                (e.potential / 1e-6 - 1.0).abs() < 1e-3,
+                "scale {s:e}: {e:?}"
+            );
+            assert!((e.gradient.unwrap() / 1e-6 - 1.0).abs() < 1e-3, "{e:?}");
+        }
+    }
+
+    #[test]
+    fn estimate_respects_the_sample_bounds() {
+        let (points, q) = problem(5000);
+        let mode = EvalMode::Potential;
+        let mut exact = vec![0.0; 5000];
+        direct_sum(&Laplace3d, mode, &points, &q, &points, &mut exact);
+        let noisy: Vec<f64> = exact.iter().map(|v| v * (1.0 + 1e-4)).collect();
+        let e = estimate_errors(
+            &Laplace3d,
+            mode,
+            &points,
+            &q,
+            &points,
+            &noisy,
+            Duration::ZERO,
+            40,
+            200,
+        );
+        assert_eq!(e.n_sampled, 40);
+        assert!((e.potential / 1e-4 - 1.0).abs() < 1e-6, "{e:?}");
+        let e = estimate_errors(
+            &Laplace3d,
+            mode,
+            &points,
+            &q,
+            &points,
+            &noisy,
+            Duration::from_secs(60),
+            40,
+            200,
+        );
+        assert_eq!(e.n_sampled, 200);
+    }
+
+    #[test]
+    fn random_sample_is_distinct_and_deterministic() {
+        let a = random_sample(1000, 300);
+        let b = random_sample(1000, 300);
+        assert_eq!(a, b);
+        let set: std::collections::HashSet<_> = a.iter().collect();
+        assert_eq!(set.len(), 300);
+        assert!(a.iter().all(|&j| j < 1000));
+        assert_eq!(random_sample(10, 20), (0..10).collect::<Vec<_>>());
+        // Both parities appear (two-cluster inputs alternate by index).
+        assert!(a.iter().any(|j| j % 2 == 0) && a.iter().any(|j| j % 2 == 1));
     }
 }

@@ -7,6 +7,8 @@ use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdConfi
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
+use crate::tuning::ChosenParameters;
+use crate::fmm::ChosenScheme;
 use crate::{Fmm, FmmError, tuning};
 
 /// Smallest supported expansion order.
@@ -51,6 +53,7 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) domain: Option<Domain>,
     pub(crate) max_level: u32,
     pub(crate) tolerance: Option<f64>,
+    pub(crate) verify: bool,
 }
 
 impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
@@ -72,6 +75,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             domain: None,
             max_level: DEEPEST_LEVEL,
             tolerance: None,
+            verify: true,
         }
     }
 }
@@ -92,6 +96,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             domain: self.domain,
             max_level: self.max_level,
             tolerance: self.tolerance,
+            verify: self.verify,
         }
     }
 
@@ -120,6 +125,17 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// ```
     pub fn tolerance(mut self, eps: f64) -> Self {
         self.tolerance = Some(eps);
+        self
+    }
+
+    /// Whether [`Fmm::evaluate_verified`] checks the [`FmmBuilder::tolerance`]
+    /// after evaluating (on by default): it estimates the achieved error
+    /// on a sample of targets against direct summation, at a cost of a few
+    /// percent of the evaluation, and raises the order (at most twice)
+    /// when the estimate is above the tolerance. Off, the tolerance is
+    /// only predicted, and the result says so.
+    pub fn verify(mut self, on: bool) -> Self {
+        self.verify = on;
         self
     }
 
@@ -220,24 +236,23 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Build with the M2L scheme `S` and its configuration.
     pub fn build_with<S: M2lScheme<T>>(self, config: S::Config) -> Result<Fmm<T, K, S>, FmmError> {
-        Fmm::build(self, |_| config)
+        Fmm::build(self, config, None)
     }
 
     /// Build with the SVD-compressed M2L scheme (the default choice). With
     /// a [`FmmBuilder::tolerance`], the SVD tolerance is chosen too.
     pub fn build_svd(self) -> Result<Fmm<T, K, SvdM2l<T>>, FmmError> {
-        let mut fmm: Fmm<T, K, SvdM2l<T>> = Fmm::build(self, |chosen| match chosen {
-            Some(c) => SvdConfig {
-                rank: None,
-                tolerance: c.svd_tolerance,
-            },
-            None => SvdConfig::default(),
-        })?;
-        let rank = fmm.m2l.rank();
-        if let Some(c) = fmm.chosen.as_mut() {
-            c.svd_rank = Some(rank);
-        }
-        Ok(fmm)
+        Fmm::build(
+            self,
+            SvdConfig::default(),
+            Some(ChosenScheme {
+                config: |c: &ChosenParameters| SvdConfig {
+                    rank: None,
+                    tolerance: c.svd_tolerance,
+                },
+                rank: SvdM2l::rank,
+            }),
+        )
     }
 
     /// Build with the dense (reference) M2L scheme.

@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use ferrofmm_field::{
-    AMPLIFICATION_WARNING, M2lInteractions, M2lScheme, Operators, surface_points,
+    AMPLIFICATION_WARNING, M2lInteractions, M2lScheme, OperatorParams, Operators, surface_points,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
 use ferrofmm_tree::{Octree, TreeOptions};
@@ -13,7 +13,22 @@ use crate::builder::FmmBuilder;
 use crate::memory::MemoryReport;
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::tuning::{ChosenParameters, Tuner};
+use crate::verify::Verification;
 use crate::{FmmError, passes};
+
+/// How a scheme follows parameters chosen for a tolerance (the SVD
+/// tolerance of [`crate::FmmBuilder::build_svd`]), also when verification
+/// raises the order; schemes given to [`crate::FmmBuilder::build_with`]
+/// keep their configuration (`None`).
+pub(crate) struct ChosenScheme<C, S> {
+    /// The configuration for the chosen parameters.
+    pub(crate) config: fn(&ChosenParameters) -> C,
+    /// The rank the built scheme reports (for [`ChosenParameters::svd_rank`]).
+    pub(crate) rank: fn(&S) -> usize,
+}
+
+/// [`ChosenScheme`] when there is one.
+pub(crate) type ConfigFromChosen<C, S> = Option<ChosenScheme<C, S>>;
 
 /// A kernel-independent FMM, built once for fixed sources, targets, kernel
 /// and parameters, then evaluated for as many charge vectors as needed.
@@ -48,6 +63,16 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) setup: SetupTimings,
     /// Parameters chosen for a tolerance (`None`: given by the caller).
     pub(crate) chosen: Option<ChosenParameters>,
+    /// Operator parameters as built (the order among them).
+    pub(crate) params: OperatorParams,
+    /// The M2L configuration as built.
+    pub(crate) config: S::Config,
+    /// How to remake it for new chosen parameters (see [`ConfigFromChosen`]).
+    pub(crate) config_from_chosen: ConfigFromChosen<S::Config, S>,
+    /// Whether [`Fmm::evaluate_verified`] checks a tolerance.
+    pub(crate) verify: bool,
+    /// The last verification (see [`Fmm::evaluate_verified`]).
+    pub(crate) verification: Option<Verification>,
 }
 
 /// Figures that describe a built [`Fmm`] (for reports and JSON output).
@@ -82,16 +107,21 @@ pub struct FmmSummary {
     /// The parameters chosen for [`FmmBuilder::tolerance`] (`null` when
     /// they were given).
     pub chosen: Option<ChosenParameters>,
+    /// The last after-the-fact check of the tolerance by
+    /// [`Fmm::evaluate_verified`] (`null` before one, or when off).
+    pub verification: Option<Verification>,
     /// Bytes of the big buffers (see [`Fmm::memory`]).
     pub memory: MemoryReport,
 }
 
 impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
-    /// Build; `config` makes the scheme's configuration, given the
-    /// parameters chosen for a tolerance (if one was asked for).
+    /// Build with the scheme configuration `config`, or, when parameters
+    /// are chosen for a tolerance and `from_chosen` is given, the one it
+    /// makes from them.
     pub(crate) fn build(
         mut b: FmmBuilder<'_, T, K>,
-        config: impl FnOnce(Option<&ChosenParameters>) -> S::Config,
+        config: S::Config,
+        from_chosen: ConfigFromChosen<S::Config, S>,
     ) -> Result<Self, FmmError> {
         b.validate()?;
         let t0 = Instant::now();
@@ -117,7 +147,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             }
             None => None,
         };
-        let config = config(chosen.as_ref());
+        let config = match (&chosen, &from_chosen) {
+            (Some(c), Some(f)) => (f.config)(c),
+            _ => config,
+        };
         let options = TreeOptions {
             leaf_size: b.leaf_size,
             max_level: b.max_level,
@@ -140,29 +173,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             });
         }
 
-        let t = Instant::now();
         let params = b.operator_params();
-        let width = tree.domain().width;
-        let depth = tree.depth();
-        let operators = Operators::<T>::new(&b.kernel, &params, width, depth)?;
-        let diagnostics = operators.diagnostics();
-        if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
-            return Err(FmmError::IllConditioned {
-                order: b.order,
-                rcond: diagnostics.rcond,
-                amplification: diagnostics.rounding_amplification,
-                limit: AMPLIFICATION_WARNING,
-                precision: T::PRECISION.name(),
-            });
+        let (operators, m2l) = build_operators(&b.kernel, &params, &config, &tree, &mut setup)?;
+        let mut chosen = chosen;
+        if let (Some(c), Some(f)) = (chosen.as_mut(), &from_chosen) {
+            c.svd_rank = Some((f.rank)(&m2l));
         }
-        setup.operators = t.elapsed();
 
         let t = Instant::now();
-        let m2l = S::precompute(&b.kernel, &params, &config, width, depth)?;
-        setup.m2l_precompute = t.elapsed();
-
-        let t = Instant::now();
-        let m2l_interactions = (0..=depth)
+        let m2l_interactions = (0..=tree.depth())
             .map(|level| level_interactions(&tree, level))
             .collect::<Result<_, _>>()?;
         let centre = tree.domain().center();
@@ -191,7 +210,44 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             leaf_size: b.leaf_size,
             setup,
             chosen,
+            params,
+            config,
+            config_from_chosen: from_chosen,
+            verify: b.verify,
+            verification: None,
         })
+    }
+
+    /// Rebuild the operators and the M2L scheme at `order` (the tree, the
+    /// lists and the points stay): what verification does when the
+    /// achieved error is above the tolerance. Updates the chosen
+    /// parameters (order, SVD tolerance, predicted error, rank).
+    pub(crate) fn rebuild_at_order(
+        &mut self,
+        chosen: ChosenParameters,
+    ) -> Result<(), FmmError> {
+        let mut params = self.params.clone();
+        params.order = chosen.order;
+        let mut chosen = chosen;
+        let config = match &self.config_from_chosen {
+            Some(f) => (f.config)(&chosen),
+            None => self.config.clone(),
+        };
+        let mut setup = self.setup;
+        let (operators, m2l) = build_operators(&self.kernel, &params, &config, &self.tree, &mut setup)?;
+        self.operators = operators;
+        self.m2l = m2l;
+        self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);
+        self.order = chosen.order;
+        self.params = params;
+        self.config = config;
+        if let Some(f) = &self.config_from_chosen {
+            chosen.svd_rank = Some((f.rank)(&self.m2l));
+        }
+        self.setup.operators += setup.operators;
+        self.setup.m2l_precompute += setup.m2l_precompute;
+        self.chosen = Some(chosen);
+        Ok(())
     }
 
     /// Potentials (and gradients, depending on the mode) at the targets for
@@ -341,6 +397,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             kernel: self.kernel.name(),
             precision: T::PRECISION.name().to_string(),
             chosen: self.chosen.clone(),
+            verification: self.verification.clone(),
             memory: self.memory(),
         }
     }
@@ -364,6 +421,36 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 .map(T::from_f64),
         );
     }
+}
+
+/// The check-to-equivalent and parent/child operators and the M2L scheme
+/// for `params` on `tree` (their times written into `setup`).
+fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
+    kernel: &K,
+    params: &OperatorParams,
+    config: &S::Config,
+    tree: &Octree,
+    setup: &mut SetupTimings,
+) -> Result<(Operators<T>, S), FmmError> {
+    let t = Instant::now();
+    let width = tree.domain().width;
+    let depth = tree.depth();
+    let operators = Operators::<T>::new(kernel, params, width, depth)?;
+    let diagnostics = operators.diagnostics();
+    if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
+        return Err(FmmError::IllConditioned {
+            order: params.order,
+            rcond: diagnostics.rcond,
+            amplification: diagnostics.rounding_amplification,
+            limit: AMPLIFICATION_WARNING,
+            precision: T::PRECISION.name(),
+        });
+    }
+    setup.operators = t.elapsed();
+    let t = Instant::now();
+    let m2l = S::precompute(kernel, params, config, width, depth)?;
+    setup.m2l_precompute = t.elapsed();
+    Ok((operators, m2l))
 }
 
 /// The V-list pairs of a level (`(target column, source column, transfer

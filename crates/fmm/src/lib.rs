@@ -33,12 +33,14 @@ mod memory;
 mod passes;
 mod timings;
 pub mod tuning;
+pub mod verify;
 
-pub use accuracy::{ErrorReport, relative_errors, sample_indices};
+pub use accuracy::{ErrorReport, estimate_errors, random_sample, relative_errors, sample_indices};
 pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
-pub use data::{Geometry, charges};
+pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::MemoryReport;
 pub use timings::{EvalTimings, SetupTimings};
 pub use tuning::{ChosenParameters, f32_reaches};
+pub use verify::{Evaluation, Verification, VerificationAttempt};

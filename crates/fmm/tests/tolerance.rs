@@ -1,84 +1,109 @@
-//! `FmmBuilder::tolerance`: the achieved relative L2 potential error is at
-//! most the tolerance asked for, on four very different point sets, in f64
-//! and (where it can promise it) f32; unreachable tolerances are refused by
-//! name; the chosen parameters are reported and reproduce the result.
+//! `FmmBuilder::tolerance`: the achieved relative L2 error (potential, and
+//! gradient when evaluated) is at most the tolerance asked for, on seven
+//! very different point sets (a plane, a curve and a thin closed surface
+//! with a hole among them), for zero-mean and all-positive charges, in f64
+//! and (where it can promise it) f32, with the after-the-fact verification
+//! on; unreachable tolerances are refused by name; the chosen parameters
+//! are reported and reproduce the result.
 
 use ferrofmm_field::{SvdConfig, SvdM2l};
-use ferrofmm_fmm::tuning::{self, ErrorModel, SAFETY_FACTOR};
+use ferrofmm_fmm::tuning::{self, ErrorModel};
 use ferrofmm_fmm::{
-    ChosenParameters, FmmBuilder, FmmError, Geometry, charges, f32_reaches, relative_errors,
+    Charges, FmmBuilder, FmmError, Geometry, charges, f32_reaches, relative_errors,
     sample_indices,
 };
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
-const N: usize = 20_000;
+const N: usize = 12_000;
 /// Prime, so that the evenly spaced sample holds odd and even indices
 /// (`Geometry::TwoClusters` alternates between its clusters).
 const SAMPLE: usize = 997;
-const TOLERANCES: [f64; 4] = [1e-3, 1e-5, 1e-7, 1e-9];
 
 fn cache() -> std::path::PathBuf {
     std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("tolerance-operators")
 }
 
-/// Build for `eps`, evaluate, and return the error and the chosen parameters.
-fn run<T: Real>(points: &[T], eps: f64) -> (f64, ChosenParameters) {
-    try_run(points, eps).unwrap_or_else(|e| panic!("build for {eps:e}: {e}"))
-}
-
-fn try_run<T: Real>(points: &[T], eps: f64) -> Result<(f64, ChosenParameters), FmmError> {
-    let n = points.len() / 3;
-    let q: Vec<T> = charges(n, 11);
-    let fmm = FmmBuilder::new(points)
+/// Build for `eps` in `mode`, evaluate both kinds of charges with
+/// verification, and check every output against direct summation.
+fn check<T: Real>(g: Geometry, mode: EvalMode, eps: f64) -> Result<(), FmmError> {
+    let points: Vec<T> = g.points(N, 7);
+    let mut fmm = FmmBuilder::new(&points)
         .tolerance(eps)
+        .mode(mode)
         .cache_dir(cache())
         .build_svd()?;
-    let values = fmm.evaluate(&q).unwrap();
-    let e = relative_errors(
-        &Laplace3d,
-        EvalMode::Potential,
-        points,
-        &q,
-        points,
-        &values,
-        &sample_indices(n, SAMPLE),
-    );
-    let chosen = fmm.chosen_parameters().cloned().expect("chosen parameters");
-    assert_eq!(fmm.summary().chosen.as_ref(), Some(&chosen));
-    Ok((e.potential, chosen))
-}
-
-fn check_geometry(g: Geometry) {
-    let points: Vec<f64> = g.points(N, 7);
-    let mut previous: Option<ChosenParameters> = None;
-    for eps in TOLERANCES {
-        let (err, c) = run(&points, eps);
+    let sample = sample_indices(N, SAMPLE);
+    for kind in Charges::ALL {
+        let q: Vec<T> = kind.generate(N, 11);
+        let out = fmm.evaluate_verified(&q)?;
+        let v = out.verification.expect("verification is on by default");
+        let e = relative_errors(&Laplace3d, mode, &points, &q, &points, &out.values, &sample);
+        let c = fmm.chosen_parameters().unwrap();
         eprintln!(
-            "{:13} eps {eps:.0e}: error {err:.2e} (predicted {:.1e}) p {} leaf {} svd {:.1e} rank {:?}",
+            "{} {:13} {:8} {} eps {eps:.0e}: pot {:.2e} grad {:?} (estimated {:.2e}, predicted {:.1e}) p {} leaf {} attempts {}",
+            T::PRECISION.name(),
             g.name(),
+            kind.name(),
+            mode.values_per_target(),
+            e.potential,
+            e.gradient,
+            v.measured().worst(),
             c.predicted_error,
             c.order,
             c.leaf_size,
-            c.svd_tolerance,
-            c.svd_rank
+            v.attempts.len()
         );
-        assert!(
-            err <= eps,
-            "{g:?}: tolerance {eps:e} not met: error {err:.3e} with {c:?}"
-        );
-        assert!(
-            SAFETY_FACTOR * c.predicted_error <= eps * (1.0 + 1e-9),
-            "{c:?}"
-        );
-        assert_eq!(c.precision, "f64");
-        let rank = c.svd_rank.expect("build_svd reports the rank");
-        assert!(rank >= 1 && rank <= ferrofmm_field::n_surface_points(c.order));
-        if let Some(p) = &previous {
-            // A tighter tolerance never gets a lower order or a coarser SVD.
-            assert!(c.order >= p.order, "{p:?} then {c:?}");
-            assert!(c.svd_tolerance <= p.svd_tolerance, "{p:?} then {c:?}");
+        if !v.met {
+            // Only f32 may fall short (its rounding floor; f32 on a plane
+            // is a known case, docs/stability.md), and then it says so: the
+            // estimate and the real error are both above the tolerance.
+            assert_eq!(T::PRECISION, Precision::F32, "{g:?} {kind:?} {eps:e}: {v:?}");
+            assert!(v.measured().worst() > eps);
+            assert!(e.potential.max(e.gradient.unwrap_or(0.0)) > 0.5 * eps, "{e:?}");
+            continue;
         }
-        previous = Some(c);
+        assert!(
+            e.potential <= eps,
+            "{g:?} {kind:?}: tolerance {eps:e} not met by the potential: {e:?} with {c:?}"
+        );
+        if let Some(grad) = e.gradient {
+            assert!(
+                grad <= eps,
+                "{g:?} {kind:?}: tolerance {eps:e} not met by the gradient: {e:?} with {c:?}"
+            );
+        }
+        assert_eq!(c.precision, T::PRECISION.name());
+        assert_eq!(fmm.summary().verification.as_ref(), Some(&v));
+    }
+    Ok(())
+}
+
+fn check_geometry(g: Geometry) {
+    for eps in [1e-3, 1e-5, 1e-7, 1e-9] {
+        check::<f64>(g, EvalMode::PotentialGradient, eps).unwrap();
+    }
+    for eps in [1e-3, 1e-6] {
+        check::<f64>(g, EvalMode::Potential, eps).unwrap();
+    }
+    for eps in [1e-3, 1e-5] {
+        for mode in [EvalMode::Potential, EvalMode::PotentialGradient] {
+            match check::<f32>(g, mode, eps) {
+                Ok(()) => {}
+                // f32 cannot resolve the cluster of size 1e-4 at (1, 1, 1)
+                // to 1e-5; `--precision auto` takes f64 there.
+                Err(FmmError::ToleranceBeyondPrecision { precision, .. })
+                    if g == Geometry::TwoClusters || (eps < 1e-4 && mode != EvalMode::Potential) =>
+                {
+                    assert_eq!(precision, "f32");
+                    let points: Vec<f64> = g.points(N, 7);
+                    assert_eq!(
+                        tuning::choose_precision(eps, &points, None).unwrap(),
+                        Precision::F64
+                    );
+                }
+                Err(e) => panic!("f32 {g:?} {eps:e}: {e}"),
+            }
+        }
     }
 }
 
@@ -103,51 +128,44 @@ fn meets_tolerance_on_two_clusters() {
 }
 
 #[test]
-fn f32_meets_what_it_promises() {
+fn meets_tolerance_on_plane() {
+    check_geometry(Geometry::Plane);
+}
+
+#[test]
+fn meets_tolerance_on_curve() {
+    check_geometry(Geometry::Curve);
+}
+
+#[test]
+fn meets_tolerance_on_torus() {
+    check_geometry(Geometry::Torus);
+}
+
+#[test]
+fn f32_limit_is_what_it_promises() {
     let smallest = tuning::smallest_tolerance(Precision::F32);
     assert!(f32_reaches(smallest) && !f32_reaches(0.5 * smallest));
-    for g in Geometry::ALL {
-        let points: Vec<f32> = g.points(N, 7);
-        let points64: Vec<f64> = points.iter().map(|&x| x as f64).collect();
-        for eps in [1e-3, smallest] {
-            match try_run(&points, eps) {
-                Ok((err, c)) => {
-                    eprintln!(
-                        "f32 {:13} eps {eps:.1e}: error {err:.2e} p {}",
-                        g.name(),
-                        c.order
-                    );
-                    assert!(
-                        err <= eps,
-                        "f32 {g:?}: {eps:e} not met: {err:.3e} with {c:?}"
-                    );
-                    assert_eq!(c.precision, "f32");
-                    assert_eq!(
-                        tuning::choose_precision(eps, &points64, None).unwrap(),
-                        Precision::F32
-                    );
-                }
-                // Only the cluster of size 1e-4 at (1, 1, 1) needs more digits
-                // of its coordinates than f32 has; f64 then takes over.
-                Err(FmmError::ToleranceBeyondPrecision {
-                    precision, limit, ..
-                }) => {
-                    eprintln!(
-                        "f32 {:13} eps {eps:.1e}: refused (limit {limit:.1e})",
-                        g.name()
-                    );
-                    assert_eq!(g, Geometry::TwoClusters, "f32 refused {eps:e} on {g:?}");
-                    assert_eq!(precision, "f32");
-                    assert!(limit > eps);
-                    assert_eq!(
-                        tuning::choose_precision(eps, &points64, None).unwrap(),
-                        Precision::F64
-                    );
-                }
-                Err(e) => panic!("{g:?} {eps:e}: {e}"),
-            }
-        }
-    }
+    assert!(f32_reaches(1e-5));
+}
+
+#[test]
+fn verification_can_be_switched_off_and_says_so() {
+    let points: Vec<f64> = Geometry::Cube.points(3000, 1);
+    let q: Vec<f64> = charges(3000, 2);
+    let mut fmm = FmmBuilder::new(&points)
+        .tolerance(1e-4)
+        .verify(false)
+        .cache_dir(cache())
+        .build_svd()
+        .unwrap();
+    let out = fmm.evaluate_verified(&q).unwrap();
+    assert!(out.verification.is_none());
+    assert!(fmm.summary().verification.is_none());
+    assert_eq!(out.values, fmm.evaluate(&q).unwrap());
+    // Without a tolerance there is nothing to verify either.
+    let mut plain = FmmBuilder::new(&points).order(4).build_svd().unwrap();
+    assert!(plain.evaluate_verified(&q).unwrap().verification.is_none());
 }
 
 #[test]

@@ -4,7 +4,7 @@
 use clap::Args;
 
 use super::run::{Input, Settings, run};
-use super::{FmmArgs, GeometryArg};
+use super::{ChargesArg, FmmArgs, GeometryArg, VerifyArg};
 use crate::error::{CliError, Result};
 
 /// Default number of points.
@@ -16,9 +16,12 @@ pub struct DemoArgs {
     /// Number of points (sources = targets).
     #[arg(long, short = 'n', default_value_t = DEFAULT_N)]
     pub n: usize,
-    /// Point distribution; charges are uniform in [0, 1).
+    /// Point distribution.
     #[arg(long, value_enum, default_value_t = GeometryArg::Cube)]
     pub geometry: GeometryArg,
+    /// Charges: zero-mean (signed, the peers' workload) or all positive.
+    #[arg(long, value_enum, default_value_t = ChargesArg::Signed)]
+    pub charges: ChargesArg,
     #[command(flatten)]
     pub fmm: FmmArgs,
     /// Evaluate potentials and gradients (the default).
@@ -53,6 +56,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     }
     let input = Input::Generated {
         geometry: args.geometry.geometry(),
+        charges: args.charges.charges(),
         n: args.n,
         seed: args.seed,
     };
@@ -67,6 +71,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),
         tolerance: args.fmm.tolerance,
+        verify: args.fmm.verify == VerifyArg::On,
     };
     let report = run(input, &settings, None)?;
     if args.json {

@@ -6,7 +6,7 @@ pub mod run;
 pub mod sweep;
 
 use clap::{Args, ValueEnum};
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
+use ferrofmm_fmm::{Charges, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
 
 /// Float type of a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
@@ -62,6 +62,12 @@ pub enum GeometryArg {
     Plummer,
     /// Two equal-count clusters whose sizes differ 1000x.
     TwoClusters,
+    /// Uniform on the unit square in the plane z = 0 (a flat sheet).
+    Plane,
+    /// Uniform along a trefoil knot (a closed space curve).
+    Curve,
+    /// Uniform on a torus surface (a thin closed surface with a hole).
+    Torus,
 }
 
 impl GeometryArg {
@@ -72,6 +78,9 @@ impl GeometryArg {
             GeometryArg::Sphere => Geometry::Sphere,
             GeometryArg::Plummer => Geometry::Plummer,
             GeometryArg::TwoClusters => Geometry::TwoClusters,
+            GeometryArg::Plane => Geometry::Plane,
+            GeometryArg::Curve => Geometry::Curve,
+            GeometryArg::Torus => Geometry::Torus,
         }
     }
 
@@ -79,6 +88,43 @@ impl GeometryArg {
     pub fn name(self) -> &'static str {
         self.geometry().name()
     }
+}
+
+/// Built-in charges.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
+pub enum ChargesArg {
+    /// Zero-mean, uniform in [-0.5, 0.5) (the peers' workload; the default).
+    #[value(alias = "zero-mean")]
+    Signed,
+    /// All positive, uniform in [0, 1): the potential's relative error
+    /// looks ~8x smaller (a smooth mean dominates), the gradient's larger.
+    Positive,
+}
+
+impl ChargesArg {
+    /// The library's kind.
+    pub fn charges(self) -> Charges {
+        match self {
+            ChargesArg::Signed => Charges::Signed,
+            ChargesArg::Positive => Charges::Positive,
+        }
+    }
+
+    /// Name as on the command line.
+    pub fn name(self) -> &'static str {
+        self.charges().name()
+    }
+}
+
+/// Whether a `--tolerance` is checked after evaluation.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
+pub enum VerifyArg {
+    /// Estimate the achieved error on a sample of targets against direct
+    /// summation (a few percent of the run) and raise the order, at most
+    /// twice, while it is above the tolerance.
+    On,
+    /// Trust the error model's prediction.
+    Off,
 }
 
 /// FMM parameters common to `demo` and `eval`.
@@ -100,9 +146,15 @@ pub struct FmmArgs {
     /// Directory of the on-disk operator cache (off by default).
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
-    /// Requested relative L2 error of the potential, e.g. 1e-6: the order,
-    /// leaf size and SVD rank are then chosen for these points (overriding
-    /// --order and --leaf-size) and reported.
+    /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
+    /// gradients) of the gradient: the order, leaf size and SVD rank are
+    /// then chosen for these points (overriding --order and --leaf-size),
+    /// reported, and checked after evaluation (see --verify).
     #[arg(long, value_name = "EPS")]
     pub tolerance: Option<f64>,
+    /// With --tolerance: check the achieved error after evaluating (on a
+    /// sample of targets against direct summation, a few percent of the
+    /// run) and raise the order, at most twice, while it is above EPS.
+    #[arg(long, value_enum, default_value_t = VerifyArg::On)]
+    pub verify: VerifyArg,
 }

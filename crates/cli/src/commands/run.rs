@@ -9,7 +9,7 @@ use std::time::Instant;
 
 use ferrofmm_field::{DenseM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
-use ferrofmm_fmm::{EvalTimings, FmmBuilder, Geometry, charges, relative_errors, sample_indices};
+use ferrofmm_fmm::{Charges, EvalTimings, FmmBuilder, Geometry, relative_errors, sample_indices};
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
 use super::{PrecisionArg, SchemeArg};
@@ -24,10 +24,12 @@ use crate::report::{
 /// Where the points and charges come from.
 #[derive(Clone, Debug)]
 pub enum Input {
-    /// A built-in geometry with charges uniform in `[0, 1)`; the targets are the sources.
+    /// A built-in geometry and built-in charges; the targets are the sources.
     Generated {
         /// The distribution.
         geometry: Geometry,
+        /// How the charges are drawn.
+        charges: Charges,
         /// Number of points.
         n: usize,
         /// Random seed.
@@ -67,6 +69,8 @@ pub struct Settings {
     pub cache_dir: Option<PathBuf>,
     /// Requested accuracy: parameters chosen by the library.
     pub tolerance: Option<f64>,
+    /// Check the tolerance after evaluating.
+    pub verify: bool,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
@@ -96,7 +100,9 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
 fn auto_precision(input: &Input, eps: f64) -> Result<PrecisionArg> {
     let generated;
     let (sources, targets): (&[f64], Option<&[f64]>) = match input {
-        Input::Generated { geometry, n, seed } => {
+        Input::Generated {
+            geometry, n, seed, ..
+        } => {
             generated = geometry.points::<f64>(*n, *seed);
             (&generated, None)
         }
@@ -146,14 +152,24 @@ where
     // Files are read as f64 and converted once (consumed, so that only one
     // copy of the input is held).
     let convert = |v: Vec<f64>| v.into_iter().map(T::from_f64).collect::<Vec<T>>();
-    let geometry = match &input {
-        Input::Generated { geometry, .. } => Some(geometry.name().to_string()),
-        Input::Given { .. } => None,
+    let (geometry, charge_kind) = match &input {
+        Input::Generated {
+            geometry, charges, ..
+        } => (
+            Some(geometry.name().to_string()),
+            Some(charges.name().to_string()),
+        ),
+        Input::Given { .. } => (None, None),
     };
     let (sources, targets, q): (Vec<T>, Option<Vec<T>>, Vec<T>) = match input {
-        Input::Generated { geometry, n, seed } => with_stage(
+        Input::Generated {
+            geometry,
+            charges,
+            n,
+            seed,
+        } => with_stage(
             format!("generating {n} points ({})", geometry.name()),
-            || (geometry.points(n, seed), None, charges(n, seed)),
+            || (geometry.points(n, seed), None, charges.generate(n, seed)),
         ),
         Input::Given {
             sources,
@@ -162,7 +178,7 @@ where
         } => (convert(sources), targets.map(convert), convert(charges)),
     };
 
-    let fmm = with_stage("setup: tree and operators", || {
+    let mut fmm = with_stage("setup: tree and operators", || {
         let mut builder = FmmBuilder::new(&sources)
             .order(settings.order)
             .leaf_size(settings.leaf_size)
@@ -174,7 +190,7 @@ where
             builder = builder.cache_dir(dir);
         }
         if let Some(eps) = settings.tolerance {
-            builder = builder.tolerance(eps);
+            builder = builder.tolerance(eps).verify(settings.verify);
         }
         builder.build_with::<S>(S::Config::default())
     })?;
@@ -183,6 +199,7 @@ where
     let mut totals = Vec::with_capacity(repeats);
     let mut best: Option<EvalTimings> = None;
     let mut values = Vec::new();
+    let mut verification = None;
     for r in 0..repeats {
         let label = if repeats > 1 {
             format!("evaluation {}/{repeats}", r + 1)
@@ -190,7 +207,17 @@ where
             "evaluation".to_string()
         };
         drop(std::mem::take(&mut values)); // never hold two results at once
-        let (v, timings) = with_stage(label, || fmm.evaluate_timed(&q))?;
+        let (v, timings) = if r == 0 && settings.tolerance.is_some() && settings.verify {
+            // The first evaluation checks the tolerance (and may raise the
+            // order); later repeats time the final setting.
+            let out = with_stage(format!("{label} (verified)"), || {
+                fmm.evaluate_verified(&q)
+            })?;
+            verification = out.verification;
+            (out.values, out.timings)
+        } else {
+            with_stage(label, || fmm.evaluate_timed(&q))?
+        };
         totals.push(timings.total.as_secs_f64());
         if best.is_none_or(|b| timings.total < b.total) {
             best = Some(timings);
@@ -239,6 +266,14 @@ where
         leaf_size: summary.leaf_size,
         tolerance: settings.tolerance,
         predicted_error: fmm.chosen_parameters().map(|c| c.predicted_error),
+        charges: charge_kind,
+        verify: match (settings.tolerance, settings.verify) {
+            (None, _) => "n/a",
+            (Some(_), true) => "on",
+            (Some(_), false) => "off",
+        }
+        .to_string(),
+        verification,
         scheme: settings.scheme.name().to_string(),
         precision: settings.precision.name().to_string(),
         gradients: settings.gradients,

@@ -10,7 +10,7 @@
 //! `results.csv` columns (times in seconds, memory in MiB):
 //!
 //! ```text
-//! geometry,n,order,scheme,precision,leaf_size,gradients,threads,repeats,
+//! geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,
 //! depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,
 //! eval_best_s,eval_median_s,p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,
 //! potential_error,gradient_error,peak_rss_mib,m2l_mib
@@ -28,13 +28,13 @@ use std::process::Command;
 
 use clap::Args;
 
-use super::{GeometryArg, PrecisionArg, SchemeArg};
+use super::{ChargesArg, GeometryArg, PrecisionArg, SchemeArg};
 use crate::charts;
 use crate::error::{CliError, Result};
 use crate::report::{RunReport, seconds};
 
 /// The header of `results.csv`.
-pub const CSV_HEADER: &str = "geometry,n,order,scheme,precision,leaf_size,gradients,threads,repeats,\
+pub const CSV_HEADER: &str = "geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,\
 depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,eval_best_s,eval_median_s,\
 p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,potential_error,gradient_error,peak_rss_mib,m2l_mib";
 
@@ -47,6 +47,9 @@ pub struct SweepArgs {
     /// Point distribution (`clustered` is the Plummer sphere).
     #[arg(long, value_enum, default_value_t = GeometryArg::Cube)]
     pub geometry: GeometryArg,
+    /// Charges: zero-mean (signed, the peers' workload) or all positive.
+    #[arg(long, value_enum, default_value_t = ChargesArg::Signed)]
+    pub charges: ChargesArg,
     /// Expansion orders: an inclusive range `3..10` or a list `3,5,7`.
     #[arg(long, default_value = "3..10", value_parser = parse_orders)]
     pub orders: Orders,
@@ -218,6 +221,7 @@ fn run_child(
         .arg("--json")
         .args(["--n", &args.n.to_string()])
         .args(["--geometry", args.geometry.name()])
+        .args(["--charges", args.charges.name()])
         .args(["--order", &config.order.to_string()])
         .args(["--scheme", config.scheme.name()])
         .args(["--precision", config.precision.name()])
@@ -263,8 +267,9 @@ pub fn csv_row(r: &RunReport) -> String {
     let mib = |b: f64| b / (1024.0 * 1024.0);
     let e = &r.evaluation;
     let mut row = format!(
-        "{},{},{},{},{},{},{},{},{},{},{},{}",
+        "{},{},{},{},{},{},{},{},{},{},{},{},{}",
         r.geometry.as_deref().unwrap_or(""),
+        r.charges.as_deref().unwrap_or(""),
         r.n_sources,
         r.order,
         r.scheme,

@@ -1,0 +1,195 @@
+//! The measurements behind the error model of `ferrofmm_fmm::tuning` and
+//! the default SVD compression: relative L2 errors of the potential and of
+//! the gradient for every order x M2L scheme x geometry x charge kind.
+//!
+//! ```text
+//! cargo run --release --example error_model -- [N] [OPTIONS]
+//! ```
+//!
+//! * `N`: points per geometry (default 20000).
+//! * `geometries=cube,sphere,...` (default: all of `Geometry::ALL`),
+//!   `charges=signed,positive` (default both), `orders=3,4,...` (default
+//!   3..=12), `leaves=64` (leaf sizes), `precision=f64|f32`,
+//!   `schemes=dense,svd,svd:1e-7,svd+0.6` (`svd` is the library's default
+//!   tolerance, `svd:TAU` a given one, `svd+X` the tolerance
+//!   `10^-(0.9 p + X)`; default `dense,svd`).
+//!
+//! One Markdown row per run: geometry, charges, order, leaf size, scheme,
+//! SVD rank, potential and gradient errors on 997 evenly spaced targets
+//! against direct summation in f64, and for `svd` rows the ratio to the
+//! dense row of the same setting (`loss`). Operators are cached in
+//! `target/error-model-cache`.
+
+use std::time::Instant;
+
+use ferrofmm::field::{SvdConfig, SvdM2l, default_svd_tolerance};
+use ferrofmm::fmm::{Charges, FmmBuilder, Geometry, relative_errors, sample_indices};
+use ferrofmm::kernels::{EvalMode, Laplace3d, Precision, Real};
+
+const CACHE: &str = "target/error-model-cache";
+const SAMPLE: usize = 997;
+
+#[derive(Clone, Copy, Debug)]
+enum Scheme {
+    Dense,
+    Svd(Option<f64>),
+    /// `tau = 10^-(0.9 p + offset)`.
+    SvdOffset(f64),
+}
+
+fn list<T: std::str::FromStr>(v: &str) -> Vec<T> {
+    v.split(',').filter_map(|s| s.trim().parse().ok()).collect()
+}
+
+fn main() {
+    let mut n = 20_000usize;
+    let mut geometries = Geometry::ALL.to_vec();
+    let mut kinds = Charges::ALL.to_vec();
+    let mut orders: Vec<usize> = (3..=12).collect();
+    let mut leaves = vec![64usize];
+    let mut precision = Precision::F64;
+    let mut schemes = vec![Scheme::Dense, Scheme::Svd(None)];
+    for a in std::env::args().skip(1) {
+        if let Some(v) = a.strip_prefix("geometries=") {
+            geometries = v.split(',').filter_map(Geometry::from_name).collect();
+        } else if let Some(v) = a.strip_prefix("charges=") {
+            kinds = v.split(',').filter_map(Charges::from_name).collect();
+        } else if let Some(v) = a.strip_prefix("orders=") {
+            orders = list(v);
+        } else if let Some(v) = a.strip_prefix("leaves=") {
+            leaves = list(v);
+        } else if let Some(v) = a.strip_prefix("precision=") {
+            precision = if v == "f32" {
+                Precision::F32
+            } else {
+                Precision::F64
+            };
+        } else if let Some(v) = a.strip_prefix("schemes=") {
+            schemes = v
+                .split(',')
+                .filter_map(|s| match s {
+                    "dense" => Some(Scheme::Dense),
+                    "svd" => Some(Scheme::Svd(None)),
+                    _ if s.starts_with("svd+") => {
+                        s[4..].parse().ok().map(Scheme::SvdOffset)
+                    }
+                    _ => s
+                        .strip_prefix("svd:")
+                        .and_then(|t| t.parse().ok())
+                        .map(|t| Scheme::Svd(Some(t))),
+                })
+                .collect();
+        } else if let Ok(v) = a.parse() {
+            n = v;
+        } else {
+            eprintln!("unknown argument {a}");
+            std::process::exit(2);
+        }
+    }
+    println!(
+        "N = {n}, {}, potential + gradient, {SAMPLE} sampled targets\n",
+        precision.name()
+    );
+    println!(
+        "| geometry | charges | p | leaf | scheme | rank | potential | gradient | loss pot | loss grad | s |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|---|");
+    for g in &geometries {
+        match precision {
+            Precision::F64 => measure::<f64>(*g, n, &kinds, &orders, &leaves, &schemes),
+            Precision::F32 => measure::<f32>(*g, n, &kinds, &orders, &leaves, &schemes),
+        }
+    }
+}
+
+fn measure<T: Real>(
+    g: Geometry,
+    n: usize,
+    kinds: &[Charges],
+    orders: &[usize],
+    leaves: &[usize],
+    schemes: &[Scheme],
+) {
+    let points: Vec<T> = g.points(n, 7);
+    let charge_sets: Vec<(Charges, Vec<T>)> =
+        kinds.iter().map(|&k| (k, k.generate(n, 11))).collect();
+    let sample = sample_indices(n, SAMPLE);
+    let mode = EvalMode::PotentialGradient;
+    for &p in orders {
+        for &leaf in leaves {
+            let mut dense: Vec<Option<(f64, f64)>> = vec![None; charge_sets.len()];
+            for &scheme in schemes {
+                let t = Instant::now();
+                let builder = FmmBuilder::new(&points)
+                    .order(p)
+                    .leaf_size(leaf)
+                    .mode(mode)
+                    .cache_dir(CACHE);
+                let scheme = match scheme {
+                    Scheme::SvdOffset(o) => Scheme::Svd(Some(10f64.powf(-(0.9 * p as f64 + o)))),
+                    s => s,
+                };
+                let (results, rank, label) = match scheme {
+                    Scheme::Dense => {
+                        let fmm = match builder.build_dense() {
+                            Ok(f) => f,
+                            Err(e) => {
+                                eprintln!("{} p {p}: {e}", g.name());
+                                continue;
+                            }
+                        };
+                        let r: Vec<Vec<T>> = charge_sets
+                            .iter()
+                            .map(|(_, q)| fmm.evaluate(q).unwrap())
+                            .collect();
+                        (r, "-".to_string(), "dense".to_string())
+                    }
+                    Scheme::SvdOffset(_) => unreachable!("resolved above"),
+                    Scheme::Svd(tau) => {
+                        let config = SvdConfig {
+                            rank: None,
+                            tolerance: tau.unwrap_or(0.0),
+                        };
+                        let fmm = match builder.build_with::<SvdM2l<T>>(config) {
+                            Ok(f) => f,
+                            Err(e) => {
+                                eprintln!("{} p {p}: {e}", g.name());
+                                continue;
+                            }
+                        };
+                        let r: Vec<Vec<T>> = charge_sets
+                            .iter()
+                            .map(|(_, q)| fmm.evaluate(q).unwrap())
+                            .collect();
+                        let tau = tau.unwrap_or(default_svd_tolerance(T::PRECISION, p));
+                        (
+                            r,
+                            fmm.m2l_scheme().rank().to_string(),
+                            format!("svd {tau:.0e}"),
+                        )
+                    }
+                };
+                let seconds = t.elapsed().as_secs_f64();
+                for (i, ((kind, q), values)) in charge_sets.iter().zip(&results).enumerate() {
+                    let e = relative_errors(&Laplace3d, mode, &points, q, &points, values, &sample);
+                    let grad = e.gradient.unwrap_or(f64::NAN);
+                    let loss = match (scheme, dense[i]) {
+                        (Scheme::Svd(_) | Scheme::SvdOffset(_), Some((dp, dg))) => {
+                            format!("{:.2} | {:.2}", e.potential / dp, grad / dg)
+                        }
+                        _ => "- | -".to_string(),
+                    };
+                    if let Scheme::Dense = scheme {
+                        dense[i] = Some((e.potential, grad));
+                    }
+                    println!(
+                        "| {} | {} | {p} | {leaf} | {label} | {rank} | {:.2e} | {grad:.2e} | {loss} | {seconds:.1} |",
+                        g.name(),
+                        kind.name(),
+                        e.potential
+                    );
+                }
+            }
+        }
+    }
+}
