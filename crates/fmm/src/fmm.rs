@@ -49,10 +49,11 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     /// Targets in Morton (leaf) order, interleaved, relative to `centre`;
     /// `None` when the targets are the sources (not stored twice).
     pub(crate) targets: Option<Vec<T>>,
-    /// Centre of the tree's domain: all coordinates the passes see (points
-    /// and surfaces) are relative to it, so that far from the origin (say
-    /// at 1e8 + [0, 1)^3, or 1e4 + [0, 1)^3 in f32) they keep the digits
-    /// that resolve the problem instead of those of the offset.
+    /// Near the centre of the tree's domain ([`coordinate_origin`]): all
+    /// coordinates the passes see (points and surfaces) are relative to
+    /// it, so that far from the origin (say at 1e8 + [0, 1)^3, or
+    /// 1e4 + [0, 1)^3 in f32) they keep the digits that resolve the problem
+    /// instead of those of the offset.
     pub(crate) centre: [f64; 3],
     /// Unit-cube surface grid (centre 0, half-width 1, radius 1), interleaved, f64.
     pub(crate) unit_surface: Vec<f64>,
@@ -184,7 +185,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let m2l_interactions = (0..=tree.depth())
             .map(|level| level_interactions(&tree, level))
             .collect::<Result<_, _>>()?;
-        let centre = tree.domain().center();
+        let centre = coordinate_origin(tree.domain());
         let sources = permute_points(b.sources, tree.source_permutation(), centre);
         let targets = b
             .targets
@@ -470,6 +471,25 @@ fn level_interactions(
     })
 }
 
+/// The point the stored coordinates are relative to: the domain's centre
+/// rounded towards zero to a multiple of `2^k`, the smallest power of two
+/// at least the domain's width.
+///
+/// Subtracting it is **exact** for every coordinate of the domain, in `f32`
+/// as in `f64` (a coordinate `x` and this origin `c` have the same sign
+/// unless `c = 0`; for `c/2 <= x <= 2c` the difference is exact (Sterbenz),
+/// and beyond it `x - c` is a multiple of the coarser of `ulp(x)` and
+/// `2^k` no larger than `x`), so two nearby points keep their exact
+/// separation: rounding the differences to the centre itself moved points
+/// near the origin by up to `u |x - centre|`, which in `f32` cost up to 1e-3
+/// of accuracy on a plane through the origin and 1e-2 on a curve whose
+/// closest points are 1e-8 apart. The relative coordinates stay within 2.5
+/// domain widths of zero.
+pub(crate) fn coordinate_origin(domain: &ferrofmm_tree::Domain) -> [f64; 3] {
+    let step = 2f64.powi(domain.width.log2().ceil() as i32);
+    domain.center().map(|c| (c / step).trunc() * step)
+}
+
 /// Points in the tree's sorted order, relative to `centre`:
 /// `out[k] = points[perm[k]] - centre` (the difference in f64, then rounded
 /// to `T`).
@@ -496,4 +516,36 @@ pub(crate) fn width_range<T: Real>(depth: u32) -> (f64, f64) {
     };
     let min = T::MIN_POSITIVE.to_f64().sqrt() * 2f64.powi(depth as i32 + 2);
     (min, largest.sqrt() / 8.0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::coordinate_origin;
+    use ferrofmm_tree::Domain;
+
+    /// `x - origin` is exact in f32 for every f32 coordinate of the domain,
+    /// near the origin, straddling it and far from it.
+    #[test]
+    fn coordinate_origin_makes_differences_exact() {
+        let domains = [
+            ([0.0, 0.0, -0.5], 1.0),
+            ([0.001, -0.3, 0.999], 1.0),
+            ([-0.8, -0.2, 3.0], 0.7),
+            ([1e4, -1e4, 5e3], 0.37),
+            ([1e8, 1.0, -2.0e6], 3.0),
+            ([-1e-3, 2e-3, 0.5], 1e-3),
+        ];
+        for (origin, width) in domains {
+            let d = Domain { origin, width };
+            let c = coordinate_origin(&d);
+            for i in 0..3 {
+                for k in 0..=1000 {
+                    let x = (origin[i] + width * k as f64 / 1000.0) as f32;
+                    let exact = x as f64 - c[i];
+                    assert_eq!((exact as f32) as f64, exact, "{d:?} axis {i} x {x}");
+                    assert!(exact.abs() <= 2.5 * width + 1e-9, "{d:?} {c:?}");
+                }
+            }
+        }
+    }
 }

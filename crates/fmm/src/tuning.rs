@@ -222,6 +222,10 @@ pub struct ErrorModel {
     pub order_errors: Vec<(usize, f64)>,
     /// `e_svd(tau) = svd_factor tau`: error added by an SVD tolerance.
     pub svd_factor: f64,
+    /// Rounding error per unit roundoff and unit of rounding ratio
+    /// ([`ROUNDING_FACTOR`]; three times that with gradients, which
+    /// difference nearby values).
+    pub rounding_factor: f64,
     /// Error floor of the float type for well-centred points (0 in `f64`,
     /// [`F32_ERROR_FLOOR`] in `f32`).
     pub floor: f64,
@@ -273,6 +277,7 @@ impl ErrorModel {
         if self.precision == Precision::F32 {
             m.floor = F32_GRADIENT_FLOOR;
         }
+        m.rounding_factor = 3.0 * ROUNDING_FACTOR;
         m
     }
 
@@ -290,6 +295,7 @@ impl ErrorModel {
                 .filter(|&(p, _)| p <= max_order)
                 .collect(),
             svd_factor,
+            rounding_factor: ROUNDING_FACTOR,
             floor,
             safety: SAFETY_FACTOR,
         }
@@ -323,7 +329,7 @@ impl ErrorModel {
     /// `1e-4` at `(1, 1, 1)`) lose digits this way, in `f32` about `1e-3`.
     pub fn rounding_floor(&self, ratio: f64) -> f64 {
         self.floor
-            .max(ROUNDING_FACTOR * self.unit_roundoff() * ratio.max(0.0))
+            .max(self.rounding_factor * self.unit_roundoff() * ratio.max(0.0))
     }
 
     /// `e_svd(tau) = svd_factor tau`: error added by an SVD tolerance `tau`
@@ -466,16 +472,21 @@ pub fn validate_tolerance(eps: f64, precision: Precision) -> Result<(), FmmError
 /// ```
 /// use ferrofmm_fmm::Geometry;
 /// use ferrofmm_fmm::tuning::choose_precision;
-/// use ferrofmm_kernels::Precision;
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let pot = EvalMode::Potential;
 /// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, &cube, None).unwrap(), Precision::F32);
-/// assert_eq!(choose_precision(1e-8, &cube, None).unwrap(), Precision::F64);
+/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
+/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
+/// // f32 gradients level off near 5e-6.
+/// let both = EvalMode::PotentialGradient;
+/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
 /// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
 /// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, &clusters, None).unwrap(), Precision::F64);
+/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
 /// ```
 pub fn choose_precision(
     eps: f64,
+    mode: EvalMode,
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Precision, FmmError> {
@@ -484,12 +495,14 @@ pub fn choose_precision(
     let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
     if f32_reaches(eps)
         && Tuner::new(Precision::F32)
+            .for_mode(mode)
             .choose_with(eps, &occupancy)
             .is_ok()
     {
         return Ok(Precision::F32);
     }
     Tuner::new(Precision::F64)
+        .for_mode(mode)
         .choose_with(eps, &occupancy)
         .map(|_| Precision::F64)
 }

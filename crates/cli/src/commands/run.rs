@@ -79,7 +79,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
     use PrecisionArg::{Auto, F32, F64};
     use SchemeArg::{Dense, Svd};
     let precision = match (settings.precision, settings.tolerance) {
-        (Auto, Some(eps)) => auto_precision(&input, eps)?,
+        (Auto, Some(eps)) => auto_precision(&input, eps, settings.gradients)?,
         (Auto, None) => F64,
         (p, _) => p,
     };
@@ -97,7 +97,12 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
 }
 
 /// f32 where it still reaches `eps` on these points, else f64.
-fn auto_precision(input: &Input, eps: f64) -> Result<PrecisionArg> {
+fn auto_precision(input: &Input, eps: f64, gradients: bool) -> Result<PrecisionArg> {
+    let mode = if gradients {
+        EvalMode::PotentialGradient
+    } else {
+        EvalMode::Potential
+    };
     let generated;
     let (sources, targets): (&[f64], Option<&[f64]>) = match input {
         Input::Generated {
@@ -110,7 +115,7 @@ fn auto_precision(input: &Input, eps: f64) -> Result<PrecisionArg> {
             sources, targets, ..
         } => (sources, targets.as_deref()),
     };
-    Ok(match choose_precision(eps, sources, targets)? {
+    Ok(match choose_precision(eps, mode, sources, targets)? {
         Precision::F32 => PrecisionArg::F32,
         Precision::F64 => PrecisionArg::F64,
     })
