@@ -84,6 +84,9 @@ fn main() -> ExitCode {
     install_panic_hook();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
+        // Nobody reads the report (`ferrofmm ... | head`): the work is done,
+        // end quietly.
+        Err(CliError::StdoutClosed) => ExitCode::SUCCESS,
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
