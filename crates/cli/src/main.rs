@@ -8,9 +8,11 @@
 //! * `ferrofmm sweep`: speed against accuracy over a grid of orders,
 //!   schemes, precisions and leaf sizes, as `results.csv` and charts.
 //!
-//! Exit status: 0 on success, 1 when the command fails (the reason is one
-//! line on stderr, `error: ...`), 2 for command-line syntax errors, 101 for
-//! an internal error (a bug; also reported as one `error: ...` line).
+//! Exit status: 0 on success (also when stdout is closed before the report
+//! is printed, as in `ferrofmm demo | head -1`), 1 when the command fails
+//! (the reason is one line on stderr, `error: ...`), 2 for command-line
+//! syntax errors, 101 for an internal error (a bug; also reported as one
+//! `error: ...` line).
 
 mod charts;
 mod commands;
@@ -37,8 +39,9 @@ use error::{CliError, Result};
     about,
     long_about = "Kernel-independent fast multipole method for the 3D Laplace kernel 1/(4 pi r):\n\
                   potentials (and gradients) of N charges at M targets in O(N + M).\n\n\
-                  Exit status: 0 on success, 1 when the command fails (one line `error: ...` on\n\
-                  stderr), 2 for command-line syntax errors, 101 for an internal error (a bug)."
+                  Exit status: 0 on success (also when stdout is closed early, e.g. `| head`),\n\
+                  1 when the command fails (one line `error: ...` on stderr), 2 for command-line\n\
+                  syntax errors, 101 for an internal error (a bug in ferrofmm)."
 )]
 struct Cli {
     /// Worker threads for every parallel step (tree, operator precomputation,
@@ -69,7 +72,14 @@ enum Command {
     /// .npy (float64/float32; points N x 3, charges N; C or Fortran order).
     /// Output by extension: .npy (N, or N x 4 with --gradients, in the run's
     /// precision) or .csv (a header line, then one target per line).
-    /// Potentials use 1/(4 pi r); coincident source-target pairs are skipped.
+    /// Potentials use 1/(4 pi r). Coincident points: a source and a target
+    /// closer than about 1.5e-154 in f64 (1.1e-19 in f32), that is whose
+    /// squared distance is below the smallest normal float, count as the
+    /// same point and contribute nothing (no infinity, no NaN).
+    ///
+    /// The output is checked before any work (not an input file, not a
+    /// directory, its directory writable), written to a temporary file
+    /// beside it and renamed into place: a failed run leaves no partial file.
     Eval(EvalArgs),
     /// Measure speed against accuracy over a grid of configurations.
     ///
