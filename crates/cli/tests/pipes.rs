@@ -71,3 +71,30 @@ fn eval_into_a_closed_pipe_is_quiet_and_writes_its_file() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn sweep_into_a_closed_pipe_is_quiet() {
+    let dir = scratch("pipes-sweep");
+    let out_dir = dir.join("out");
+    let (code, stderr) = with_closed_stdout(&[
+        "sweep",
+        "--n",
+        "500",
+        "--orders",
+        "3",
+        "--schemes",
+        "svd",
+        "--precision",
+        "f64",
+        "--leaf-sizes",
+        "64",
+        "--repeats",
+        "1",
+        "--out-dir",
+        out_dir.to_str().unwrap(),
+    ]);
+    assert_eq!(code, Some(0), "{stderr}");
+    assert!(!stderr.contains("internal error"), "{stderr}");
+    assert!(out_dir.join("results.csv").exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
