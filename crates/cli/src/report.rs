@@ -359,6 +359,17 @@ impl RunReport {
             ),
         );
         row(&mut o, "threads", self.threads.to_string());
+        if let Some(eps) = self.tolerance {
+            let predicted = self
+                .predicted_error
+                .map(|p| format!(", predicted error {p:.2e}"))
+                .unwrap_or_default();
+            row(
+                &mut o,
+                "tolerance",
+                format!("{eps:.2e} requested{predicted}"),
+            );
+        }
         if let Some(c) = &self.cache {
             row(&mut o, "operator cache", c.clone());
         }

@@ -161,3 +161,28 @@ fn eval_help_states_the_coincidence_rule() {
         "{help}"
     );
 }
+
+/// With `--tolerance` the table shows the requested and the predicted error.
+#[test]
+fn tolerance_and_predicted_error_are_in_the_table() {
+    let out = ferrofmm(&[
+        "demo",
+        "-n",
+        "1000",
+        "--tolerance",
+        "1e-4",
+        "--check",
+        "200",
+    ]);
+    let (stdout, stderr) = texts(&out);
+    assert!(out.status.success(), "{stderr}");
+    let row = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("tolerance"))
+        .unwrap_or_else(|| panic!("no tolerance row in:\n{stdout}"));
+    assert!(
+        row.contains("1.00e-4 requested") && row.contains("predicted error"),
+        "{row}"
+    );
+    assert!(stdout.contains("relative L2 error vs direct summation"));
+}
