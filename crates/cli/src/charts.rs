@@ -586,6 +586,7 @@ pub(crate) mod tests {
             precision: precision.into(),
             gradients: true,
             threads: 2,
+            cache: None,
             tree: TreeFigures {
                 depth: 3,
                 n_boxes: 73,

@@ -85,6 +85,36 @@ pub enum CliError {
         /// What went wrong.
         message: String,
     },
+    /// `--out` names one of the input files (also through a link).
+    #[error("--out {} is the same file as {option} {}: refusing to overwrite an input", out.display(), input.display())]
+    OutputIsInput {
+        /// The output file.
+        out: PathBuf,
+        /// The option naming the input (`--sources`, `--targets`, `--charges`).
+        option: &'static str,
+        /// The input file.
+        input: PathBuf,
+    },
+    /// The output file cannot be created (found before any work).
+    #[error("cannot write {}: {reason}", path.display())]
+    OutputUnusable {
+        /// The output file.
+        path: PathBuf,
+        /// Why, in words.
+        reason: String,
+    },
+    /// Writing an output file failed; nothing was left behind.
+    #[error("cannot write {}: {source} (no file written)", path.display())]
+    WriteFailed {
+        /// The output file.
+        path: PathBuf,
+        /// What the operating system said.
+        source: std::io::Error,
+    },
+    /// Stdout was closed before the report could be printed (`... | head`):
+    /// ends the command quietly with status 0.
+    #[error("stdout is closed")]
+    StdoutClosed,
     /// A child run of a sweep failed.
     #[error("sweep configuration {config} failed: {message}")]
     SweepRun {

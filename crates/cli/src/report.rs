@@ -5,7 +5,8 @@
 //!
 //! ```text
 //! command, geometry (demo only), n_sources, n_targets, order, leaf_size,
-//! scheme, precision, gradients, threads,
+//! scheme, precision, gradients, threads, tolerance, predicted_error,
+//! cache (null without --cache-dir, else in words),
 //! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes },
 //! setup:      { tree_s, operators_s, m2l_precompute_s, layout_s, total_s },
 //! evaluation: { repeats, best_s, median_s,
@@ -24,6 +25,7 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
+use ferrofmm_field::CacheStatus;
 use ferrofmm_fmm::{EvalTimings, FmmSummary, SetupTimings};
 use serde::{Deserialize, Serialize};
 
@@ -68,6 +70,10 @@ pub struct RunReport {
     pub gradients: bool,
     /// Rayon worker threads.
     pub threads: usize,
+    /// What the operator cache did (`None`: no `--cache-dir`), in words;
+    /// see [`cache_summary`].
+    #[serde(default)]
+    pub cache: Option<String>,
     /// Tree and operator figures.
     pub tree: TreeFigures,
     /// Setup time by step.
@@ -255,6 +261,66 @@ pub fn mebibytes(bytes: Option<u64>) -> String {
     }
 }
 
+/// One cache file's fate in words: `hit`, `miss (computed, saved)`,
+/// `recomputed (cached file rejected: ...)`, with `, not saved: ...` when
+/// the new file could not be written. `None` when caching is off.
+fn cache_word(status: &CacheStatus) -> Option<String> {
+    let short = |s: &str| -> String {
+        let line = s.lines().next().unwrap_or_default();
+        if line.chars().count() > 70 {
+            format!("{}...", line.chars().take(70).collect::<String>())
+        } else {
+            line.to_string()
+        }
+    };
+    match status {
+        CacheStatus::Disabled => None,
+        CacheStatus::Hit { .. } => Some("hit".into()),
+        CacheStatus::Computed {
+            path,
+            rejected,
+            write_error,
+        } => {
+            // The messages name the file ("cache file PATH rejected: why");
+            // keep the reason only, the directory is the user's own.
+            let path = path.display().to_string();
+            let short = |s: &str| -> String {
+                let s = match s.find(&path) {
+                    Some(k) => s[k + path.len()..]
+                        .trim_start_matches(" rejected")
+                        .trim_start_matches(':')
+                        .trim_start(),
+                    None => s,
+                };
+                short(s)
+            };
+            let saved = match write_error {
+                None => "saved".to_string(),
+                Some(e) => format!("not saved: {}", short(e)),
+            };
+            Some(match rejected {
+                None => format!("miss (computed, {saved})"),
+                Some(r) => format!("recomputed (cached file rejected: {}; {saved})", short(r)),
+            })
+        }
+    }
+}
+
+/// The cache's part in a run, from the status of the operator file and of
+/// the M2L file: `hit`, `miss (computed, saved)`, ... for both, or
+/// `operators X; M2L Y` when they differ. `None` when caching is off.
+pub fn cache_summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<String> {
+    match (cache_word(operators), cache_word(m2l)) {
+        (None, None) => None,
+        (Some(a), Some(b)) if a == b => Some(a),
+        (a, b) => Some(format!(
+            "operators {}; M2L {}",
+            a.unwrap_or_else(|| "not cached".into()),
+            b.unwrap_or_else(|| "not cached".into())
+        )),
+    }
+}
+
 impl RunReport {
     /// The human-readable table.
     pub fn table(&self) -> String {
@@ -320,6 +386,20 @@ impl RunReport {
             ),
         );
         row(&mut o, "threads", self.threads.to_string());
+        if let Some(eps) = self.tolerance {
+            let predicted = self
+                .predicted_error
+                .map(|p| format!(", predicted error {p:.2e}"))
+                .unwrap_or_default();
+            row(
+                &mut o,
+                "tolerance",
+                format!("{eps:.2e} requested{predicted}"),
+            );
+        }
+        if let Some(c) = &self.cache {
+            row(&mut o, "operator cache", c.clone());
+        }
 
         let _ = writeln!(
             o,

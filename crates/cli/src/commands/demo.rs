@@ -75,9 +75,8 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     };
     let report = run(input, &settings, None)?;
     if args.json {
-        println!("{}", report.json());
+        crate::io::stdout::println(&report.json())
     } else {
-        print!("{}", report.table());
+        crate::io::stdout::print(&report.table())
     }
-    Ok(())
 }

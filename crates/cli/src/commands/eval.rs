@@ -22,7 +22,8 @@ pub struct EvalArgs {
     #[arg(long, value_name = "FILE")]
     pub charges: PathBuf,
     /// Output file, .csv or .npy: one potential per target, or potential and
-    /// gradient (N x 4) with --gradients, in the run's precision.
+    /// gradient (N x 4) with --gradients, in the run's precision. Must not
+    /// be one of the input files; replaced only once fully written.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     #[command(flatten)]
@@ -41,17 +42,17 @@ pub struct EvalArgs {
 
 /// Run `ferrofmm eval`.
 pub fn eval(args: &EvalArgs) -> Result<()> {
-    // Fail on an unusable output path before any work.
+    // Fail on an unusable output path before any work: unknown type, one
+    // of the inputs, a directory, or a directory that takes no new file.
     Format::of(&args.out)?;
-    if let Some(parent) = args.out.parent().filter(|p| !p.as_os_str().is_empty())
-        && !parent.is_dir()
-    {
-        return Err(CliError::InvalidArgument(format!(
-            "cannot write {}: directory {} does not exist",
-            args.out.display(),
-            parent.display()
-        )));
+    let mut inputs = vec![
+        ("--sources", args.sources.as_path()),
+        ("--charges", args.charges.as_path()),
+    ];
+    if let Some(t) = &args.targets {
+        inputs.push(("--targets", t.as_path()));
     }
+    io::output::check(&args.out, &inputs)?;
 
     let sources = io::read_points(&args.sources)?;
     let targets = args.targets.as_deref().map(io::read_points).transpose()?;
@@ -85,10 +86,8 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {
-        println!("{}", report.json());
+        io::stdout::println(&report.json())
     } else {
-        print!("{}", report.table());
-        println!("wrote {}", args.out.display());
+        io::stdout::print(&format!("{}wrote {}\n", report.table(), args.out.display()))
     }
-    Ok(())
 }

@@ -18,7 +18,7 @@ use crate::io::{self, Values};
 use crate::memory::peak_rss_bytes;
 use crate::progress::with_stage;
 use crate::report::{
-    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures,
+    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures, cache_summary,
 };
 
 /// Where the points and charges come from.
@@ -283,6 +283,10 @@ where
         precision: settings.precision.name().to_string(),
         gradients: settings.gradients,
         threads: rayon::current_num_threads(),
+        cache: cache_summary(
+            fmm.operators().cache_status(),
+            &fmm.m2l_scheme().cache_status(),
+        ),
         tree: TreeFigures::from(&summary),
         setup: SetupSeconds::from(fmm.setup_timings()),
         evaluation: EvalSeconds {

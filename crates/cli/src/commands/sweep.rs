@@ -181,12 +181,11 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
 
     let charts =
         crate::progress::with_stage("drawing charts", || charts::write_all(&args.out_dir, &runs))?;
-    print!("{}", summary_table(&runs));
-    println!("wrote {}", csv_path.display());
-    for f in charts {
-        println!("wrote {}", f.display());
+    let mut text = summary_table(&runs);
+    for f in std::iter::once(&csv_path).chain(&charts) {
+        text.push_str(&format!("wrote {}\n", f.display()));
     }
-    Ok(())
+    crate::io::stdout::print(&text)
 }
 
 /// All configurations, precision-major, then scheme, leaf size and order.

@@ -16,8 +16,7 @@
 //! then one record per line, each value in Rust's shortest round-trip
 //! scientific notation (`1.2345e-3`), which NumPy, pandas and spreadsheets read.
 
-use std::fs::File;
-use std::io::{BufWriter, Write};
+use std::io::Write;
 use std::path::Path;
 
 use super::{Contents, Values};
@@ -129,15 +128,10 @@ fn split(line: &str) -> Vec<&str> {
 
 /// Write `values` as CSV with a header line of `names` (one column each).
 pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
-    let file = File::create(path).map_err(|e| CliError::io(path, e))?;
-    let mut out = BufWriter::new(file);
-    let result = match values {
-        Values::F64(v) => write_records(&mut out, v, names),
-        Values::F32(v) => write_records(&mut out, v, names),
-    };
-    result
-        .and_then(|()| out.flush())
-        .map_err(|e| CliError::io(path, e))
+    super::output::write_atomically(path, |out| match values {
+        Values::F64(v) => write_records(out, v, names),
+        Values::F32(v) => write_records(out, v, names),
+    })
 }
 
 fn write_records<T: std::fmt::LowerExp>(

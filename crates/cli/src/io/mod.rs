@@ -12,6 +12,8 @@
 
 pub mod csv;
 pub mod npy;
+pub mod output;
+pub mod stdout;
 
 use std::path::Path;
 
@@ -117,6 +119,9 @@ pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
 /// format its extension asks for. A `.npy` file gets shape `(n,)` for one
 /// column and `(n, columns)` otherwise, in the values' float type; a `.csv`
 /// file gets a header line of `names` and then one record per line.
+///
+/// The file is written atomically ([`output::write_atomically`]): on
+/// failure nothing is left behind and an existing file is untouched.
 pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
     let columns = names.len();
     assert!(

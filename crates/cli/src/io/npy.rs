@@ -9,7 +9,7 @@
 //! value per target, `(N, 4)` for potential and gradient.
 
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Write};
+use std::io::{BufReader, Write};
 use std::path::Path;
 
 use npyz::{DType, NpyFile, Order, TypeChar, WriterBuilder};
@@ -128,12 +128,10 @@ pub fn write(path: &Path, values: Values<'_>, columns: usize) -> Result<()> {
     } else {
         vec![rows, columns as u64]
     };
-    let file = File::create(path).map_err(|e| CliError::io(path, e))?;
-    let result = match values {
-        Values::F64(v) => write_typed(BufWriter::new(file), v, &shape),
-        Values::F32(v) => write_typed(BufWriter::new(file), v, &shape),
-    };
-    result.map_err(|e| CliError::io(path, e))
+    super::output::write_atomically(path, |out| match values {
+        Values::F64(v) => write_typed(out, v, &shape),
+        Values::F32(v) => write_typed(out, v, &shape),
+    })
 }
 
 fn write_typed<T, W>(out: W, values: &[T], shape: &[u64]) -> std::io::Result<()>
