@@ -386,17 +386,6 @@ impl RunReport {
             ),
         );
         row(&mut o, "threads", self.threads.to_string());
-        if let Some(eps) = self.tolerance {
-            let predicted = self
-                .predicted_error
-                .map(|p| format!(", predicted error {p:.2e}"))
-                .unwrap_or_default();
-            row(
-                &mut o,
-                "tolerance",
-                format!("{eps:.2e} requested{predicted}"),
-            );
-        }
         if let Some(c) = &self.cache {
             row(&mut o, "operator cache", c.clone());
         }
@@ -437,9 +426,9 @@ impl RunReport {
         if let Some(eps) = self.tolerance {
             let predicted = self
                 .predicted_error
-                .map(|e| format!(", predicted {e:.1e}"))
+                .map(|e| format!(", predicted error {e:.2e}"))
                 .unwrap_or_default();
-            row(&mut o, "tolerance", format!("{eps:.1e} requested{predicted}"));
+            row(&mut o, "tolerance", format!("{eps:.2e} requested{predicted}"));
             match &self.verification {
                 Some(v) => {
                     for (i, a) in v.attempts.iter().enumerate() {

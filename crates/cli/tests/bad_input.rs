@@ -232,10 +232,36 @@ fn impossible_parameters() {
         &["order 50 is not supported"],
     );
 
+    // Bad values of --charges, --verify and --tolerance: one line, status 1.
+    expect_failure(
+        &["demo", "--n", "100", "--charges", "negative"],
+        &["--charges must be `signed` or `positive`", "negative"],
+    );
+    run(
+        eval(&["--tolerance", "1e-4", "--verify", "maybe"]),
+        &["--verify must be `on` or `off`", "maybe"],
+    );
+    for eps in ["0", "1", "1.5", "-1e-3"] {
+        run(eval(&["--tolerance", eps]), &["tolerance"]);
+    }
+    expect_failure(
+        &[
+            "sweep",
+            "--n",
+            "100",
+            "--charges",
+            "both",
+            "--out-dir",
+            &sweep_dir,
+        ],
+        &["--charges must be"],
+    );
+    assert!(!dir.join("o.csv").exists(), "nothing is written on bad input");
+
     // Syntax errors are clap's: status 2, no panic.
     for args in [
         vec!["demo", "--order", "six"],
-        vec!["demo", "--geometry", "torus"],
+        vec!["demo", "--geometry", "donut"],
         vec!["sweep", "--orders", "9..3", "--out-dir", "x"],
         vec!["eval", "--sources", "p.csv"],
         vec!["frobnicate"],

@@ -4,7 +4,7 @@
 use clap::Args;
 
 use super::run::{Input, Settings, run};
-use super::{ChargesArg, FmmArgs, GeometryArg, VerifyArg};
+use super::{CHARGES_HELP, ChargesArg, FmmArgs, GeometryArg};
 use crate::error::{CliError, Result};
 
 /// Default number of points.
@@ -19,9 +19,8 @@ pub struct DemoArgs {
     /// Point distribution.
     #[arg(long, value_enum, default_value_t = GeometryArg::Cube)]
     pub geometry: GeometryArg,
-    /// Charges: zero-mean (signed, the peers' workload) or all positive.
-    #[arg(long, value_enum, default_value_t = ChargesArg::Signed)]
-    pub charges: ChargesArg,
+    #[arg(long, default_value = "signed", value_name = "signed|positive", help = CHARGES_HELP)]
+    pub charges: String,
     #[command(flatten)]
     pub fmm: FmmArgs,
     /// Evaluate potentials and gradients (the default).
@@ -56,7 +55,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     }
     let input = Input::Generated {
         geometry: args.geometry.geometry(),
-        charges: args.charges.charges(),
+        charges: ChargesArg::parse(&args.charges)?.charges(),
         n: args.n,
         seed: args.seed,
     };
@@ -71,7 +70,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),
         tolerance: args.fmm.tolerance,
-        verify: args.fmm.verify == VerifyArg::On,
+        verify: args.fmm.verify()?,
     };
     let report = run(input, &settings, None)?;
     if args.json {

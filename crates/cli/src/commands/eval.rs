@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::{FmmArgs, VerifyArg};
+use super::FmmArgs;
 use super::run::{Input, Settings, run};
 use crate::error::{CliError, Result};
 use crate::io::{self, Format};
@@ -82,7 +82,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),
         tolerance: args.fmm.tolerance,
-        verify: args.fmm.verify == VerifyArg::On,
+        verify: args.fmm.verify()?,
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {

@@ -8,6 +8,8 @@ pub mod sweep;
 use clap::{Args, ValueEnum};
 use ferrofmm_fmm::{Charges, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
 
+use crate::error::CliError;
+
 /// Float type of a run.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
 pub enum PrecisionArg {
@@ -91,17 +93,32 @@ impl GeometryArg {
 }
 
 /// Built-in charges.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum ChargesArg {
     /// Zero-mean, uniform in [-0.5, 0.5) (the peers' workload; the default).
-    #[value(alias = "zero-mean")]
     Signed,
     /// All positive, uniform in [0, 1): the potential's relative error
     /// looks ~8x smaller (a smooth mean dominates), the gradient's larger.
     Positive,
 }
 
+/// Help text of `--charges`.
+pub const CHARGES_HELP: &str = "Built-in charges: `signed` (zero-mean, uniform in [-0.5, 0.5): \
+the peers' workload, the default) or `positive` (uniform in [0, 1): the potential's relative \
+error looks ~8x smaller, the gradient's larger)";
+
 impl ChargesArg {
+    /// Parse `--charges` (an unknown value is bad input: exit status 1).
+    pub fn parse(value: &str) -> Result<Self, CliError> {
+        match Charges::from_name(value) {
+            Some(Charges::Signed) => Ok(ChargesArg::Signed),
+            Some(Charges::Positive) => Ok(ChargesArg::Positive),
+            None => Err(CliError::InvalidArgument(format!(
+                "--charges must be `signed` or `positive`, got `{value}`"
+            ))),
+        }
+    }
+
     /// The library's kind.
     pub fn charges(self) -> Charges {
         match self {
@@ -116,16 +133,6 @@ impl ChargesArg {
     }
 }
 
-/// Whether a `--tolerance` is checked after evaluation.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
-pub enum VerifyArg {
-    /// Estimate the achieved error on a sample of targets against direct
-    /// summation (a few percent of the run) and raise the order, at most
-    /// twice, while it is above the tolerance.
-    On,
-    /// Trust the error model's prediction.
-    Off,
-}
 
 /// FMM parameters common to `demo` and `eval`.
 #[derive(Args, Clone, Debug)]
@@ -152,9 +159,24 @@ pub struct FmmArgs {
     /// reported, and checked after evaluation (see --verify).
     #[arg(long, value_name = "EPS")]
     pub tolerance: Option<f64>,
-    /// With --tolerance: check the achieved error after evaluating (on a
-    /// sample of targets against direct summation, a few percent of the
-    /// run) and raise the order, at most twice, while it is above EPS.
-    #[arg(long, value_enum, default_value_t = VerifyArg::On)]
-    pub verify: VerifyArg,
+    /// With --tolerance: `on` (default) checks the achieved error after
+    /// evaluating (on a sample of targets against direct summation, a few
+    /// percent of the run) and raises the order, at most twice, while it is
+    /// above EPS; `off` trusts the prediction (and the report says so).
+    #[arg(long, default_value = "on", value_name = "on|off")]
+    pub verify: String,
+}
+
+impl FmmArgs {
+    /// `--verify` as a switch (a value other than `on` / `off` is bad
+    /// input: exit status 1).
+    pub fn verify(&self) -> Result<bool, CliError> {
+        match self.verify.as_str() {
+            "on" => Ok(true),
+            "off" => Ok(false),
+            other => Err(CliError::InvalidArgument(format!(
+                "--verify must be `on` or `off`, got `{other}`"
+            ))),
+        }
+    }
 }

@@ -28,7 +28,7 @@ use std::process::Command;
 
 use clap::Args;
 
-use super::{ChargesArg, GeometryArg, PrecisionArg, SchemeArg};
+use super::{CHARGES_HELP, ChargesArg, GeometryArg, PrecisionArg, SchemeArg};
 use crate::charts;
 use crate::error::{CliError, Result};
 use crate::report::{RunReport, seconds};
@@ -47,9 +47,8 @@ pub struct SweepArgs {
     /// Point distribution (`clustered` is the Plummer sphere).
     #[arg(long, value_enum, default_value_t = GeometryArg::Cube)]
     pub geometry: GeometryArg,
-    /// Charges: zero-mean (signed, the peers' workload) or all positive.
-    #[arg(long, value_enum, default_value_t = ChargesArg::Signed)]
-    pub charges: ChargesArg,
+    #[arg(long, default_value = "signed", value_name = "signed|positive", help = CHARGES_HELP)]
+    pub charges: String,
     /// Expansion orders: an inclusive range `3..10` or a list `3,5,7`.
     #[arg(long, default_value = "3..10", value_parser = parse_orders)]
     pub orders: Orders,
@@ -131,6 +130,7 @@ impl Config {
 /// Run `ferrofmm sweep`; `threads` is passed on to every child.
 pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     let bad = |m: &str| Err(CliError::InvalidArgument(m.to_string()));
+    ChargesArg::parse(&args.charges)?;
     if args.n == 0 {
         return bad("--n must be at least 1");
     }
@@ -220,7 +220,7 @@ fn run_child(
         .arg("--json")
         .args(["--n", &args.n.to_string()])
         .args(["--geometry", args.geometry.name()])
-        .args(["--charges", args.charges.name()])
+        .args(["--charges", ChargesArg::parse(&args.charges)?.name()])
         .args(["--order", &config.order.to_string()])
         .args(["--scheme", config.scheme.name()])
         .args(["--precision", config.precision.name()])
