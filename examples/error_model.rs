@@ -70,9 +70,7 @@ fn main() {
                 .filter_map(|s| match s {
                     "dense" => Some(Scheme::Dense),
                     "svd" => Some(Scheme::Svd(None)),
-                    _ if s.starts_with("svd+") => {
-                        s[4..].parse().ok().map(Scheme::SvdOffset)
-                    }
+                    _ if s.starts_with("svd+") => s[4..].parse().ok().map(Scheme::SvdOffset),
                     _ => s
                         .strip_prefix("svd:")
                         .and_then(|t| t.parse().ok())

@@ -27,7 +27,9 @@
 //!     for 1e-5 (or of `orders=P leaves=L`) and the process's peak resident
 //!     memory (run once per geometry, each in its own process).
 //! * `OPTIONS`: `orders=2,3,...`, `leaves=16,32,...`, `tolerances=1e-3,...`,
-//!   `repeats=3` (evaluations per setting, the fastest counts).
+//!   `repeats=3` (evaluations per setting, the fastest counts),
+//!   `charges=signed|positive` (default signed: zero-mean, uniform in
+//!   [-0.5, 0.5); positive: uniform in [0, 1)).
 //!
 //! Time of a setting = tree construction (with the V-list layout) + one
 //! evaluation (each the best of `repeats`); the time to choose the
@@ -42,10 +44,17 @@ use std::time::Instant;
 
 use ferrofmm::field::{SvdConfig, SvdM2l};
 use ferrofmm::fmm::tuning::{self, CostModel, CostSample, WorkCounts};
-use ferrofmm::fmm::{EvalTimings, Fmm, FmmBuilder, Geometry, charges, sample_indices};
+use ferrofmm::fmm::{Charges, EvalTimings, Fmm, FmmBuilder, Geometry, sample_indices};
 use ferrofmm::kernels::{EvalMode, Laplace3d, Precision, direct_sum};
 
 const CACHE: &str = "target/tolerance-cache";
+
+/// The charges of every problem (`charges=` on the command line).
+static CHARGES: std::sync::OnceLock<Charges> = std::sync::OnceLock::new();
+
+fn charges(n: usize, seed: u64) -> Vec<f64> {
+    CHARGES.get().copied().unwrap_or_default().generate(n, seed)
+}
 /// Alternating re-measurements of the fastest and the chosen setting.
 const ROUNDS: usize = 3;
 /// Targets compared with direct summation.
@@ -227,6 +236,9 @@ fn main() {
             given_leaves = true;
         } else if let Some(v) = a.strip_prefix("tolerances=") {
             tolerances = list(v);
+        } else if let Some(v) = a.strip_prefix("charges=") {
+            let kind = Charges::from_name(v).expect("charges=signed or charges=positive");
+            CHARGES.set(kind).expect("charges given once");
         } else if let Some(v) = a.strip_prefix("repeats=") {
             repeats = v.parse().expect("repeats");
         } else if let Ok(v) = a.parse::<f64>() {
@@ -245,8 +257,9 @@ fn main() {
         given
     };
     println!(
-        "# N = {n}, geometry {}, mode {mode}, {} threads",
+        "# N = {n}, geometry {}, charges {}, mode {mode}, {} threads",
         geometry.name(),
+        CHARGES.get().copied().unwrap_or_default().name(),
         rayon::current_num_threads()
     );
     match mode.as_str() {

@@ -4,7 +4,9 @@
 //!    potential, log-log, one line per scheme and precision (through the
 //!    fastest leaf size at each order, labelled with the order), every
 //!    configuration as a dot, and the Pareto front (no other configuration
-//!    is both faster and more accurate) as a dashed black line;
+//!    is both faster and more accurate) as a dashed black line; when
+//!    gradients were evaluated, the same lines against the gradient's error
+//!    dashed in the series' colour (squares at the orders);
 //! 2. `operators`: evaluation time per operator as stacked bars per order,
 //!    one panel per scheme and precision (fastest leaf size per order);
 //! 3. `error_vs_order`: relative error against the order, one line per
@@ -250,6 +252,14 @@ fn pareto_front<'a>(runs: &[&'a RunReport]) -> Vec<&'a RunReport> {
     front
 }
 
+/// The gradient's error of a checked run with gradients.
+fn gradient(run: &RunReport) -> Option<f64> {
+    run.errors
+        .as_ref()
+        .and_then(|e| e.gradient)
+        .map(|g| g.max(FLOOR))
+}
+
 fn potential(run: &RunReport) -> f64 {
     run.errors
         .as_ref()
@@ -263,7 +273,12 @@ impl Chart for TimeVsError<'_> {
         let data = self.0;
         root.fill(&WHITE).map_err(err)?;
         let checked: Vec<&RunReport> = data.runs.iter().filter(|r| r.errors.is_some()).collect();
-        let x_range = log_range(checked.iter().map(|r| potential(r)));
+        let x_range = log_range(
+            checked
+                .iter()
+                .map(|r| potential(r))
+                .chain(checked.iter().filter_map(|r| gradient(r))),
+        );
         let y_range = log_range(checked.iter().map(|r| r.evaluation.best_s));
         let (x_labels, y_labels) = (log_labels(&x_range), log_labels(&y_range));
         let mut chart = ChartBuilder::on(root)
@@ -278,7 +293,11 @@ impl Chart for TimeVsError<'_> {
             .map_err(err)?;
         chart
             .configure_mesh()
-            .x_desc("relative L2 error of the potential (1000 sampled targets)")
+            .x_desc(if checked.iter().any(|r| gradient(r).is_some()) {
+                "relative L2 error (1000 sampled targets): potential solid, gradient dashed"
+            } else {
+                "relative L2 error of the potential (1000 sampled targets)"
+            })
             .y_desc("evaluation time [s]")
             .x_label_formatter(&sci)
             .x_labels(x_labels)
@@ -326,6 +345,34 @@ impl Chart for TimeVsError<'_> {
                             (6, -14),
                             (FAMILY, 12).into_font().color(&color),
                         )
+                }))
+                .map_err(err)?;
+        }
+
+        for (key, by_order) in &data.series {
+            let color = data.color(key);
+            let line: Vec<(f64, f64)> = by_order
+                .values()
+                .filter_map(|r| gradient(r).map(|g| (g, r.evaluation.best_s)))
+                .collect();
+            if line.is_empty() {
+                continue;
+            }
+            chart
+                .draw_series(DashedLineSeries::new(
+                    line.clone(),
+                    8,
+                    4,
+                    color.stroke_width(2),
+                ))
+                .map_err(err)?
+                .label(format!("{} gradient", label(key)))
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(1))
+                });
+            chart
+                .draw_series(line.iter().map(|&(x, y)| {
+                    Rectangle::new([(x / 1.08, y / 1.04), (x * 1.08, y * 1.04)], color.filled())
                 }))
                 .map_err(err)?;
         }

@@ -428,7 +428,11 @@ impl RunReport {
                 .predicted_error
                 .map(|e| format!(", predicted error {e:.2e}"))
                 .unwrap_or_default();
-            row(&mut o, "tolerance", format!("{eps:.2e} requested{predicted}"));
+            row(
+                &mut o,
+                "tolerance",
+                format!("{eps:.2e} requested{predicted}"),
+            );
             match &self.verification {
                 Some(v) => {
                     for (i, a) in v.attempts.iter().enumerate() {

@@ -241,7 +241,7 @@ fn impossible_parameters() {
         eval(&["--tolerance", "1e-4", "--verify", "maybe"]),
         &["--verify must be `on` or `off`", "maybe"],
     );
-    for eps in ["0", "1", "1.5", "-1e-3"] {
+    for eps in ["0", "1", "1.5", "nan", "1e-30"] {
         run(eval(&["--tolerance", eps]), &["tolerance"]);
     }
     expect_failure(
@@ -256,7 +256,10 @@ fn impossible_parameters() {
         ],
         &["--charges must be"],
     );
-    assert!(!dir.join("o.csv").exists(), "nothing is written on bad input");
+    assert!(
+        !dir.join("o.csv").exists(),
+        "nothing is written on bad input"
+    );
 
     // Syntax errors are clap's: status 2, no panic.
     for args in [

@@ -35,8 +35,16 @@ fn tiny_sweep_writes_rows_and_charts() {
     assert_eq!(lines.len(), 5, "header + 4 configurations:\n{csv}");
     let header: Vec<&str> = lines[0].split(',').collect();
     assert_eq!(
-        &header[..6],
-        &["geometry", "n", "order", "scheme", "precision", "leaf_size"]
+        &header[..7],
+        &[
+            "geometry",
+            "charges",
+            "n",
+            "order",
+            "scheme",
+            "precision",
+            "leaf_size"
+        ]
     );
     for col in [
         "eval_best_s",

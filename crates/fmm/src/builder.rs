@@ -7,8 +7,8 @@ use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdConfi
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
-use crate::tuning::ChosenParameters;
 use crate::fmm::ChosenScheme;
+use crate::tuning::ChosenParameters;
 use crate::{Fmm, FmmError, tuning};
 
 /// Smallest supported expansion order.

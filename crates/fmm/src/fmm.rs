@@ -223,10 +223,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// lists and the points stay): what verification does when the
     /// achieved error is above the tolerance. Updates the chosen
     /// parameters (order, SVD tolerance, predicted error, rank).
-    pub(crate) fn rebuild_at_order(
-        &mut self,
-        chosen: ChosenParameters,
-    ) -> Result<(), FmmError> {
+    pub(crate) fn rebuild_at_order(&mut self, chosen: ChosenParameters) -> Result<(), FmmError> {
         let mut params = self.params.clone();
         params.order = chosen.order;
         let mut chosen = chosen;
@@ -235,7 +232,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             None => self.config.clone(),
         };
         let mut setup = self.setup;
-        let (operators, m2l) = build_operators(&self.kernel, &params, &config, &self.tree, &mut setup)?;
+        let (operators, m2l) =
+            build_operators(&self.kernel, &params, &config, &self.tree, &mut setup)?;
         self.operators = operators;
         self.m2l = m2l;
         self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);

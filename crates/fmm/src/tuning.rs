@@ -394,7 +394,7 @@ impl ErrorModel {
     /// // Order 6 reaches 1e-5 with room to spare: compress harder.
     /// let tau = m.svd_tolerance(6, 1e-5, 0.0);
     /// assert!(tau > m.base_svd_tolerance(6));
-    /// assert!(2.0 * m.predicted_error(6, tau, 0.0).unwrap() <= 1e-5 * (1.0 + 1e-9));
+    /// assert!(m.safety * m.predicted_error(6, tau, 0.0).unwrap() <= 1e-5 * (1.0 + 1e-9));
     /// ```
     pub fn svd_tolerance(&self, order: usize, eps: f64, ratio: f64) -> f64 {
         let default = self.base_svd_tolerance(order);
@@ -407,7 +407,8 @@ impl ErrorModel {
             return default;
         }
         let room = (budget * budget - e * e).sqrt();
-        self.svd_tolerance_adding(room).clamp(default, MAX_SVD_TOLERANCE.max(default))
+        self.svd_tolerance_adding(room)
+            .clamp(default, MAX_SVD_TOLERANCE.max(default))
     }
 
     /// The smallest tolerance this model can promise (at any order) on a
@@ -1895,11 +1896,11 @@ impl Tuner {
 /// crate::FmmBuilder::tolerance) does before building).
 ///
 /// ```
-/// use ferrofmm_fmm::{Geometry, tuning::choose_parameters};
+/// use ferrofmm_fmm::{Geometry, tuning::{self, choose_parameters}};
 /// let points: Vec<f64> = Geometry::Sphere.points(10_000, 3);
 /// let c = choose_parameters(1e-7, &points, None).unwrap();
 /// assert!(c.order >= 6);
-/// assert!(2.0 * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
+/// assert!(tuning::SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
 /// let points32: Vec<f32> = points.iter().map(|&x| x as f32).collect();
 /// assert!(choose_parameters(1e-7, &points32, None).is_err());
 /// ```

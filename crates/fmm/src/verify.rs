@@ -226,7 +226,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let measured = self.estimate_error(charges, values, timings.total);
         VerificationAttempt {
             order: self.order,
-            svd_tolerance: self.config_from_chosen.as_ref().map(|_| chosen.svd_tolerance),
+            svd_tolerance: self
+                .config_from_chosen
+                .as_ref()
+                .map(|_| chosen.svd_tolerance),
             predicted_error: chosen.predicted_error,
             measured,
             evaluation_s: timings.total.as_secs_f64(),
@@ -321,7 +324,10 @@ mod tests {
         let n = 40_000;
         let points: Vec<f64> = Geometry::Sphere.points(n, 5);
         let q: Vec<f64> = charges(n, 6);
-        let mut fmm = FmmBuilder::new(&points).tolerance(1e-5).build_svd().unwrap();
+        let mut fmm = FmmBuilder::new(&points)
+            .tolerance(1e-5)
+            .build_svd()
+            .unwrap();
         let out = fmm.evaluate_verified(&q).unwrap();
         let v = out.verification.unwrap();
         let a = v.last();

@@ -7,7 +7,7 @@
 //! the same expansion storage.
 
 use ferrofmm_field::SvdM2l;
-use ferrofmm_fmm::{Fmm, FmmBuilder, Geometry, charges};
+use ferrofmm_fmm::{Charges, Fmm, FmmBuilder, Geometry};
 use ferrofmm_kernels::Laplace3d;
 
 const N: usize = 100_000;
@@ -71,7 +71,8 @@ fn evaluation_works_with_the_accounted_buffers() {
     // The accounting matches the buffers the passes use: one evaluation of
     // the deep tree succeeds and its expansions are n values per box.
     let fmm = build(Geometry::TwoClusters);
-    let q: Vec<f64> = charges(N, 1);
+    // Positive charges: every potential is positive.
+    let q: Vec<f64> = Charges::Positive.generate(N, 1);
     let v = fmm.evaluate(&q).unwrap();
     assert_eq!(v.len(), N);
     assert!(v.iter().all(|x| x.is_finite() && *x > 0.0));

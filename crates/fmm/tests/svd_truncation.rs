@@ -54,8 +54,14 @@ fn losses<T: Real>(order: usize, geometry: Geometry) -> Vec<(Charges, f64, f64)>
 fn svd_costs_at_most_1_3x_in_f64() {
     for order in 3..=12 {
         for (kind, pot, grad) in losses::<f64>(order, Geometry::Cube) {
-            assert!(pot <= LOSS, "f64 p {order} {kind:?}: potential loss {pot:.2}");
-            assert!(grad <= LOSS, "f64 p {order} {kind:?}: gradient loss {grad:.2}");
+            assert!(
+                pot <= LOSS,
+                "f64 p {order} {kind:?}: potential loss {pot:.2}"
+            );
+            assert!(
+                grad <= LOSS,
+                "f64 p {order} {kind:?}: gradient loss {grad:.2}"
+            );
         }
     }
 }
@@ -64,9 +70,15 @@ fn svd_costs_at_most_1_3x_in_f64() {
 fn svd_costs_at_most_1_3x_in_f32() {
     for order in 3..=8 {
         for (kind, pot, grad) in losses::<f32>(order, Geometry::Cube) {
-            assert!(pot <= LOSS, "f32 p {order} {kind:?}: potential loss {pot:.2}");
+            assert!(
+                pot <= LOSS,
+                "f32 p {order} {kind:?}: potential loss {pot:.2}"
+            );
             if order <= 6 {
-                assert!(grad <= LOSS, "f32 p {order} {kind:?}: gradient loss {grad:.2}");
+                assert!(
+                    grad <= LOSS,
+                    "f32 p {order} {kind:?}: gradient loss {grad:.2}"
+                );
             }
         }
     }

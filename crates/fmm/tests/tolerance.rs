@@ -9,8 +9,7 @@
 use ferrofmm_field::{SvdConfig, SvdM2l};
 use ferrofmm_fmm::tuning::{self, ErrorModel};
 use ferrofmm_fmm::{
-    Charges, FmmBuilder, FmmError, Geometry, charges, f32_reaches, relative_errors,
-    sample_indices,
+    Charges, FmmBuilder, FmmError, Geometry, charges, f32_reaches, relative_errors, sample_indices,
 };
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
@@ -57,9 +56,16 @@ fn check<T: Real>(g: Geometry, mode: EvalMode, eps: f64) -> Result<(), FmmError>
             // Only f32 may fall short (its rounding floor; f32 on a plane
             // is a known case, docs/stability.md), and then it says so: the
             // estimate and the real error are both above the tolerance.
-            assert_eq!(T::PRECISION, Precision::F32, "{g:?} {kind:?} {eps:e}: {v:?}");
+            assert_eq!(
+                T::PRECISION,
+                Precision::F32,
+                "{g:?} {kind:?} {eps:e}: {v:?}"
+            );
             assert!(v.measured().worst() > eps);
-            assert!(e.potential.max(e.gradient.unwrap_or(0.0)) > 0.5 * eps, "{e:?}");
+            assert!(
+                e.potential.max(e.gradient.unwrap_or(0.0)) > 0.5 * eps,
+                "{e:?}"
+            );
             continue;
         }
         assert!(
@@ -92,7 +98,8 @@ fn check_geometry(g: Geometry) {
                 // f32 cannot resolve the cluster of size 1e-4 at (1, 1, 1)
                 // to 1e-5; `--precision auto` takes f64 there.
                 Err(FmmError::ToleranceBeyondPrecision { precision, .. })
-                    if g == Geometry::TwoClusters || (eps < 1e-4 && mode != EvalMode::Potential) =>
+                    if g == Geometry::TwoClusters
+                        || (eps < 1e-4 && mode != EvalMode::Potential) =>
                 {
                     assert_eq!(precision, "f32");
                     let points: Vec<f64> = g.points(N, 7);

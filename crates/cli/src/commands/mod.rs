@@ -133,7 +133,6 @@ impl ChargesArg {
     }
 }
 
-
 /// FMM parameters common to `demo` and `eval`.
 #[derive(Args, Clone, Debug)]
 pub struct FmmArgs {

@@ -215,9 +215,7 @@ where
         let (v, timings) = if r == 0 && settings.tolerance.is_some() && settings.verify {
             // The first evaluation checks the tolerance (and may raise the
             // order); later repeats time the final setting.
-            let out = with_stage(format!("{label} (verified)"), || {
-                fmm.evaluate_verified(&q)
-            })?;
+            let out = with_stage(format!("{label} (verified)"), || fmm.evaluate_verified(&q))?;
             verification = out.verification;
             (out.values, out.timings)
         } else {

@@ -58,7 +58,9 @@ pub fn default_svd_tolerance(precision: Precision, order: usize) -> f64 {
         Precision::F64 => 1e-13,
         Precision::F32 => F32_FLOOR,
     };
-    10f64.powf(-(0.9 * order as f64 + DEFAULT_TOLERANCE_OFFSET)).max(floor)
+    10f64
+        .powf(-(0.9 * order as f64 + DEFAULT_TOLERANCE_OFFSET))
+        .max(floor)
 }
 
 /// The offset `c` of the default tolerance `10^-(0.9 p + c)`.
