@@ -9,7 +9,9 @@ use std::time::Instant;
 
 use ferrofmm_field::{DenseM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
-use ferrofmm_fmm::{Charges, EvalTimings, FmmBuilder, Geometry, relative_errors, sample_indices};
+use ferrofmm_fmm::{
+    Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors, sample_indices,
+};
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
 use super::{PrecisionArg, SchemeArg};
@@ -139,8 +141,35 @@ fn as_values<T: Real>(values: &[T]) -> Values<'_> {
     }
 }
 
+/// How the command line builds each M2L scheme: through the builder's own
+/// method, so that with `--tolerance` the SVD scheme takes the SVD
+/// tolerance chosen for it (and keeps following it when verification
+/// raises the order).
+pub trait BuildScheme<T: Real>: M2lScheme<T> {
+    /// Build the FMM described by `builder` with this scheme.
+    fn build(
+        builder: FmmBuilder<'_, T, Laplace3d>,
+    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError>;
+}
+
+impl<T: Real> BuildScheme<T> for SvdM2l<T> {
+    fn build(
+        builder: FmmBuilder<'_, T, Laplace3d>,
+    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+        builder.build_svd()
+    }
+}
+
+impl<T: Real> BuildScheme<T> for DenseM2l<T> {
+    fn build(
+        builder: FmmBuilder<'_, T, Laplace3d>,
+    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+        builder.build_dense()
+    }
+}
+
 /// [`run`] for float type `T` and M2L scheme `S`.
-pub fn run_typed<T: Real, S: M2lScheme<T>>(
+pub fn run_typed<T: Real, S: BuildScheme<T>>(
     input: Input,
     settings: &Settings,
     output: Option<&Path>,
@@ -197,7 +226,7 @@ where
         if let Some(eps) = settings.tolerance {
             builder = builder.tolerance(eps).verify(settings.verify);
         }
-        builder.build_with::<S>(S::Config::default())
+        S::build(builder)
     })?;
 
     let repeats = settings.repeats.max(1);
