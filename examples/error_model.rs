@@ -23,7 +23,7 @@
 use std::time::Instant;
 
 use ferrofmm::field::{SvdConfig, SvdM2l, default_svd_tolerance};
-use ferrofmm::fmm::{Charges, FmmBuilder, Geometry, relative_errors, sample_indices};
+use ferrofmm::fmm::{Charges, Fmm, FmmBuilder, Geometry, relative_errors, sample_indices};
 use ferrofmm::kernels::{EvalMode, Laplace3d, Precision, Real};
 
 const CACHE: &str = "target/error-model-cache";
@@ -32,9 +32,39 @@ const SAMPLE: usize = 997;
 #[derive(Clone, Copy, Debug)]
 enum Scheme {
     Dense,
-    Svd(Option<f64>),
-    /// `tau = 10^-(0.9 p + offset)`.
-    SvdOffset(f64),
+    Svd(SvdTolerance),
+}
+
+/// The SVD tolerance of a run at order `p`.
+#[derive(Clone, Copy, Debug)]
+enum SvdTolerance {
+    /// The library's default.
+    Default,
+    /// Given.
+    Fixed(f64),
+    /// `10^-(0.9 p + offset)`.
+    Offset(f64),
+}
+
+impl SvdTolerance {
+    fn at<T: Real>(self, p: usize) -> f64 {
+        match self {
+            SvdTolerance::Default => default_svd_tolerance(T::PRECISION, p),
+            SvdTolerance::Fixed(tau) => tau,
+            SvdTolerance::Offset(o) => 10f64.powf(-(0.9 * p as f64 + o)),
+        }
+    }
+}
+
+/// Values for every charge vector.
+fn evaluate_all<T: Real, S: ferrofmm::field::M2lScheme<T>>(
+    fmm: &Fmm<T, Laplace3d, S>,
+    charge_sets: &[(Charges, Vec<T>)],
+) -> Vec<Vec<T>> {
+    charge_sets
+        .iter()
+        .map(|(_, q)| fmm.evaluate(q).unwrap())
+        .collect()
 }
 
 fn list<T: std::str::FromStr>(v: &str) -> Vec<T> {
@@ -48,7 +78,7 @@ fn main() {
     let mut orders: Vec<usize> = (3..=12).collect();
     let mut leaves = vec![64usize];
     let mut precision = Precision::F64;
-    let mut schemes = vec![Scheme::Dense, Scheme::Svd(None)];
+    let mut schemes = vec![Scheme::Dense, Scheme::Svd(SvdTolerance::Default)];
     for a in std::env::args().skip(1) {
         if let Some(v) = a.strip_prefix("geometries=") {
             geometries = v.split(',').filter_map(Geometry::from_name).collect();
@@ -69,12 +99,15 @@ fn main() {
                 .split(',')
                 .filter_map(|s| match s {
                     "dense" => Some(Scheme::Dense),
-                    "svd" => Some(Scheme::Svd(None)),
-                    _ if s.starts_with("svd+") => s[4..].parse().ok().map(Scheme::SvdOffset),
-                    _ => s
-                        .strip_prefix("svd:")
-                        .and_then(|t| t.parse().ok())
-                        .map(|t| Scheme::Svd(Some(t))),
+                    "svd" => Some(Scheme::Svd(SvdTolerance::Default)),
+                    _ => {
+                        if let Some(o) = s.strip_prefix("svd+") {
+                            o.parse().ok().map(|o| Scheme::Svd(SvdTolerance::Offset(o)))
+                        } else {
+                            let t = s.strip_prefix("svd:")?.parse().ok()?;
+                            Some(Scheme::Svd(SvdTolerance::Fixed(t)))
+                        }
+                    }
                 })
                 .collect();
         } else if let Ok(v) = a.parse() {
@@ -123,48 +156,28 @@ fn measure<T: Real>(
                     .leaf_size(leaf)
                     .mode(mode)
                     .cache_dir(CACHE);
-                let scheme = match scheme {
-                    Scheme::SvdOffset(o) => Scheme::Svd(Some(10f64.powf(-(0.9 * p as f64 + o)))),
-                    s => s,
-                };
                 let (results, rank, label) = match scheme {
                     Scheme::Dense => {
-                        let fmm = match builder.build_dense() {
-                            Ok(f) => f,
-                            Err(e) => {
-                                eprintln!("{} p {p}: {e}", g.name());
-                                continue;
-                            }
+                        let Ok(fmm) = builder.build_dense().inspect_err(|e| eprintln!("{e}"))
+                        else {
+                            continue;
                         };
-                        let r: Vec<Vec<T>> = charge_sets
-                            .iter()
-                            .map(|(_, q)| fmm.evaluate(q).unwrap())
-                            .collect();
+                        let r = evaluate_all(&fmm, &charge_sets);
                         (r, "-".to_string(), "dense".to_string())
                     }
-                    Scheme::SvdOffset(_) => unreachable!("resolved above"),
-                    Scheme::Svd(tau) => {
+                    Scheme::Svd(tolerance) => {
+                        let tau = tolerance.at::<T>(p);
                         let config = SvdConfig {
                             rank: None,
-                            tolerance: tau.unwrap_or(0.0),
+                            tolerance: tau,
                         };
-                        let fmm = match builder.build_with::<SvdM2l<T>>(config) {
-                            Ok(f) => f,
-                            Err(e) => {
-                                eprintln!("{} p {p}: {e}", g.name());
-                                continue;
-                            }
+                        let built = builder.build_with::<SvdM2l<T>>(config);
+                        let Ok(fmm) = built.inspect_err(|e| eprintln!("{e}")) else {
+                            continue;
                         };
-                        let r: Vec<Vec<T>> = charge_sets
-                            .iter()
-                            .map(|(_, q)| fmm.evaluate(q).unwrap())
-                            .collect();
-                        let tau = tau.unwrap_or(default_svd_tolerance(T::PRECISION, p));
-                        (
-                            r,
-                            fmm.m2l_scheme().rank().to_string(),
-                            format!("svd {tau:.0e}"),
-                        )
+                        let r = evaluate_all(&fmm, &charge_sets);
+                        let rank = fmm.m2l_scheme().rank().to_string();
+                        (r, rank, format!("svd {tau:.0e}"))
                     }
                 };
                 let seconds = t.elapsed().as_secs_f64();
@@ -172,7 +185,7 @@ fn measure<T: Real>(
                     let e = relative_errors(&Laplace3d, mode, &points, q, &points, values, &sample);
                     let grad = e.gradient.unwrap_or(f64::NAN);
                     let loss = match (scheme, dense[i]) {
-                        (Scheme::Svd(_) | Scheme::SvdOffset(_), Some((dp, dg))) => {
+                        (Scheme::Svd(_), Some((dp, dg))) => {
                             format!("{:.2} | {:.2}", e.potential / dp, grad / dg)
                         }
                         _ => "- | -".to_string(),

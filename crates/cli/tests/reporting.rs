@@ -17,23 +17,28 @@ fn cores() -> usize {
 /// of 0.36 s at 64 threads).
 #[test]
 fn threads_above_the_cores_are_capped() {
+    // A tiny demo with `--threads T`: (threads the report says, stderr).
+    let demo = |threads: &str| {
+        let out = ferrofmm(&[
+            "demo",
+            "-n",
+            "1000",
+            "-p",
+            "3",
+            "--check",
+            "0",
+            "--json",
+            "--threads",
+            threads,
+        ]);
+        let (stdout, stderr) = texts(&out);
+        assert!(out.status.success(), "{stderr}");
+        let json: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
+        (json["threads"].as_u64(), stderr)
+    };
     let many = (cores() * 8).max(64).to_string();
-    let out = ferrofmm(&[
-        "demo",
-        "-n",
-        "1000",
-        "-p",
-        "3",
-        "--check",
-        "0",
-        "--json",
-        "--threads",
-        &many,
-    ]);
-    let (stdout, stderr) = texts(&out);
-    assert!(out.status.success(), "{stderr}");
-    let json: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
-    assert_eq!(json["threads"].as_u64(), Some(cores() as u64), "{stdout}");
+    let (threads, stderr) = demo(&many);
+    assert_eq!(threads, Some(cores() as u64), "{stderr}");
     let notes: Vec<&str> = stderr.lines().filter(|l| l.contains("--threads")).collect();
     assert_eq!(notes.len(), 1, "{stderr}");
     assert!(
@@ -42,21 +47,8 @@ fn threads_above_the_cores_are_capped() {
     );
 
     // At or below the cores: as asked, silently.
-    let out = ferrofmm(&[
-        "demo",
-        "-n",
-        "1000",
-        "-p",
-        "3",
-        "--check",
-        "0",
-        "--json",
-        "--threads",
-        "1",
-    ]);
-    let (stdout, stderr) = texts(&out);
-    let json: serde_json::Value = serde_json::from_str(stdout.lines().last().unwrap()).unwrap();
-    assert_eq!(json["threads"].as_u64(), Some(1));
+    let (threads, stderr) = demo("1");
+    assert_eq!(threads, Some(1));
     assert!(stderr.trim().is_empty(), "{stderr}");
 
     let (help, _) = texts(&ferrofmm(&["--help"]));

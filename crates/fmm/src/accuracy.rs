@@ -103,11 +103,9 @@ pub fn relative_errors<T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> ErrorReport {
-    let scale = charge_scale(charges);
+    let problem = Comparison::new(kernel, mode, sources, charges, targets, values);
     let mut sums = ErrorSums::default();
-    sums.add(
-        kernel, mode, sources, charges, scale, targets, values, sample,
-    );
+    problem.add(&mut sums, sample);
     sums.report(mode)
 }
 
@@ -136,20 +134,11 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
     let n_targets = targets.len() / 3;
     let max_sample = max_sample.max(min_sample).max(1);
     let sample = random_sample(n_targets, max_sample);
-    let scale = charge_scale(charges);
+    let problem = Comparison::new(kernel, mode, sources, charges, targets, values);
     let mut sums = ErrorSums::default();
     let first = PROBE.min(sample.len());
     let t = Instant::now();
-    sums.add(
-        kernel,
-        mode,
-        sources,
-        charges,
-        scale,
-        targets,
-        values,
-        &sample[..first],
-    );
+    problem.add(&mut sums, &sample[..first]);
     let spent = t.elapsed().as_secs_f64();
     let per_target = spent / first.max(1) as f64;
     let left = budget.as_secs_f64() - spent;
@@ -159,18 +148,7 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
         sample.len()
     };
     let end = (first + affordable).max(min_sample).min(sample.len());
-    if end > first {
-        sums.add(
-            kernel,
-            mode,
-            sources,
-            charges,
-            scale,
-            targets,
-            values,
-            &sample[first..end],
-        );
-    }
+    problem.add(&mut sums, &sample[first..end.max(first)]);
     sums.report(mode)
 }
 
@@ -195,42 +173,77 @@ struct ErrorSums {
     ref_grad: f64,
 }
 
-impl ErrorSums {
-    #[allow(clippy::too_many_arguments)]
-    fn add<P: Real, T: Real, K: Kernel>(
-        &mut self,
-        kernel: &K,
+/// What is compared: an FMM result and the problem it solved, with the
+/// charge scale of the error sums.
+struct Comparison<'a, P, T, K> {
+    kernel: &'a K,
+    mode: EvalMode,
+    sources: &'a [P],
+    charges: &'a [T],
+    targets: &'a [P],
+    values: &'a [T],
+    /// [`charge_scale`] of the charges.
+    scale: f64,
+}
+
+impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
+    fn new(
+        kernel: &'a K,
         mode: EvalMode,
-        sources: &[P],
-        charges: &[T],
-        scale: f64,
-        targets: &[P],
-        values: &[T],
-        sample: &[usize],
-    ) {
-        let w = mode.values_per_target();
+        sources: &'a [P],
+        charges: &'a [T],
+        targets: &'a [P],
+        values: &'a [T],
+    ) -> Self {
+        Comparison {
+            kernel,
+            mode,
+            sources,
+            charges,
+            targets,
+            values,
+            scale: charge_scale(charges),
+        }
+    }
+
+    /// Add the targets `sample` to `sums`.
+    fn add(&self, sums: &mut ErrorSums, sample: &[usize]) {
+        if sample.is_empty() {
+            return;
+        }
+        let w = self.mode.values_per_target();
+        let t = self.targets;
         let at: Vec<f64> = sample
             .iter()
-            .flat_map(|&j| [targets[3 * j], targets[3 * j + 1], targets[3 * j + 2]])
+            .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
             .map(|x| x.to_f64())
             .collect();
-        let reference = scaled_reference(kernel, mode, sources, charges, scale, &at);
+        let reference = scaled_reference(
+            self.kernel,
+            self.mode,
+            self.sources,
+            self.charges,
+            self.scale,
+            &at,
+        );
         for (k, &j) in sample.iter().enumerate() {
             for c in 0..w {
                 let r = reference[w * k + c];
-                let e = values[w * j + c].to_f64() / scale - r;
+                let e = self.values[w * j + c].to_f64() / self.scale - r;
                 if c == 0 {
-                    self.diff_pot += e * e;
-                    self.ref_pot += r * r;
+                    sums.diff_pot += e * e;
+                    sums.ref_pot += r * r;
                 } else {
-                    self.diff_grad += e * e;
-                    self.ref_grad += r * r;
+                    sums.diff_grad += e * e;
+                    sums.ref_grad += r * r;
                 }
             }
         }
-        self.n += sample.len();
+        sums.n += sample.len();
     }
+}
 
+impl ErrorSums {
     fn report(&self, mode: EvalMode) -> ErrorReport {
         let ratio = |d: f64, n: f64| if n > 0.0 { (d / n).sqrt() } else { d.sqrt() };
         ErrorReport {

@@ -1,7 +1,8 @@
 //! Ask for an accuracy, get the cheapest parameters that reach it.
 //!
 //! [`FmmBuilder::tolerance`](crate::FmmBuilder::tolerance) takes a target
-//! relative L2 error `eps` of the potential and picks the expansion order
+//! relative L2 error `eps` of the potential (and of the gradient when it is
+//! evaluated) and picks the expansion order
 //! `p`, the leaf size and the SVD compression tolerance of the M2L operators
 //! from `eps`, the float type and the point distribution
 //! ([`Tuner::choose`]). Two models make the choice, both measured on this
@@ -10,33 +11,37 @@
 //!
 //! # The error model ([`ErrorModel`])
 //!
-//! The relative L2 potential error of the Laplace FMM depends on the order
-//! and hardly on anything else: over a uniform cube, a sphere surface, a
-//! Plummer sphere and two clusters 1000x apart in size, leaf sizes 32 to
-//! 400 and N = 2e4 to 1e5, the worst error at an order is within 2-4x of
-//! the best. So the model is a table `E_p` of the **worst** error measured
-//! at each order (with a tight SVD tolerance `10^-(0.9 p + 0.6)`), what a
-//! looser SVD tolerance `tau` adds, and what rounding adds:
+//! The relative L2 error of the Laplace FMM depends mostly on the order:
+//! over seven geometries (uniform cube, sphere surface, Plummer sphere, two
+//! clusters 1000x apart in size, a plane, a trefoil curve, a torus),
+//! zero-mean and all-positive charges and leaf sizes 32 to 400, the worst
+//! error at an order is within about 10x of the best. So the model is a
+//! table of the **worst** error measured at each order with the default
+//! SVD tolerance (`E_p` for the potential, `G_p` for the gradient, used as
+//! `max(E_p, G_p)` when gradients are evaluated: [`ErrorModel::for_mode`]),
+//! what a looser SVD tolerance `tau` adds, and what rounding adds:
 //!
 //! ```text
 //! predicted(p, tau, R) = sqrt(E_p^2 + e_svd(tau)^2) + floor(R)
-//! e_svd(tau)           = 0.15 tau min(1, (tau / 1e-3)^0.1)
-//! floor(R)             = max(F, 0.1 u R)
+//! e_svd(tau)           = 1.2 tau (potential), 3.0 tau (with gradients)
+//! floor(R)             = max(F, r u R),  r = 0.1 (potential), 0.3 (with gradients)
 //! ```
 //!
 //! `e_svd` is the upper envelope of the measured extra error of dropping
-//! singular values below `tau sigma_0` of the stacked M2L operators (0.03
-//! to 0.15 `tau`); the two truncations are independent and add in
+//! singular values below `tau sigma_0` of the stacked M2L operators, on
+//! zero-mean charges (0.5 to 1.1 `tau` for the potential, 1.9 to 2.4 `tau`
+//! for the gradient); the two truncations are independent and add in
 //! quadrature. `u` is the unit roundoff of the float type, `R` the largest
 //! `|center| / half-width` of the leaves ([`WorkCounts::rounding_ratio`]:
 //! surfaces of small boxes far from the origin are off by `u |center|`) and
-//! `F` the float type's floor on well-centred points (0 in `f64`,
-//! [`F32_ERROR_FLOOR`] in `f32`). An order is admissible for `eps` when
-//! `S predicted <= eps` with the safety factor `S` = [`SAFETY_FACTOR`], the
-//! room left for geometries, sizes and trees that were not measured. `f32`
-//! cannot promise less than about `S F32_ERROR_FLOOR` (see [`f32_reaches`])
-//! and uses orders up to [`MAX_F32_ORDER`]; in `f64` the table ends at order
-//! [`MAX_TUNED_ORDER`], beyond which errors stop falling.
+//! `F` the float type's floor on well-centred points (0 in `f64`;
+//! [`F32_ERROR_FLOOR`], or [`F32_GRADIENT_FLOOR`] with gradients, in `f32`).
+//! An order is admissible for `eps` when `S predicted <= eps` with the
+//! safety factor `S` = [`SAFETY_FACTOR`], the room left for sizes and inputs
+//! that were not measured; [`crate::verify`] checks the result afterwards.
+//! `f32` cannot promise less than about `S F32_ERROR_FLOOR` (see
+//! [`f32_reaches`]) and uses orders up to [`MAX_F32_ORDER`]; in `f64` the
+//! table ends at order [`MAX_TUNED_ORDER`].
 //!
 //! For an admissible order the SVD tolerance is the loosest `tau` that keeps
 //! `S predicted <= eps`, never tighter than the measured one and never
@@ -71,11 +76,11 @@
 //!
 //! # Scope of the promise
 //!
-//! Measured for the Laplace kernel, the potential, and the
+//! Measured for the Laplace kernel (potential and gradient) and the
 //! [`SvdM2l`](ferrofmm_field::SvdM2l) and
 //! [`DenseM2l`](ferrofmm_field::DenseM2l) schemes. Other kernels get the same
-//! choice without a promise, and gradients are typically 10-30x less
-//! accurate than potentials at the same parameters.
+//! choice without a measured model behind it; the verification of
+//! [`crate::verify`] measures whatever the kernel.
 
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
@@ -322,7 +327,7 @@ impl ErrorModel {
     /// `max |center| / half-width = ratio`
     /// ([`WorkCounts::rounding_ratio`]): the larger of the float type's
     /// floor (measured on well-centred points, ratios up to a few hundred)
-    /// and `ROUNDING_FACTOR u ratio`. Equivalent and check surfaces are points
+    /// and `rounding_factor u ratio`. Equivalent and check surfaces are points
     /// of the float type: around a box of half-width `h` centred at `c`
     /// they are off by about `u |c|`, a relative `u |c| / h` of the
     /// surface. Small boxes far from the origin (two clusters, one of size
@@ -1661,7 +1666,7 @@ impl Tuner {
     }
 
     /// The same tuner for evaluation mode `mode` (the cost model of
-    /// [`CostModel::for_mode`]; the error model is for potentials).
+    /// [`CostModel::for_mode`] and [`ErrorModel::for_mode`]).
     pub fn for_mode(mut self, mode: EvalMode) -> Self {
         self.cost = self.cost.for_mode(mode);
         self.error = self.error.for_mode(mode);

@@ -155,8 +155,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             rebuild_s: 0.0,
         };
         let mut chosen = chosen;
+        // The tree and the points stay when the order is raised: one copy
+        // in the caller's order serves every attempt.
+        let points = self.original_points();
         loop {
-            let attempt = self.check_attempt(charges, &values, &timings, &chosen);
+            let attempt = self.check_attempt(&points, charges, &values, &timings, &chosen);
             let measured = attempt.measured.worst();
             verification.attempts.push(attempt);
             if measured <= eps {
@@ -196,13 +199,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// Estimate the errors of `values` for `charges` on a sample sized
     /// from `eval_time` (see the [module docs](self)).
     pub fn estimate_error(&self, charges: &[T], values: &[T], eval_time: Duration) -> ErrorReport {
-        let (sources, targets) = self.original_points();
+        self.estimate_error_at(&self.original_points(), charges, values, eval_time)
+    }
+
+    /// [`Fmm::estimate_error`] with the points in the caller's order given.
+    fn estimate_error_at(
+        &self,
+        (sources, targets): &(Vec<f64>, Vec<f64>),
+        charges: &[T],
+        values: &[T],
+        eval_time: Duration,
+    ) -> ErrorReport {
         estimate_errors(
             &self.kernel,
             self.mode,
-            &sources,
+            sources,
             charges,
-            &targets,
+            targets,
             values,
             eval_time.mul_f64(VERIFY_BUDGET),
             MIN_VERIFY_SAMPLE,
@@ -217,13 +230,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 
     fn check_attempt(
         &self,
+        points: &(Vec<f64>, Vec<f64>),
         charges: &[T],
         values: &[T],
         timings: &EvalTimings,
         chosen: &ChosenParameters,
     ) -> VerificationAttempt {
         let t = Instant::now();
-        let measured = self.estimate_error(charges, values, timings.total);
+        let measured = self.estimate_error_at(points, charges, values, timings.total);
         VerificationAttempt {
             order: self.order,
             svd_tolerance: self
