@@ -1,16 +1,18 @@
 //! [`Fmm`]: a built problem (tree + operators) that evaluates any number of
 //! charge vectors.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use ferrofmm_field::{
     AMPLIFICATION_WARNING, M2lInteractions, M2lScheme, OperatorParams, Operators, surface_points,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
-use ferrofmm_tree::{Octree, TreeOptions};
+use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
 
 use crate::builder::FmmBuilder;
 use crate::memory::MemoryReport;
+use crate::part::{Body, Part, PointsPart, TreePart};
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::tuning::{ChosenParameters, Tuner};
 use crate::verify::Verification;
@@ -39,22 +41,11 @@ pub(crate) type ConfigFromChosen<C, S> = Option<ChosenScheme<C, S>>;
 pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) kernel: K,
     pub(crate) mode: EvalMode,
-    pub(crate) tree: Octree,
-    pub(crate) operators: Operators<T>,
-    pub(crate) m2l: S,
-    /// V-list interactions per level (index = level).
-    pub(crate) m2l_interactions: Vec<M2lInteractions>,
-    /// Sources in Morton (leaf) order, interleaved, relative to `centre`.
-    pub(crate) sources: Vec<T>,
-    /// Targets in Morton (leaf) order, interleaved, relative to `centre`;
-    /// `None` when the targets are the sources (not stored twice).
-    pub(crate) targets: Option<Vec<T>>,
-    /// Near the centre of the tree's domain ([`coordinate_origin`]): all
-    /// coordinates the passes see (points and surfaces) are relative to
-    /// it, so that far from the origin (say at 1e8 + [0, 1)^3, or
-    /// 1e4 + [0, 1)^3 in f32) they keep the digits that resolve the problem
-    /// instead of those of the offset.
-    pub(crate) centre: [f64; 3],
+    /// The far-separated clusters of the problem ([`crate::part`]); part 0
+    /// is the largest and always has a tree. One part for most inputs.
+    pub(crate) parts: Vec<Part<T, S>>,
+    /// Whether targets were given apart from the sources.
+    pub(crate) separate_targets: bool,
     /// Unit-cube surface grid (centre 0, half-width 1, radius 1), interleaved, f64.
     pub(crate) unit_surface: Vec<f64>,
     pub(crate) n_sources: usize,
@@ -87,6 +78,11 @@ pub struct FmmSummary {
     pub order: usize,
     /// Equivalent/check points per box.
     pub n_surface: usize,
+    /// Far-separated clusters (see [`Fmm::n_clusters`]); 1 for most
+    /// inputs. The tree figures below are the largest cluster's.
+    pub clusters: usize,
+    /// Sources plus targets outside the largest cluster.
+    pub far_points: usize,
     /// Points per leaf at most (except at the deepest level).
     pub leaf_size: usize,
     /// Deepest level of the tree.
@@ -131,13 +127,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let to_f64 = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
         let src64 = to_f64(b.sources);
         let tgt64 = b.targets.map(to_f64);
+        let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());
+        let main = &clusters[0];
         let chosen = match b.tolerance {
             Some(eps) => {
                 let t = Instant::now();
+                let (s, tg) = match (&clusters.len(), &tgt64) {
+                    (1, _) => (None, None),
+                    (_, Some(t)) => (Some(gather(&src64, &main.sources)), Some(gather(t, &main.targets))),
+                    (_, None) => (Some(gather(&src64, &main.sources)), None),
+                };
                 let c = Tuner::new(T::PRECISION).for_mode(b.mode).choose(
                     eps,
-                    &src64,
-                    tgt64.as_deref(),
+                    s.as_deref().unwrap_or(&src64),
+                    if clusters.len() == 1 { tgt64.as_deref() } else { tg.as_deref() },
                     b.domain,
                     b.max_level,
                 )?;
@@ -152,46 +155,50 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             (Some(c), Some(f)) => (f.config)(c),
             _ => config,
         };
-        let options = TreeOptions {
-            leaf_size: b.leaf_size,
-            max_level: b.max_level,
-            domain: b.domain,
-            uniform_depth: None,
-        };
-        let tree = Octree::new(&src64, tgt64.as_deref(), &options)?;
-        drop(src64);
-        drop(tgt64);
-        setup.tree = t0.elapsed() - setup.tuning;
-        let (min, max) = width_range::<T>(tree.depth());
-        let width = tree.domain().width;
-        if !(min..=max).contains(&width) {
-            return Err(FmmError::DomainOutOfRange {
-                width,
-                min,
-                max,
-                depth: tree.depth(),
-                precision: T::PRECISION.name(),
+        let params = b.operator_params();
+        let mut parts = Vec::with_capacity(clusters.len());
+        let mut first_rank = None;
+        let single = clusters.len() == 1;
+        for (k, cluster) in clusters.iter().enumerate() {
+            let input = PartInput {
+                sources: b.sources,
+                targets: b.targets,
+                src64: &src64,
+                tgt64: tgt64.as_deref(),
+                ids: (!single).then_some(cluster),
+            };
+            let part = if k == 0 || cluster.size() > b.leaf_size {
+                let t = build_tree_part(&b, &params, &config, &input, &mut setup)?;
+                if first_rank.is_none()
+                    && let Some(f) = &from_chosen
+                {
+                    first_rank = Some((f.rank)(&t.m2l));
+                }
+                Body::Tree(Box::new(t))
+            } else {
+                Body::Points(points_part(&input))
+            };
+            parts.push(Part {
+                body: part,
+                n_sources: if single { b.sources.len() / 3 } else { cluster.sources.len() },
+                n_targets: if single {
+                    b.targets.map_or(b.sources.len(), <[T]>::len) / 3
+                } else {
+                    cluster.targets.len()
+                },
+                source_ids: (!single).then(|| cluster.sources.clone()),
+                target_ids: (!single).then(|| cluster.targets.clone()),
             });
         }
-
-        let params = b.operator_params();
-        let (operators, m2l) = build_operators(&b.kernel, &params, &config, &tree, &mut setup)?;
+        drop(src64);
+        drop(tgt64);
         let mut chosen = chosen;
-        if let (Some(c), Some(f)) = (chosen.as_mut(), &from_chosen) {
-            c.svd_rank = Some((f.rank)(&m2l));
+        if let (Some(c), Some(r)) = (chosen.as_mut(), first_rank) {
+            c.svd_rank = Some(r);
         }
-
         let t = Instant::now();
-        let m2l_interactions = (0..=tree.depth())
-            .map(|level| level_interactions(&tree, level))
-            .collect::<Result<_, _>>()?;
-        let centre = coordinate_origin(tree.domain());
-        let sources = permute_points(b.sources, tree.source_permutation(), centre);
-        let targets = b
-            .targets
-            .map(|t| permute_points(t, tree.target_permutation(), centre));
         let unit_surface = surface_points::<f64>(b.order, [0.0; 3], 1.0, 1.0);
-        setup.layout = t.elapsed();
+        setup.layout += t.elapsed();
         setup.total = t0.elapsed();
 
         Ok(Fmm {
@@ -199,13 +206,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             mode: b.mode,
             n_sources: b.sources.len() / 3,
             n_targets: b.targets.map_or(b.sources.len(), <[T]>::len) / 3,
-            tree,
-            operators,
-            m2l,
-            m2l_interactions,
-            sources,
-            targets,
-            centre,
+            parts,
+            separate_targets: b.targets.is_some(),
             unit_surface,
             order: b.order,
             leaf_size: b.leaf_size,
@@ -232,21 +234,41 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             None => self.config.clone(),
         };
         let mut setup = self.setup;
-        let (operators, m2l) =
-            build_operators(&self.kernel, &params, &config, &self.tree, &mut setup)?;
-        self.operators = operators;
-        self.m2l = m2l;
+        let mut rebuilt = Vec::new();
+        for part in &self.parts {
+            if let Some(t) = part.tree_part() {
+                let mut s = SetupTimings::default();
+                rebuilt.push(build_operators(&self.kernel, &params, &config, &t.tree, &mut s)?);
+                setup.operators += s.operators;
+                setup.m2l_precompute += s.m2l_precompute;
+            }
+        }
+        let mut rebuilt = rebuilt.into_iter();
+        for part in &mut self.parts {
+            if let Body::Tree(t) = &mut part.body {
+                let (operators, m2l) = rebuilt.next().expect("one set per tree part");
+                t.operators = operators;
+                t.m2l = m2l;
+            }
+        }
         self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);
         self.order = chosen.order;
         self.params = params;
         self.config = config;
         if let Some(f) = &self.config_from_chosen {
-            chosen.svd_rank = Some((f.rank)(&self.m2l));
+            chosen.svd_rank = Some((f.rank)(&self.main().m2l));
         }
-        self.setup.operators += setup.operators;
-        self.setup.m2l_precompute += setup.m2l_precompute;
+        self.setup.operators = setup.operators;
+        self.setup.m2l_precompute = setup.m2l_precompute;
         self.chosen = Some(chosen);
         Ok(())
+    }
+
+    /// The largest cluster's tree part (part 0 always has a tree).
+    pub(crate) fn main(&self) -> &TreePart<T, S> {
+        self.parts[0]
+            .tree_part()
+            .expect("the largest cluster has a tree")
     }
 
     /// Potentials (and gradients, depending on the mode) at the targets for
@@ -294,21 +316,27 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         Ok(())
     }
 
-    /// Target coordinates in the tree's order (relative to the domain
-    /// centre): the sources' when no separate targets were given.
-    pub(crate) fn target_points(&self) -> &[T] {
-        self.targets.as_deref().unwrap_or(&self.sources)
+    /// The octree (plain data: keys, ranges, lists) of the largest
+    /// cluster: the whole problem unless it has far-separated clusters
+    /// (see [`Fmm::n_clusters`]).
+    pub fn tree(&self) -> &Octree {
+        &self.main().tree
     }
 
-    /// The octree (plain data: keys, ranges, lists).
-    pub fn tree(&self) -> &Octree {
-        &self.tree
+    /// Number of far-separated clusters the problem was split into: 1 for
+    /// most inputs; more when a group of points lies at least 256 times
+    /// its own width (and the rest's) away. Each cluster with more than
+    /// `leaf_size` points has a tree of its own; the clusters interact
+    /// through their roots' expansions.
+    pub fn n_clusters(&self) -> usize {
+        self.parts.len()
     }
 
     /// The check-to-equivalent and parent/child operators (their
-    /// [`Operators::diagnostics`] and [`Operators::cache_status`]).
+    /// [`Operators::diagnostics`] and [`Operators::cache_status`]) of the
+    /// largest cluster's tree.
     pub fn operators(&self) -> &Operators<T> {
-        &self.operators
+        &self.main().operators
     }
 
     /// The kernel.
@@ -316,9 +344,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         &self.kernel
     }
 
-    /// The M2L scheme.
+    /// The M2L scheme (of the largest cluster's tree).
     pub fn m2l_scheme(&self) -> &S {
-        &self.m2l
+        &self.main().m2l
     }
 
     /// What is evaluated.
@@ -373,14 +401,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 
     /// Tree and operator figures.
     pub fn summary(&self) -> FmmSummary {
-        let tree = &self.tree;
+        let main = self.main();
+        let tree = &main.tree;
         let n = tree.n_boxes();
         let count = |f: &dyn Fn(usize) -> usize| (0..n).map(f).sum::<usize>();
         FmmSummary {
             n_sources: self.n_sources,
             n_targets: self.n_targets,
             order: self.order,
-            n_surface: self.operators.n_surface(),
+            n_surface: main.operators.n_surface(),
+            clusters: self.parts.len(),
+            far_points: self.parts[1..]
+                .iter()
+                .map(|p| p.n_sources + p.n_targets)
+                .sum(),
             leaf_size: self.leaf_size,
             depth: tree.depth(),
             n_boxes: n,
@@ -391,34 +425,19 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 count(&|b| tree.w_list(b).len()),
                 count(&|b| tree.x_list(b).len()),
             ],
-            m2l_scheme: self.m2l.name().to_string(),
-            m2l_bytes: self.m2l.memory_bytes(),
+            m2l_scheme: main.m2l.name().to_string(),
+            m2l_bytes: self
+                .parts
+                .iter()
+                .filter_map(Part::tree_part)
+                .map(|t| t.m2l.memory_bytes())
+                .sum(),
             kernel: self.kernel.name(),
             precision: T::PRECISION.name().to_string(),
             chosen: self.chosen.clone(),
             verification: self.verification.clone(),
             memory: self.memory(),
         }
-    }
-
-    /// Check or equivalent surface of box `b` scaled by `radius` (a multiple
-    /// of the half-width), written into `out` (interleaved, relative to the
-    /// domain's centre like the points).
-    pub(crate) fn surface_of(&self, b: usize, radius: f64, out: &mut Vec<T>) {
-        let key = self.tree.key(b);
-        let domain = self.tree.domain();
-        let c: [f64; 3] = {
-            let a = key.center(domain);
-            std::array::from_fn(|i| a[i] - self.centre[i])
-        };
-        let r = key.half_width(domain) * radius;
-        out.clear();
-        out.extend(
-            self.unit_surface
-                .chunks_exact(3)
-                .flat_map(|u| [c[0] + r * u[0], c[1] + r * u[1], c[2] + r * u[2]])
-                .map(T::from_f64),
-        );
     }
 }
 
@@ -486,6 +505,142 @@ fn level_interactions(
 pub(crate) fn coordinate_origin(domain: &ferrofmm_tree::Domain) -> [f64; 3] {
     let step = 2f64.powi(domain.width.log2().ceil() as i32);
     domain.center().map(|c| (c / step).trunc() * step)
+}
+
+/// The far-separated clusters of the problem, largest first (by
+/// `max(#sources, #targets)`; ties keep the order of
+/// [`separated_clusters`]). One cluster (with empty index lists, meaning
+/// everything) when `fixed_domain` is set or there are no far groups.
+fn clusters_of(sources: &[f64], targets: Option<&[f64]>, fixed_domain: bool) -> Vec<Cluster> {
+    if fixed_domain {
+        return vec![Cluster::default()];
+    }
+    let mut clusters = separated_clusters(sources, targets, DEFAULT_SEPARATION);
+    if clusters.len() <= 1 {
+        return vec![Cluster::default()];
+    }
+    let main = (0..clusters.len())
+        .max_by_key(|&k| (clusters[k].size(), std::cmp::Reverse(k)))
+        .unwrap_or(0);
+    clusters[..=main].rotate_right(1);
+    clusters
+}
+
+/// The points of `points` at `ids`, interleaved.
+fn gather<T: Copy>(points: &[T], ids: &[usize]) -> Vec<T> {
+    ids.iter()
+        .flat_map(|&i| [points[3 * i], points[3 * i + 1], points[3 * i + 2]])
+        .collect()
+}
+
+/// The caller's points and the cluster a part is built from (`ids: None`:
+/// everything, in the caller's order).
+struct PartInput<'a, T> {
+    sources: &'a [T],
+    targets: Option<&'a [T]>,
+    src64: &'a [f64],
+    tgt64: Option<&'a [f64]>,
+    ids: Option<&'a Cluster>,
+}
+
+impl<T: Copy> PartInput<'_, T> {
+    /// The part's sources and targets (`None`: the targets are the sources,
+    /// or the part has no targets of its own set).
+    fn points<'b, U: Copy>(&self, src: &'b [U], tgt: Option<&'b [U]>) -> (Cow<'b, [U]>, Option<Cow<'b, [U]>>) {
+        match self.ids {
+            None => (Cow::Borrowed(src), tgt.map(Cow::Borrowed)),
+            Some(c) => (
+                Cow::Owned(gather(src, &c.sources)),
+                tgt.map(|t| Cow::Owned(gather(t, &c.targets))),
+            ),
+        }
+    }
+}
+
+/// A cluster with a tree: the tree on its points, the operators for it, the
+/// points in tree order relative to the tree's coordinate origin.
+fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
+    b: &FmmBuilder<'_, T, K>,
+    params: &OperatorParams,
+    config: &S::Config,
+    input: &PartInput<'_, T>,
+    setup: &mut SetupTimings,
+) -> Result<TreePart<T, S>, FmmError> {
+    let t0 = Instant::now();
+    let (src64, tgt64) = input.points(input.src64, input.tgt64);
+    let (src, tgt) = input.points(input.sources, input.targets);
+    let has_sources = !src.is_empty();
+    let has_targets = tgt.as_ref().is_none_or(|t| !t.is_empty());
+    // A one-sided cluster builds its tree on the side it has.
+    let (tree_src64, tree_tgt64, tree_src, tree_tgt) = match (has_sources, has_targets) {
+        (true, true) => (&src64, tgt64.as_ref(), &src, tgt.as_ref()),
+        (true, false) => (&src64, None, &src, None),
+        _ => {
+            let (t64, t) = (tgt64.as_ref(), tgt.as_ref());
+            (t64.expect("targets"), None, t.expect("targets"), None)
+        }
+    };
+    let options = TreeOptions {
+        leaf_size: b.leaf_size,
+        max_level: b.max_level,
+        domain: b.domain,
+        uniform_depth: None,
+    };
+    let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
+    setup.tree += t0.elapsed();
+    let (min, max) = width_range::<T>(tree.depth());
+    let width = tree.domain().width;
+    if !(min..=max).contains(&width) {
+        return Err(FmmError::DomainOutOfRange {
+            width,
+            min,
+            max,
+            depth: tree.depth(),
+            precision: T::PRECISION.name(),
+        });
+    }
+    let mut timings = SetupTimings::default();
+    let (operators, m2l) = build_operators(&b.kernel, params, config, &tree, &mut timings)?;
+    setup.operators += timings.operators;
+    setup.m2l_precompute += timings.m2l_precompute;
+
+    let t = Instant::now();
+    let m2l_interactions = (0..=tree.depth())
+        .map(|level| level_interactions(&tree, level))
+        .collect::<Result<_, _>>()?;
+    let centre = coordinate_origin(tree.domain());
+    let sources = permute_points(tree_src, tree.source_permutation(), centre);
+    let targets = tree_tgt.map(|t| permute_points(t, tree.target_permutation(), centre));
+    setup.layout += t.elapsed();
+    Ok(TreePart {
+        tree,
+        operators,
+        m2l,
+        m2l_interactions,
+        sources,
+        targets,
+        centre,
+        has_sources,
+        has_targets,
+    })
+}
+
+/// A small cluster: its points relative to the origin of its bounding cube.
+fn points_part<T: Real>(input: &PartInput<'_, T>) -> PointsPart<T> {
+    let (src64, tgt64) = input.points(input.src64, input.tgt64);
+    let (src, tgt) = input.points(input.sources, input.targets);
+    let sets: Vec<&[f64]> = [Some(&src64[..]), tgt64.as_deref()].into_iter().flatten().collect();
+    let centre = Domain::from_points(&sets).map_or([0.0; 3], |d| coordinate_origin(&d));
+    let identity: Vec<usize> = (0..src.len() / 3).collect();
+    let targets = tgt.map(|t| {
+        let ids: Vec<usize> = (0..t.len() / 3).collect();
+        permute_points(&t, &ids, centre)
+    });
+    PointsPart {
+        sources: permute_points(&src, &identity, centre),
+        targets,
+        centre,
+    }
 }
 
 /// Points in the tree's sorted order, relative to `centre`:

@@ -26,10 +26,12 @@
 pub mod accuracy;
 mod batch;
 mod builder;
+mod coupling;
 pub mod data;
 mod error;
 mod fmm;
 mod memory;
+mod part;
 mod passes;
 mod timings;
 pub mod tuning;

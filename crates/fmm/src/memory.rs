@@ -14,6 +14,7 @@ use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::Fmm;
+use crate::part::Body;
 
 /// Bytes of the big buffers of an [`Fmm`] (see [`Fmm::memory`]).
 ///
@@ -53,46 +54,62 @@ impl MemoryReport {
     pub(crate) fn of<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
         let t = size_of::<T>();
         let us = size_of::<usize>();
-        let tree = &fmm.tree;
-        let n_boxes = tree.n_boxes();
-        let n = fmm.operators.n_surface();
+        let n = fmm.unit_surface.len() / 3;
         let w = fmm.mode.values_per_target();
-
+        let mut n_boxes = 0;
+        let mut points = 0;
+        let mut tree_bytes = 0;
+        let mut m2l_interactions = 0;
+        let mut operators = 0;
+        let mut m2l = 0;
+        for part in &fmm.parts {
+            // Caller indices of a cluster's points.
+            let ids = part.source_ids.as_ref().map_or(0, Vec::len)
+                + part.target_ids.as_ref().map_or(0, Vec::len);
+            points += ids * us;
+            match &part.body {
+                Body::Points(p) => {
+                    points += (p.sources.len() + p.targets.as_ref().map_or(0, Vec::len)) * t;
+                }
+                Body::Tree(tp) => {
+                    let tree = &tp.tree;
+                    n_boxes += tree.n_boxes();
+                    let sorted = |count: usize| count * (3 * size_of::<f64>() + 2 * us);
+                    let tree_points = sorted(tree.n_sources())
+                        + if tree.sources_are_targets() {
+                            0
+                        } else {
+                            sorted(tree.n_targets())
+                        };
+                    points += (tp.sources.len() + tp.targets.as_ref().map_or(0, Vec::len)) * t
+                        + tree_points;
+                    // keys, parents, children (2), source and target ranges
+                    // (4), two masks, colleague table (27 u32), leaves.
+                    let per_box = size_of::<u64>() + us + 2 * us + 4 * us + 2 + 27 * 4;
+                    let lists = tree.interaction_lists();
+                    let csr =
+                        |c: &ferrofmm_tree::Csr| (c.offsets().len() + c.indices().len()) * us;
+                    tree_bytes += tree.n_boxes() * per_box
+                        + std::mem::size_of_val(tree.leaves())
+                        + csr(&lists.u)
+                        + csr(&lists.v)
+                        + csr(&lists.w)
+                        + csr(&lists.x);
+                    // Per pair a source column and a local target (u32
+                    // each); per group a vector index and a pair range; per
+                    // chunk four bounds.
+                    m2l_interactions += tp
+                        .m2l_interactions
+                        .iter()
+                        .map(|i| 8 * i.len() + 3 * us * i.n_groups() + 4 * us * i.n_chunks())
+                        .sum::<usize>();
+                    operators += tp.operators.memory_bytes();
+                    m2l += tp.m2l.memory_bytes();
+                }
+            }
+        }
         let expansions = 2 * n * n_boxes * t;
         let evaluation_scratch = n * n_boxes * t + fmm.n_sources * t + 2 * w * fmm.n_targets * t;
-
-        let sorted = |count: usize| count * (3 * size_of::<f64>() + 2 * us);
-        let tree_points = sorted(tree.n_sources())
-            + if tree.sources_are_targets() {
-                0
-            } else {
-                sorted(tree.n_targets())
-            };
-        let points =
-            (fmm.sources.len() + fmm.targets.as_ref().map_or(0, Vec::len)) * t + tree_points;
-
-        // keys, parents, children (2), source and target ranges (4), two
-        // masks, colleague table (27 u32), leaves.
-        let per_box = size_of::<u64>() + us + 2 * us + 4 * us + 2 + 27 * 4;
-        let lists = tree.interaction_lists();
-        let csr = |c: &ferrofmm_tree::Csr| (c.offsets().len() + c.indices().len()) * us;
-        let tree_bytes = n_boxes * per_box
-            + std::mem::size_of_val(tree.leaves())
-            + csr(&lists.u)
-            + csr(&lists.v)
-            + csr(&lists.w)
-            + csr(&lists.x);
-
-        // Per pair a source column and a local target (u32 each); per
-        // group a vector index and a pair range; per chunk four bounds.
-        let m2l_interactions = fmm
-            .m2l_interactions
-            .iter()
-            .map(|i| 8 * i.len() + 3 * us * i.n_groups() + 4 * us * i.n_chunks())
-            .sum();
-
-        let operators = fmm.operators.memory_bytes();
-        let m2l = fmm.m2l.memory_bytes();
         let total = expansions
             + evaluation_scratch
             + points

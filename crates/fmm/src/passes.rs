@@ -23,61 +23,169 @@ use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{EvalMode, Kernel, Real};
 use rayon::prelude::*;
 
-use crate::Fmm;
 use crate::batch::{gather_apply_scatter, par_columns};
+use crate::part::{Body, TreePart};
+use crate::{Fmm, coupling};
+use ferrofmm_tree::Octree;
 use crate::timings::EvalTimings;
 
-/// One full evaluation for one charge vector (already validated).
+/// One full evaluation for one charge vector (already validated): every
+/// cluster's upward pass, the clusters' coupling ([`crate::coupling`]), then
+/// every cluster's downward and leaf passes.
 pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     fmm: &Fmm<T, K, S>,
     charges: &[T],
 ) -> (Vec<T>, EvalTimings) {
     let t0 = Instant::now();
     let mut timings = EvalTimings::default();
-    let tree = &fmm.tree;
-    let n = fmm.operators.n_surface();
-    let n_boxes = tree.n_boxes();
-    let q: Vec<T> = tree
-        .source_permutation()
+    let n = fmm.unit_surface.len() / 3;
+    let w = fmm.mode.values_per_target();
+
+    let local_q: Vec<Vec<T>> = fmm.parts.iter().map(|p| p.local_charges(charges)).collect();
+    let multipoles: Vec<Vec<T>> = fmm
+        .parts
         .iter()
-        .map(|&i| charges[i])
+        .zip(&local_q)
+        .map(|(part, q)| match part.tree_part() {
+            Some(tp) if tp.has_sources => upward(fmm, tp, q, &mut timings),
+            _ => Vec::new(),
+        })
         .collect();
 
-    let mut multipoles = vec![T::ZERO; n * n_boxes];
-    let t = Instant::now();
-    p2m(fmm, &q, &mut multipoles);
-    timings.p2m = t.elapsed();
-    let t = Instant::now();
-    m2m(fmm, &mut multipoles);
-    timings.m2m = t.elapsed();
+    // Values in each part's stored order, and its root's check potentials.
+    let mut values: Vec<Vec<T>> = fmm
+        .parts
+        .iter()
+        .map(|p| {
+            let stored = match p.tree_part() {
+                Some(tp) if !tp.has_targets => 0,
+                _ => p.n_targets,
+            };
+            vec![T::ZERO; w * stored]
+        })
+        .collect();
+    let mut root_checks: Vec<Vec<T>> = fmm.parts.iter().map(|_| Vec::new()).collect();
+    if fmm.parts.len() > 1 {
+        let t = Instant::now();
+        couple(fmm, &local_q, &multipoles, &mut values, &mut root_checks);
+        timings.coupling = t.elapsed();
+    }
 
-    let mut locals = vec![T::ZERO; n * n_boxes];
-    downward(fmm, &q, &multipoles, &mut locals, &mut timings);
-
-    let w = fmm.mode.values_per_target();
-    let mut sorted = vec![T::ZERO; w * fmm.n_targets];
-    leaf_passes(fmm, &q, &multipoles, &locals, &mut sorted, &mut timings);
+    for (k, part) in fmm.parts.iter().enumerate() {
+        match &part.body {
+            Body::Tree(tp) if tp.has_targets => {
+                let mut locals = vec![T::ZERO; n * tp.tree.n_boxes()];
+                let root = (!root_checks[k].is_empty()).then_some(&root_checks[k][..]);
+                downward(fmm, tp, &local_q[k], &multipoles[k], root, &mut locals, &mut timings);
+                leaf_passes(
+                    fmm,
+                    tp,
+                    &local_q[k],
+                    &multipoles[k],
+                    &locals,
+                    &mut values[k],
+                    &mut timings,
+                );
+            }
+            Body::Tree(_) => {}
+            Body::Points(pp) => {
+                let t = Instant::now();
+                if part.n_sources > 0 && part.n_targets > 0 {
+                    fmm.kernel.evaluate(
+                        fmm.mode,
+                        &pp.sources,
+                        &local_q[k],
+                        pp.target_points(),
+                        &mut values[k],
+                    );
+                }
+                timings.p2p += t.elapsed();
+            }
+        }
+    }
 
     let mut out = vec![T::ZERO; w * fmm.n_targets];
-    for (k, &i) in tree.target_permutation().iter().enumerate() {
-        out[w * i..w * (i + 1)].copy_from_slice(&sorted[w * k..w * (k + 1)]);
+    for (part, v) in fmm.parts.iter().zip(&values) {
+        for (k, i) in part.stored_target_ids().into_iter().enumerate() {
+            out[w * i..w * (i + 1)].copy_from_slice(&v[w * k..w * (k + 1)]);
+        }
     }
     timings.total = t0.elapsed();
     (out, timings)
 }
 
-fn source_slices<'a, T: Real>(
-    fmm: &'a Fmm<T, impl Kernel, impl M2lScheme<T>>,
+/// P2M and M2M of one tree part: its multipoles.
+fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
+    fmm: &Fmm<T, K, S>,
+    part: &TreePart<T, S>,
+    q: &[T],
+    timings: &mut EvalTimings,
+) -> Vec<T> {
+    let n = part.operators.n_surface();
+    let mut multipoles = vec![T::ZERO; n * part.tree.n_boxes()];
+    let t = Instant::now();
+    p2m(fmm, part, q, &mut multipoles);
+    timings.p2m += t.elapsed();
+    let t = Instant::now();
+    m2m(part, &mut multipoles);
+    timings.m2m += t.elapsed();
+    multipoles
+}
+
+/// Every cluster's field on every other ([`crate::coupling`]), in
+/// parallel over the receiving clusters.
+fn couple<T: Real, K: Kernel, S: M2lScheme<T>>(
+    fmm: &Fmm<T, K, S>,
+    local_q: &[Vec<T>],
+    multipoles: &[Vec<T>],
+    values: &mut [Vec<T>],
+    root_checks: &mut [Vec<T>],
+) {
+    let n = fmm.unit_surface.len() / 3;
+    let sources: Vec<Option<coupling::SourceSide<'_, T>>> = fmm
+        .parts
+        .iter()
+        .zip(local_q.iter().zip(multipoles))
+        .map(|(p, (q, m))| coupling::source_side(fmm, p, q, m))
+        .collect();
+    fmm.parts
+        .par_iter()
+        .zip(values.par_iter_mut().zip(root_checks.par_iter_mut()))
+        .enumerate()
+        .for_each(|(k, (part, (out, root_check)))| {
+            let Some(target) = coupling::target_side(fmm, part) else {
+                return;
+            };
+            if matches!(target, coupling::TargetSide::RootCheck { .. }) {
+                *root_check = vec![T::ZERO; n];
+            }
+            let others: Vec<&coupling::SourceSide<'_, T>> = sources
+                .iter()
+                .enumerate()
+                .filter(|&(j, _)| j != k)
+                .filter_map(|(_, s)| s.as_ref())
+                .collect();
+            coupling::add_far_clusters(&fmm.kernel, fmm.mode, &target, &others, out, root_check);
+        });
+}
+
+fn source_slices<'a, T: Real, S: M2lScheme<T>>(
+    part: &'a TreePart<T, S>,
     q: &'a [T],
     r: Range<usize>,
 ) -> (&'a [T], &'a [T]) {
-    (&fmm.sources[3 * r.start..3 * r.end], &q[r])
+    (&part.sources[3 * r.start..3 * r.end], &q[r])
 }
 
 /// Leaves' sources to their upward check surfaces, then check-to-equivalent per level.
-fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, q: &[T], multipoles: &mut [T]) {
-    let tree = &fmm.tree;
-    let ops = &fmm.operators;
+fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
+    fmm: &Fmm<T, K, S>,
+    part: &TreePart<T, S>,
+    q: &[T],
+    multipoles: &mut [T],
+) {
+    let tree = &part.tree;
+    let ops = &part.operators;
     let n = ops.n_surface();
     let radius = ops.radii().upward_check;
     let mut check = vec![T::ZERO; multipoles.len()];
@@ -89,8 +197,8 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, q: &[T], multipo
             if !tree.is_leaf(b) || r.is_empty() {
                 return;
             }
-            fmm.surface_of(b, radius, surface);
-            let (x, qb) = source_slices(fmm, q, r);
+            part.surface_of(&fmm.unit_surface, b, radius, surface);
+            let (x, qb) = source_slices(part, q, r);
             fmm.kernel
                 .evaluate(EvalMode::Potential, x, qb, surface, col);
         });
@@ -106,14 +214,14 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, q: &[T], multipo
 }
 
 /// Children to parents, deepest level first.
-fn m2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, multipoles: &mut [T]) {
-    let tree = &fmm.tree;
-    let ops = &fmm.operators;
+fn m2m<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, multipoles: &mut [T]) {
+    let tree = &part.tree;
+    let ops = &part.operators;
     let n = ops.n_surface();
     for level in (1..=tree.depth()).rev() {
         let r = tree.level_range(level);
         let (parents, children) = multipoles.split_at_mut(n * r.start);
-        for (octant, pairs) in octant_pairs(fmm, r.clone()).iter().enumerate() {
+        for (octant, pairs) in octant_pairs(tree, r.clone()).iter().enumerate() {
             // Source columns are relative to the level start, destinations global.
             gather_apply_scatter(n, pairs, children, parents, |c, p| {
                 ops.m2m(level, octant, c, p)
@@ -123,11 +231,7 @@ fn m2m<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>, multipoles: &mut
 }
 
 /// `(child column relative to the level start, parent box)` grouped by octant.
-fn octant_pairs<T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
-    level: Range<usize>,
-) -> [Vec<(usize, usize)>; 8] {
-    let tree = &fmm.tree;
+fn octant_pairs(tree: &Octree, level: Range<usize>) -> [Vec<(usize, usize)>; 8] {
     let mut groups: [Vec<(usize, usize)>; 8] = Default::default();
     for c in level.clone() {
         if let Some(p) = tree.parent(c) {
@@ -137,18 +241,28 @@ fn octant_pairs<T: Real, K: Kernel, S: M2lScheme<T>>(
     groups
 }
 
-/// M2L, P2L and L2L level by level, top down.
+/// M2L, P2L and L2L level by level, top down. With `root_check` (the
+/// far clusters' potentials on the root's downward check surface) the
+/// root gets a local expansion too, and L2L starts at level 1.
 fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
     fmm: &Fmm<T, K, S>,
+    part: &TreePart<T, S>,
     q: &[T],
     multipoles: &[T],
+    root_check: Option<&[T]>,
     locals: &mut [T],
     timings: &mut EvalTimings,
 ) {
-    let tree = &fmm.tree;
-    let ops = &fmm.operators;
+    let tree = &part.tree;
+    let ops = &part.operators;
     let n = ops.n_surface();
     let radius = ops.radii().downward_check;
+    if let Some(check) = root_check {
+        let t = Instant::now();
+        ops.dc2e(0, check, &mut locals[..n]);
+        timings.l2l += t.elapsed();
+    }
+    let from_root = root_check.is_some();
     for level in 1..=tree.depth() {
         let r = tree.level_range(level);
         if r.is_empty() {
@@ -157,9 +271,9 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         let mut check = vec![T::ZERO; n * r.len()];
 
         let t = Instant::now();
-        let interactions = &fmm.m2l_interactions[level as usize];
-        if !interactions.is_empty() {
-            fmm.m2l.apply(
+        let interactions = &part.m2l_interactions[level as usize];
+        if part.has_sources && !interactions.is_empty() {
+            part.m2l.apply(
                 level,
                 interactions,
                 &multipoles[n * r.start..n * r.end],
@@ -175,12 +289,12 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
             .for_each_init(Vec::new, |surface, (j, col)| {
                 let b = r.start + j;
                 let xs = tree.x_list(b);
-                if xs.is_empty() {
+                if xs.is_empty() || !part.has_sources {
                     return;
                 }
-                fmm.surface_of(b, radius, surface);
+                part.surface_of(&fmm.unit_surface, b, radius, surface);
                 for &a in xs {
-                    let (x, qa) = source_slices(fmm, q, tree.source_range(a));
+                    let (x, qa) = source_slices(part, q, tree.source_range(a));
                     fmm.kernel
                         .evaluate(EvalMode::Potential, x, qa, surface, col);
                 }
@@ -191,8 +305,8 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         let (parents, level_locals) = locals.split_at_mut(n * r.start);
         let level_locals = &mut level_locals[..n * r.len()];
         par_columns(n, &check, level_locals, |c, d| ops.dc2e(level, c, d));
-        if level >= 2 {
-            for (octant, pairs) in octant_pairs(fmm, r.clone()).iter().enumerate() {
+        if level >= 2 || from_root {
+            for (octant, pairs) in octant_pairs(tree, r.clone()).iter().enumerate() {
                 let pairs: Vec<(usize, usize)> = pairs.iter().map(|&(c, p)| (p, c)).collect();
                 gather_apply_scatter(n, &pairs, parents, level_locals, |p, c| {
                     ops.l2l(level, octant, p, c)
@@ -206,21 +320,22 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
 /// L2P, M2P and P2P, each parallel over the target leaves.
 fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     fmm: &Fmm<T, K, S>,
+    part: &TreePart<T, S>,
     q: &[T],
     multipoles: &[T],
     locals: &[T],
     sorted: &mut [T],
     timings: &mut EvalTimings,
 ) {
-    let tree = &fmm.tree;
-    let ops = &fmm.operators;
+    let tree = &part.tree;
+    let ops = &part.operators;
     let n = ops.n_surface();
     let w = fmm.mode.values_per_target();
     let mode = fmm.mode;
-    let mut slices = leaf_output_slices(fmm, w, sorted);
+    let mut slices = leaf_output_slices(tree, w, sorted);
     let targets_of = |b: usize| {
         let r = tree.target_range(b);
-        &fmm.target_points()[3 * r.start..3 * r.end]
+        &part.target_points()[3 * r.start..3 * r.end]
     };
 
     let t = Instant::now();
@@ -228,11 +343,14 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     slices
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
-            fmm.surface_of(*b, down_equiv, surface);
+            part.surface_of(&fmm.unit_surface, *b, down_equiv, surface);
             let d = &locals[n * *b..n * (*b + 1)];
             fmm.kernel.evaluate(mode, surface, d, targets_of(*b), out);
         });
-    timings.l2p = t.elapsed();
+    timings.l2p += t.elapsed();
+    if !part.has_sources {
+        return;
+    }
 
     let t = Instant::now();
     let up_equiv = ops.radii().upward_equivalent;
@@ -240,31 +358,30 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
             for &a in tree.w_list(*b) {
-                fmm.surface_of(a, up_equiv, surface);
+                part.surface_of(&fmm.unit_surface, a, up_equiv, surface);
                 let u = &multipoles[n * a..n * (a + 1)];
                 fmm.kernel.evaluate(mode, surface, u, targets_of(*b), out);
             }
         });
-    timings.m2p = t.elapsed();
+    timings.m2p += t.elapsed();
 
     let t = Instant::now();
     slices.par_iter_mut().for_each(|(b, out)| {
         let y = targets_of(*b);
         for &a in tree.u_list(*b) {
-            let (x, qa) = source_slices(fmm, q, tree.source_range(a));
+            let (x, qa) = source_slices(part, q, tree.source_range(a));
             fmm.kernel.evaluate(mode, x, qa, y, out);
         }
     });
-    timings.p2p = t.elapsed();
+    timings.p2p += t.elapsed();
 }
 
 /// Disjoint output slices, one per leaf that holds targets.
-fn leaf_output_slices<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
+fn leaf_output_slices<'a, T: Real>(
+    tree: &Octree,
     w: usize,
     sorted: &'a mut [T],
 ) -> Vec<(usize, &'a mut [T])> {
-    let tree = &fmm.tree;
     let mut leaves: Vec<usize> = tree
         .leaves()
         .iter()

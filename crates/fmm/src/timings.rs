@@ -40,15 +40,18 @@ pub struct EvalTimings {
     pub l2p: Duration,
     /// Multipoles of W-list boxes to targets.
     pub m2p: Duration,
-    /// Direct interactions over U lists.
+    /// Direct interactions over U lists (and inside small far clusters).
     pub p2p: Duration,
+    /// Interactions between far-separated clusters ([`crate::coupling`]);
+    /// zero for a problem that is one cluster.
+    pub coupling: Duration,
     /// The whole evaluation, permutations included.
     pub total: Duration,
 }
 
 impl EvalTimings {
     /// `(name, duration)` for every operator, in pass order.
-    pub fn operators(&self) -> [(&'static str, Duration); 8] {
+    pub fn operators(&self) -> [(&'static str, Duration); 9] {
         [
             ("P2M", self.p2m),
             ("M2M", self.m2m),
@@ -58,6 +61,7 @@ impl EvalTimings {
             ("L2P", self.l2p),
             ("M2P", self.m2p),
             ("P2P", self.p2p),
+            ("Far", self.coupling),
         ]
     }
 
@@ -71,6 +75,7 @@ impl EvalTimings {
         self.l2p += other.l2p;
         self.m2p += other.m2p;
         self.p2p += other.p2p;
+        self.coupling += other.coupling;
         self.total += other.total;
     }
 }

@@ -255,20 +255,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// coordinates, `f64`): the stored points are in tree order and
     /// relative to the domain's centre.
     fn original_points(&self) -> (Vec<f64>, Vec<f64>) {
-        let unsort = |points: &[T], perm: &[usize]| {
-            let mut out = vec![0.0f64; points.len()];
-            for (k, &i) in perm.iter().enumerate() {
-                for c in 0..3 {
-                    out[3 * i + c] = points[3 * k + c].to_f64() + self.centre[c];
-                }
-            }
-            out
-        };
-        let sources = unsort(&self.sources, self.tree.source_permutation());
-        let targets = match &self.targets {
-            Some(t) => unsort(t, self.tree.target_permutation()),
-            None => sources.clone(),
-        };
+        let mut sources = vec![0.0f64; 3 * self.n_sources];
+        let mut targets = vec![0.0f64; if self.separate_targets { 3 * self.n_targets } else { 0 }];
+        for part in &self.parts {
+            part.write_original_points(&mut sources, &mut targets);
+        }
+        if !self.separate_targets {
+            targets = sources.clone();
+        }
         (sources, targets)
     }
 }

@@ -16,6 +16,9 @@
 //!   2:1 balanced ([`balance`]). Only boxes holding points exist.
 //! * Interaction lists U, V, W, X ([`lists`]) in CSR form, each pruned to
 //!   boxes that actually exchange something.
+//! * [`separated_clusters`] ([`clusters`]): far-apart groups of points (a
+//!   distant outlier, two clouds far apart) that are better served by one
+//!   tree each than by one tree whose levels are spent on empty space.
 //!
 //! ```
 //! use ferrofmm_tree::{Octree, TreeOptions};
@@ -37,6 +40,7 @@
 
 pub mod balance;
 mod build;
+pub mod clusters;
 pub mod csr;
 pub mod domain;
 pub mod error;
@@ -46,6 +50,7 @@ mod neighbours;
 pub mod octree;
 pub mod options;
 
+pub use clusters::{Cluster, DEFAULT_SEPARATION, separated_clusters};
 pub use csr::Csr;
 pub use domain::Domain;
 pub use error::{PointSet, TreeError};
