@@ -31,6 +31,7 @@ mod error;
 mod fmm;
 mod memory;
 mod passes;
+mod precompute;
 mod timings;
 pub mod tuning;
 pub mod verify;
@@ -39,6 +40,7 @@ pub use accuracy::{ErrorReport, estimate_errors, random_sample, relative_errors,
 pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
+pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::MemoryReport;
 pub use timings::{EvalTimings, SetupTimings};
