@@ -11,8 +11,8 @@ use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
 use crate::levels::LevelMap;
 use crate::linalg::col_major;
 use crate::{
-    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, gemm_scaled, n_surface_points,
-    transfer_vectors,
+    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, gemm_scaled,
+    n_surface_points, transfer_vectors,
 };
 
 /// Configuration of [`DenseM2l`] (nothing to configure).
@@ -149,8 +149,9 @@ impl<T: Real> DenseM2l<T> {
             .collect();
         let compute = || -> Result<DenseStore<T>, FieldError> {
             let mut data = vec![T::ZERO; order.len() * n * n];
-            data.par_chunks_mut(n * n).zip(order.par_iter()).try_for_each(
-                |(dst, &(set, v))| -> Result<(), FieldError> {
+            data.par_chunks_mut(n * n)
+                .zip(order.par_iter())
+                .try_for_each(|(dst, &(set, v))| -> Result<(), FieldError> {
                     units.check()?;
                     let h = levels.set_half_width(set);
                     let k = m2l_matrix(kernel, params.order, &params.radii, h, vectors()[v])?;
@@ -158,8 +159,7 @@ impl<T: Real> DenseM2l<T> {
                         *d = T::from_f64(s);
                     }
                     units.add(1)
-                },
-            )?;
+                })?;
             Ok(DenseStore { n, n_sets, data })
         };
         let (store, cache_status) = if full {

@@ -14,8 +14,8 @@ use crate::levels::LevelMap;
 use crate::linalg::{col_major, householder_r_until, nested_par, round_to, svd};
 use crate::precompute::{FLOPS_PER_THREAD, Units, effective_threads};
 use crate::{
-    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams,
-    PrecomputeEstimate, gemm, gemm_scaled, n_surface_points, transfer_vectors,
+    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
+    gemm, gemm_scaled, n_surface_points, transfer_vectors,
 };
 
 /// Configuration of [`SvdM2l`].
@@ -477,8 +477,13 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             let cores = m * per_core * k * k;
             peak = peak.max(stored * 8.0 + (tsqr.max(cores) + 2.0 * n * k) * 8.0);
             stored += 2.0 * n * k + m * k * k;
-            flops += 8.0 * m * n * n * n + m * (2.0 * n * n * k + 2.0 * n * k * k)
-                + if config.rank.is_some() { 0.0 } else { 20.0 * m * k * k * k };
+            flops += 8.0 * m * n * n * n
+                + m * (2.0 * n * n * k + 2.0 * n * k * k)
+                + if config.rank.is_some() {
+                    0.0
+                } else {
+                    20.0 * m * k * k * k
+                };
         }
         let size = std::mem::size_of::<T>() as f64;
         let peak_bytes = peak.max(stored * size);
