@@ -103,7 +103,10 @@ fn threads_above_the_cores_do_not_slow_down() {
     let env64 = timed(&base, Some(("RAYON_NUM_THREADS", "64")));
     // Generous: timing noise on a busy CI machine, not the 60x of before.
     let bound = 1.5 * t2 + 1.0;
-    assert!(t64 <= bound, "--threads 64: {t64:.2} s, --threads 2: {t2:.2} s");
+    assert!(
+        t64 <= bound,
+        "--threads 64: {t64:.2} s, --threads 2: {t2:.2} s"
+    );
     assert!(
         env64 <= bound,
         "RAYON_NUM_THREADS=64: {env64:.2} s, --threads 2: {t2:.2} s"

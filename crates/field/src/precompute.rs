@@ -330,7 +330,7 @@ fn parse_bytes(s: &str) -> Option<Option<u64>> {
         _ => (s, 1),
     };
     let x: f64 = num.trim().parse().ok()?;
-    (x.is_finite() && x >= 0.0).then(|| Some((x * mult as f64) as u64))
+    (x.is_finite() && x >= 0.0).then_some(Some((x * mult as f64) as u64))
 }
 
 /// `MemAvailable` of `/proc/meminfo` in bytes, `None` where unknown.

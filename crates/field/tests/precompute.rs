@@ -84,16 +84,22 @@ fn non_homogeneous_kernel_gets_only_the_used_levels() {
 fn empty_usage_computes_nothing() {
     let params = OperatorParams::new(ORDER);
     let none = M2lUsage::none();
-    let d = DenseM2l::<f64>::precompute_for(&Laplace3d, &params, &DenseConfig, 1.0, 1, &none)
-        .unwrap();
+    let d =
+        DenseM2l::<f64>::precompute_for(&Laplace3d, &params, &DenseConfig, 1.0, 1, &none).unwrap();
     assert_eq!((d.n_matrices(), d.memory_bytes()), (0, 0));
-    let s = SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 1, &none)
-        .unwrap();
+    let s =
+        SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 1, &none)
+            .unwrap();
     assert_eq!((s.n_vectors(), s.memory_bytes()), (0, 0));
     // An empty level still applies (nothing to do).
     let n = n_surface_points(ORDER);
     let mut check = vec![0.0; n];
-    d.apply(1, &M2lInteractions::new(1, 1, &[]), &vec![1.0; n], &mut check);
+    d.apply(
+        1,
+        &M2lInteractions::new(1, 1, &[]),
+        &vec![1.0; n],
+        &mut check,
+    );
     assert!(check.iter().all(|&x| x == 0.0));
 }
 
@@ -105,23 +111,26 @@ fn svd_for_usage_compresses_only_the_used_vectors_and_stays_accurate() {
         tolerance: 1e-8,
     };
     let dense = DenseM2l::<f64>::precompute(&Laplace3d, &params, &DenseConfig, 1.0, 4).unwrap();
-    let part = SvdM2l::<f64>::precompute_for(
-        &Laplace3d,
-        &params,
-        &config,
-        1.0,
-        4,
-        &usage(3, &USED),
-    )
-    .unwrap();
+    let part =
+        SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &config, 1.0, 4, &usage(3, &USED))
+            .unwrap();
     assert_eq!(part.n_vectors(), USED.len());
     let vectors = transfer_vectors();
     for &v in &USED {
         let a = apply_one(&part, 3, vectors[v]);
         let b = apply_one(&dense, 3, vectors[v]);
-        let err = a.iter().zip(&b).map(|(x, y)| (x - y).powi(2)).sum::<f64>().sqrt();
+        let err = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (x - y).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let norm = b.iter().map(|y| y * y).sum::<f64>().sqrt();
-        assert!(err <= 1e-6 * norm, "vector {v}: relative error {}", err / norm);
+        assert!(
+            err <= 1e-6 * norm,
+            "vector {v}: relative error {}",
+            err / norm
+        );
     }
 }
 
@@ -133,8 +142,7 @@ fn cancel_flag_stops_with_cancelled() {
     let all = M2lUsage::all(3);
     let d = DenseM2l::<f64>::precompute_for(&Laplace3d, &params, &DenseConfig, 1.0, 3, &all);
     assert!(matches!(d, Err(FieldError::Cancelled)));
-    let s =
-        SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 3, &all);
+    let s = SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 3, &all);
     assert!(matches!(s, Err(FieldError::Cancelled)));
     // Set in the middle: the progress callback raises the flag after the
     // first unit of work.
@@ -147,8 +155,7 @@ fn cancel_flag_stops_with_cancelled() {
                 raise.store(true, Ordering::Relaxed);
             }
         });
-    let s =
-        SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 3, &all);
+    let s = SvdM2l::<f64>::precompute_for(&Laplace3d, &params, &SvdConfig::default(), 1.0, 3, &all);
     assert!(matches!(s, Err(FieldError::Cancelled)));
 }
 
@@ -192,17 +199,17 @@ fn with_a_cache_all_vectors_are_computed_and_the_file_serves_any_tree() {
     )
     .unwrap();
     assert_eq!(part.n_matrices(), 316);
-    assert!(matches!(part.cache_status(), CacheStatus::Computed { write_error: None, .. }));
+    assert!(matches!(
+        part.cache_status(),
+        CacheStatus::Computed {
+            write_error: None,
+            ..
+        }
+    ));
     // Another usage, and the full precompute, both hit the same file.
-    let other = DenseM2l::<f64>::precompute_for(
-        &Laplace3d,
-        &params,
-        &DenseConfig,
-        1.0,
-        4,
-        &usage(2, &[5]),
-    )
-    .unwrap();
+    let other =
+        DenseM2l::<f64>::precompute_for(&Laplace3d, &params, &DenseConfig, 1.0, 4, &usage(2, &[5]))
+            .unwrap();
     assert!(other.cache_status().is_hit());
     let full = DenseM2l::<f64>::precompute(&Laplace3d, &params, &DenseConfig, 1.0, 4).unwrap();
     assert!(full.cache_status().is_hit());
@@ -216,7 +223,8 @@ fn with_a_cache_all_vectors_are_computed_and_the_file_serves_any_tree() {
     )
     .unwrap();
     assert_eq!(svd.n_vectors(), 316);
-    let again = SvdM2l::<f64>::precompute(&Laplace3d, &params, &SvdConfig::default(), 1.0, 4).unwrap();
+    let again =
+        SvdM2l::<f64>::precompute(&Laplace3d, &params, &SvdConfig::default(), 1.0, 4).unwrap();
     assert!(again.cache_status().is_hit());
     let _ = std::fs::remove_dir_all(&dir);
 }
