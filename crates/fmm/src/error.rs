@@ -140,7 +140,8 @@ pub enum FmmError {
     /// on the command line.
     #[error(
         "the M2L precomputation at order {order} ({matrices} operators) is predicted to need \
-         {} but only {} is available (predicted time {seconds:.0} s): lower the order, or force \
+         {} but the limit is {} (the memory available, or FERROFMM_MEMORY_LIMIT; predicted \
+         time {seconds:.0} s): lower the order, or force \
          it with --force (FERROFMM_MEMORY_LIMIT=unlimited, or \
          FmmBuilder::memory_limit(MemoryLimit::Unlimited))",
         crate::precompute::human_bytes(estimate_bytes),
