@@ -12,11 +12,14 @@
 //! is printed, as in `ferrofmm demo | head -1`), 1 when the command fails
 //! (the reason is one line on stderr, `error: ...`), 2 for command-line
 //! syntax errors, 101 for an internal error (a bug; also reported as one
-//! `error: ...` line).
+//! `error: ...` line), 130 when interrupted (Ctrl-C / SIGINT, or SIGTERM:
+//! stops within a second, also in the middle of the operator
+//! precomputation, and leaves no temporary output file).
 
 mod charts;
 mod commands;
 mod error;
+mod interrupt;
 mod io;
 mod memory;
 mod progress;
@@ -41,15 +44,22 @@ use error::{CliError, Result};
                   potentials (and gradients) of N charges at M targets in O(N + M).\n\n\
                   Exit status: 0 on success (also when stdout is closed early, e.g. `| head`),\n\
                   1 when the command fails (one line `error: ...` on stderr), 2 for command-line\n\
-                  syntax errors, 101 for an internal error (a bug in ferrofmm)."
+                  syntax errors, 101 for an internal error (a bug in ferrofmm), 130 when\n\
+                  interrupted (Ctrl-C: stops within a second, also during the operator\n\
+                  precomputation, and leaves no temporary output file).\n\n\
+                  Environment: FERROFMM_MEMORY_LIMIT (e.g. 8G, or unlimited) caps the memory of\n\
+                  the operator precomputation (default: the memory available; --force lifts it);\n\
+                  RAYON_NUM_THREADS sets the default thread count (at most one per core)."
 )]
 struct Cli {
     /// Worker threads for every parallel step (tree, operator precomputation,
-    /// evaluation, direct check): at most one per available core (default:
-    /// one per core). A larger T is lowered to the number of cores, with a
-    /// note on stderr: more threads than cores only make them wait for each
-    /// other (64 threads on 2 cores: 21 s of M2L precomputation instead of
-    /// 1.2 s). The table and the JSON report the count used.
+    /// evaluation, direct check), in one pool shared by all of them (the
+    /// linear algebra inside a parallel step runs sequentially, so threads
+    /// are never nested). At most one per available core (default: one per
+    /// core, or RAYON_NUM_THREADS). A larger T (also from RAYON_NUM_THREADS)
+    /// is lowered to the number of cores, with a note on stderr: more
+    /// threads than cores only make them wait for each other. The table and
+    /// the JSON report the count used.
     #[arg(long, short = 't', global = true, value_name = "T")]
     threads: Option<usize>,
     #[command(subcommand)]
@@ -97,11 +107,14 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     install_panic_hook();
+    interrupt::install();
     match run(cli) {
         Ok(()) => ExitCode::SUCCESS,
         // Nobody reads the report (`ferrofmm ... | head`): the work is done,
         // end quietly.
         Err(CliError::StdoutClosed) => ExitCode::SUCCESS,
+        // Ctrl-C during the precomputation: it stopped itself.
+        Err(CliError::Fmm(e)) if e.is_cancelled() => interrupt::exit_interrupted(),
         Err(e) => {
             eprintln!("error: {e}");
             ExitCode::FAILURE
@@ -141,12 +154,12 @@ fn install_panic_hook() {
 /// and yield while they look for work, and the nested parallel linear
 /// algebra of the operator precomputation splits each small factorisation
 /// over all of them.
-fn capped_threads(requested: usize) -> usize {
+fn capped_threads(requested: usize, source: &str) -> usize {
     match std::thread::available_parallelism() {
         Ok(cores) if requested > cores.get() => {
             let cores = cores.get();
             eprintln!(
-                "note: --threads {requested} is more than the {cores} available cores: \
+                "note: {source} {requested} is more than the {cores} available cores: \
                  using {cores} threads"
             );
             cores
@@ -155,14 +168,27 @@ fn capped_threads(requested: usize) -> usize {
     }
 }
 
+/// `RAYON_NUM_THREADS` as rayon reads it (a positive integer; anything
+/// else, or 0, leaves rayon's default of one thread per core).
+fn rayon_env_threads() -> Option<usize> {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|s| s.trim().parse::<usize>().ok())
+        .filter(|&t| t > 0)
+}
+
 fn run(cli: Cli) -> Result<()> {
-    if let Some(t) = cli.threads {
+    let threads = match cli.threads {
+        Some(t) => Some((t, "--threads")),
+        None => rayon_env_threads().map(|t| (t, "RAYON_NUM_THREADS")),
+    };
+    if let Some((t, source)) = threads {
         if t == 0 {
             return Err(CliError::InvalidArgument(
                 "--threads must be at least 1".into(),
             ));
         }
-        let t = capped_threads(t);
+        let t = capped_threads(t, source);
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)
             .build_global()

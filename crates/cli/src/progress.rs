@@ -2,12 +2,17 @@
 //!
 //! The FMM passes report no progress of their own, so each long step
 //! (setup, evaluation, the direct check) shows a spinner with its name and
-//! the elapsed time; `sweep` shows a bar over its configurations. When
+//! the elapsed time; the operator precomputation reports its progress, and
+//! its spinner becomes a bar with an ETA; `sweep` shows a bar over its
+//! configurations. When
 //! stderr is redirected (a pipe, a file, a test harness, a sweep's child
 //! process) nothing is drawn at all.
 
 use std::io::IsTerminal;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
+
+use ferrofmm_fmm::PrecomputeProgress;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -35,6 +40,33 @@ pub fn stage(message: impl Into<String>) -> Stage {
         bar.enable_steady_tick(Duration::from_millis(120));
     }
     Stage(bar)
+}
+
+impl Stage {
+    /// A progress callback for the operator precomputation: the first
+    /// report turns the spinner into a bar over its work units with the
+    /// elapsed time and an ETA (`[elapsed < remaining]`), since at high
+    /// orders it can take minutes.
+    pub fn precompute_progress(&self) -> impl Fn(PrecomputeProgress) + Send + Sync + 'static {
+        let bar = self.0.clone();
+        let switched = AtomicBool::new(false);
+        move |p: PrecomputeProgress| {
+            if bar.is_hidden() || p.total == 0 {
+                return;
+            }
+            if !switched.swap(true, Ordering::Relaxed) {
+                bar.set_style(
+                    ProgressStyle::with_template(
+                        "{msg} {bar:30} {percent:>3}% [{elapsed} < {eta}]",
+                    )
+                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
+                );
+                bar.set_message("setup: M2L operators");
+                bar.set_length(p.total);
+            }
+            bar.set_position(p.done);
+        }
+    }
 }
 
 impl Drop for Stage {

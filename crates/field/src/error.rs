@@ -65,4 +65,9 @@ pub enum FieldError {
         /// Why it was rejected.
         reason: String,
     },
+
+    /// The precomputation was cancelled through its
+    /// [`PrecomputeMonitor`](crate::PrecomputeMonitor) (e.g. Ctrl-C).
+    #[error("operator precomputation cancelled")]
+    Cancelled,
 }

@@ -84,6 +84,7 @@ mod m2l;
 mod operators;
 mod params;
 mod pinv;
+mod precompute;
 mod surface;
 
 pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};
@@ -92,8 +93,14 @@ pub use gemm::{gemm, gemm_scaled};
 pub use interactions::{
     M2lInteractions, N_TRANSFER_VECTORS, transfer_vector_index, transfer_vectors,
 };
-pub use m2l::{DenseConfig, DenseM2l, M2lScheme, SvdConfig, SvdM2l, default_svd_tolerance};
+pub use m2l::{
+    DenseConfig, DenseM2l, M2lScheme, SvdConfig, SvdM2l, default_svd_tolerance, planned_sets,
+};
 pub use operators::{AMPLIFICATION_WARNING, OperatorDiagnostics, Operators, octant_offset};
 pub use params::{MAX_ORDER, OperatorParams, default_pinv_rcond};
 pub use pinv::PinvSummary;
+pub use precompute::{
+    M2lUsage, MEMORY_LIMIT_ENV, MemoryLimit, PrecomputeEstimate, PrecomputeMonitor,
+    PrecomputeProgress, available_memory,
+};
 pub use surface::{SurfaceKind, SurfaceRadii, n_surface_points, surface_points};

@@ -37,22 +37,59 @@ pub(crate) struct SvdF64 {
     pub v: Mat<f64>,
 }
 
-/// Thin SVD of `a` (faer, global parallelism).
+/// Parallelism for faer inside the precomputation: sequential when called
+/// from a rayon worker (the caller already runs in parallel, and nesting
+/// faer's own splitting on top of it oversubscribes the cores), otherwise
+/// the current pool's threads, at most one per core (a pool of 64 threads
+/// on 2 cores would split every factorisation 64 ways and spend its time
+/// waiting; see the `--threads` notes of the CLI).
+pub(crate) fn nested_par() -> Par {
+    if rayon::current_thread_index().is_some() {
+        Par::Seq
+    } else {
+        Par::rayon(crate::precompute::effective_threads())
+    }
+}
+
+/// Thin SVD of `a` (faer, parallelism from [`nested_par`]).
 pub(crate) fn svd(a: MatRef<'_, f64>, what: &str) -> Result<SvdF64, FieldError> {
-    let svd = a.thin_svd().map_err(|_| FieldError::SvdFailed {
+    use faer::dyn_stack::{MemBuffer, MemStack};
+    use faer::linalg::svd::{ComputeSvdVectors, svd as svd_into, svd_scratch};
+    let (m, n) = a.shape();
+    let size = m.min(n);
+    let par = nested_par();
+    let failed = || FieldError::SvdFailed {
         what: what.to_string(),
-    })?;
-    let s: Vec<f64> = (0..svd.S().dim()).map(|i| svd.S()[i]).collect();
+    };
+    let mut u = Mat::<f64>::zeros(m, size);
+    let mut v = Mat::<f64>::zeros(n, size);
+    let mut sv = faer::diag::Diag::<f64>::zeros(size);
+    let mut mem = MemBuffer::try_new(svd_scratch::<f64>(
+        m,
+        n,
+        ComputeSvdVectors::Thin,
+        ComputeSvdVectors::Thin,
+        par,
+        Default::default(),
+    ))
+    .map_err(|_| failed())?;
+    svd_into(
+        a,
+        sv.as_mut(),
+        Some(u.as_mut()),
+        Some(v.as_mut()),
+        par,
+        MemStack::new(&mut mem),
+        Default::default(),
+    )
+    .map_err(|_| failed())?;
+    let s: Vec<f64> = (0..size).map(|i| sv[i]).collect();
     if s.iter().any(|x| !x.is_finite()) {
         return Err(FieldError::SvdFailed {
             what: format!("{what} (non-finite singular values)"),
         });
     }
-    Ok(SvdF64 {
-        u: svd.U().to_owned(),
-        s,
-        v: svd.V().to_owned(),
-    })
+    Ok(SvdF64 { u, s, v })
 }
 
 /// The `n x n` upper-triangular factor `R` of `A = Q R` for a column-major
@@ -61,10 +98,25 @@ pub(crate) fn svd(a: MatRef<'_, f64>, what: &str) -> Result<SvdF64, FieldError> 
 /// shortcuts: faer's QR skips columns whose residual falls below `16 m eps`
 /// of their norm, which for the strongly decaying M2L stacks would silently
 /// lose the small singular values we want to resolve.
+#[cfg(test)]
 pub(crate) fn householder_r(a: &mut [f64], m: usize, n: usize, par: Par) -> Mat<f64> {
+    householder_r_until(a, m, n, par, &|| false)
+}
+
+/// [`householder_r`] that gives up between column panels once `stop()`
+/// returns true (the result is then meaningless; the caller checks `stop`
+/// again). Lets a cancelled precomputation end within a fraction of a
+/// second even in the middle of a large factorisation.
+pub(crate) fn householder_r_until(
+    a: &mut [f64],
+    m: usize,
+    n: usize,
+    par: Par,
+    stop: &(dyn Fn() -> bool + Sync),
+) -> Mat<f64> {
     assert!(m >= n && a.len() == m * n);
     let mut taus = vec![0.0f64; n];
-    factor_columns(a, m, 0, n, &mut taus, 64, par);
+    factor_columns(a, m, 0, n, &mut taus, 64, par, stop);
     Mat::from_fn(n, n, |i, j| if i <= j { a[j * m + i] } else { 0.0 })
 }
 
@@ -74,6 +126,7 @@ pub(crate) fn householder_r(a: &mut [f64], m: usize, n: usize, par: Par) -> Mat<
 /// `nb / 4` (unblocked below 8 columns, so the BLAS-2 work stays on panels
 /// that fit in cache), then applied to the remaining columns of `j0..j1`
 /// as one compact-WY update (`A2 -= V T^T V^T A2`, three GEMMs).
+#[allow(clippy::too_many_arguments)]
 fn factor_columns(
     a: &mut [f64],
     m: usize,
@@ -82,6 +135,7 @@ fn factor_columns(
     taus: &mut [f64],
     nb: usize,
     par: Par,
+    stop: &(dyn Fn() -> bool + Sync),
 ) {
     if nb <= 8 || j1 - j0 <= 8 {
         factor_unblocked(a, m, j0, j1, taus);
@@ -89,8 +143,11 @@ fn factor_columns(
     }
     let mut jb = j0;
     while jb < j1 {
+        if stop() {
+            return;
+        }
         let b = nb.min(j1 - jb);
-        factor_columns(a, m, jb, jb + b, taus, nb / 4, par);
+        factor_columns(a, m, jb, jb + b, taus, nb / 4, par, stop);
         let nc = j1 - jb - b;
         if nc > 0 {
             apply_block(a, m, jb, b, jb + b, nc, taus, par);

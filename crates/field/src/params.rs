@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use ferrofmm_kernels::Precision;
 
-use crate::{FieldError, SurfaceRadii};
+use crate::{FieldError, MemoryLimit, PrecomputeMonitor, SurfaceRadii};
 
 /// Highest accepted expansion order. At `p = 30` one expansion already has
 /// 5048 values and a dense M2L level would need `316 * 5048^2` matrix
@@ -56,6 +56,13 @@ pub struct OperatorParams {
     /// Directory of the on-disk operator cache; `None` disables the cache.
     /// The directory is created when missing.
     pub cache_dir: Option<PathBuf>,
+    /// Progress callback and cancel flag of the precomputation (observes
+    /// it, takes no part in the result; the default reports nothing).
+    pub monitor: PrecomputeMonitor,
+    /// Memory the precomputation may take, checked by the FMM driver
+    /// against [`M2lScheme::estimate`](crate::M2lScheme::estimate) before
+    /// it starts (default: [`MemoryLimit::Auto`]).
+    pub memory_limit: MemoryLimit,
 }
 
 impl OperatorParams {
@@ -66,6 +73,8 @@ impl OperatorParams {
             radii: SurfaceRadii::default(),
             pinv_rcond: None,
             cache_dir: None,
+            monitor: PrecomputeMonitor::default(),
+            memory_limit: MemoryLimit::default(),
         }
     }
 

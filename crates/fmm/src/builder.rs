@@ -3,7 +3,10 @@
 
 use std::path::PathBuf;
 
-use ferrofmm_field::{DenseM2l, M2lScheme, OperatorParams, SurfaceRadii, SvdConfig, SvdM2l};
+use ferrofmm_field::{
+    DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
+    SvdM2l,
+};
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
@@ -54,6 +57,8 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) max_level: u32,
     pub(crate) tolerance: Option<f64>,
     pub(crate) verify: bool,
+    pub(crate) memory_limit: MemoryLimit,
+    pub(crate) monitor: PrecomputeMonitor,
 }
 
 impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
@@ -76,6 +81,8 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             max_level: DEEPEST_LEVEL,
             tolerance: None,
             verify: true,
+            memory_limit: MemoryLimit::Auto,
+            monitor: PrecomputeMonitor::default(),
         }
     }
 }
@@ -97,6 +104,8 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             max_level: self.max_level,
             tolerance: self.tolerance,
             verify: self.verify,
+            memory_limit: self.memory_limit,
+            monitor: self.monitor,
         }
     }
 
@@ -192,6 +201,39 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
+    /// How much memory the operator precomputation may take (default
+    /// [`MemoryLimit::Auto`]: `FERROFMM_MEMORY_LIMIT`, else the memory
+    /// available). Before precomputing, its peak memory `M` and time are
+    /// predicted from the operators the tree needs (only the levels and
+    /// transfer vectors its V lists use); when `M` exceeds the limit the
+    /// build fails with [`FmmError::PrecomputeMemory`] instead of
+    /// swapping or being killed. [`MemoryLimit::Unlimited`] forces it.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, MemoryLimit};
+    /// let points = ferrofmm_fmm::Geometry::Cube.points(2000, 1);
+    /// let err = FmmBuilder::<f64, _>::new(&points)
+    ///     .order(8)
+    ///     .leaf_size(20)
+    ///     .memory_limit(MemoryLimit::Bytes(1 << 20))
+    ///     .build_dense()
+    ///     .err()
+    ///     .unwrap();
+    /// assert!(err.to_string().contains("predicted to need"));
+    /// ```
+    pub fn memory_limit(mut self, limit: MemoryLimit) -> Self {
+        self.memory_limit = limit;
+        self
+    }
+
+    /// Progress callback and cancel flag of the operator precomputation
+    /// (see [`PrecomputeMonitor`]): a cancelled build fails with
+    /// `FmmError::Field(FieldError::Cancelled)` ([`FmmError::is_cancelled`]).
+    pub fn monitor(mut self, monitor: PrecomputeMonitor) -> Self {
+        self.monitor = monitor;
+        self
+    }
+
     /// Use this bounding cube instead of the points' own.
     pub fn domain(mut self, domain: Domain) -> Self {
         self.domain = Some(domain);
@@ -210,6 +252,8 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         params.radii = self.radii;
         params.pinv_rcond = self.pinv_rcond;
         params.cache_dir = self.cache_dir.clone();
+        params.memory_limit = self.memory_limit;
+        params.monitor = self.monitor.clone();
         params
     }
 

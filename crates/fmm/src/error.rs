@@ -132,4 +132,39 @@ pub enum FmmError {
     /// Any other impossible parameter.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),
+    /// The M2L precomputation is predicted to need more memory than the
+    /// limit (by default the memory available; see
+    /// [`ferrofmm_field::MemoryLimit`]). Nothing was computed; force it with
+    /// [`crate::FmmBuilder::memory_limit`]`(MemoryLimit::Unlimited)`, the
+    /// environment variable `FERROFMM_MEMORY_LIMIT=unlimited`, or `--force`
+    /// on the command line.
+    #[error(
+        "the M2L precomputation at order {order} ({matrices} operators) is predicted to need \
+         {} but the limit is {} (the memory available, or FERROFMM_MEMORY_LIMIT; predicted \
+         time {seconds:.0} s): lower the order, or force \
+         it with --force (FERROFMM_MEMORY_LIMIT=unlimited, or \
+         FmmBuilder::memory_limit(MemoryLimit::Unlimited))",
+        crate::precompute::human_bytes(estimate_bytes),
+        crate::precompute::human_bytes(limit_bytes)
+    )]
+    PrecomputeMemory {
+        /// Predicted peak bytes of the precomputation.
+        estimate_bytes: u64,
+        /// The limit in bytes (available memory or the configured limit).
+        limit_bytes: u64,
+        /// Predicted seconds.
+        seconds: f64,
+        /// Expansion order.
+        order: usize,
+        /// Kernel matrices the precomputation would assemble.
+        matrices: usize,
+    },
+}
+
+impl FmmError {
+    /// True when the operator precomputation was cancelled through its
+    /// [`ferrofmm_field::PrecomputeMonitor`].
+    pub fn is_cancelled(&self) -> bool {
+        matches!(self, FmmError::Field(FieldError::Cancelled))
+    }
 }

@@ -453,6 +453,9 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     let t = Instant::now();
     let width = tree.domain().width;
     let depth = tree.depth();
+    // Only what the tree needs, and only when it fits (issue 18).
+    let usage = crate::precompute::m2l_usage(tree);
+    crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, &usage)?;
     let operators = Operators::<T>::new(kernel, params, width, depth)?;
     let diagnostics = operators.diagnostics();
     if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
@@ -466,7 +469,7 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     }
     setup.operators = t.elapsed();
     let t = Instant::now();
-    let m2l = S::precompute(kernel, params, config, width, depth)?;
+    let m2l = S::precompute_for(kernel, params, config, width, depth, &usage)?;
     setup.m2l_precompute = t.elapsed();
     Ok((operators, m2l))
 }

@@ -33,6 +33,7 @@ mod fmm;
 mod memory;
 mod part;
 mod passes;
+mod precompute;
 mod timings;
 pub mod tuning;
 pub mod verify;
@@ -41,6 +42,7 @@ pub use accuracy::{ErrorReport, estimate_errors, random_sample, relative_errors,
 pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
+pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::MemoryReport;
 pub use timings::{EvalTimings, SetupTimings};

@@ -71,6 +71,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         cache_dir: args.fmm.cache_dir.clone(),
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
+        force: args.fmm.force,
     };
     let report = run(input, &settings, None)?;
     if args.json {

@@ -83,6 +83,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         cache_dir: args.fmm.cache_dir.clone(),
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
+        force: args.fmm.force,
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {

@@ -164,6 +164,11 @@ pub struct FmmArgs {
     /// above EPS; `off` trusts the prediction (and the report says so).
     #[arg(long, default_value = "on", value_name = "on|off")]
     pub verify: String,
+    /// Precompute the operators even when their predicted memory exceeds
+    /// the memory available (or FERROFMM_MEMORY_LIMIT): without it such a
+    /// run stops before any work with the estimate.
+    #[arg(long)]
+    pub force: bool,
 }
 
 impl FmmArgs {

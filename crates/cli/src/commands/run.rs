@@ -12,6 +12,7 @@ use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors, sample_indices,
 };
+use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor};
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
 
 use super::{PrecisionArg, SchemeArg};
@@ -73,6 +74,8 @@ pub struct Settings {
     pub tolerance: Option<f64>,
     /// Check the tolerance after evaluating.
     pub verify: bool,
+    /// Precompute even beyond the memory limit (`--force`).
+    pub force: bool,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
@@ -212,11 +215,22 @@ where
         } => (convert(sources), targets.map(convert), convert(charges)),
     };
 
-    let mut fmm = with_stage("setup: tree and operators", || {
+    let mut fmm = {
+        let stage = crate::progress::stage("setup: tree and operators");
+        let monitor = PrecomputeMonitor::new()
+            .with_cancel_flag(crate::interrupt::flag())
+            .with_progress(stage.precompute_progress());
+        let _precomputing = crate::interrupt::precomputing();
         let mut builder = FmmBuilder::new(&sources)
             .order(settings.order)
             .leaf_size(settings.leaf_size)
-            .mode(mode);
+            .mode(mode)
+            .monitor(monitor)
+            .memory_limit(if settings.force {
+                MemoryLimit::Unlimited
+            } else {
+                MemoryLimit::Auto
+            });
         if let Some(t) = &targets {
             builder = builder.targets(t);
         }
@@ -227,7 +241,7 @@ where
             builder = builder.tolerance(eps).verify(settings.verify);
         }
         S::build(builder)
-    })?;
+    }?;
 
     let repeats = settings.repeats.max(1);
     let mut totals = Vec::with_capacity(repeats);

@@ -75,6 +75,7 @@ pub fn check(out: &Path, inputs: &[(&'static str, &Path)]) -> Result<()> {
     })?;
     drop(file);
     let _ = fs::remove_file(&tmp);
+    crate::interrupt::forget_temporary(&tmp);
     Ok(())
 }
 
@@ -106,10 +107,12 @@ pub fn write_atomically(
         drop(file);
         fs::rename(&tmp, &target)
     })();
-    result.map_err(|e| {
+    let result = result.map_err(|e| {
         let _ = fs::remove_file(&tmp);
         failed(e)
-    })
+    });
+    crate::interrupt::forget_temporary(&tmp);
+    result
 }
 
 /// `path`, or the file it links to when it is a symbolic link to an
@@ -148,7 +151,10 @@ fn create_temporary(target: &Path) -> std::io::Result<(File, PathBuf)> {
         };
         let tmp = dir.join(tmp_name);
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
-            Ok(f) => return Ok((f, tmp)),
+            Ok(f) => {
+                crate::interrupt::register_temporary(&tmp);
+                return Ok((f, tmp));
+            }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),
             Err(e) => return Err(e),
         }

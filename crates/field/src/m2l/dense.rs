@@ -4,14 +4,15 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
+    scatter_add,
 };
 use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
 use crate::levels::LevelMap;
 use crate::linalg::col_major;
 use crate::{
-    FieldError, M2lInteractions, N_TRANSFER_VECTORS, OperatorParams, gemm_scaled, n_surface_points,
-    transfer_vectors,
+    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, gemm_scaled,
+    n_surface_points, transfer_vectors,
 };
 
 /// Configuration of [`DenseM2l`] (nothing to configure).
@@ -43,6 +44,9 @@ pub struct DenseM2l<T: Real> {
     n: usize,
     levels: LevelMap,
     store: DenseStore<T>,
+    /// Per set, the storage slot of each transfer vector's matrix
+    /// ([`NOT_COMPUTED`] when not precomputed).
+    slots: Vec<Vec<u32>>,
     cache_status: CacheStatus,
 }
 
@@ -75,11 +79,127 @@ impl<T: Real> CachePayload<T> for DenseStore<T> {
 
 impl<T: Real> DenseM2l<T> {
     /// `K_v` of operator set `set` (column-major `n x n`).
+    ///
+    /// # Panics
+    /// When `v` was not precomputed for `set` (see
+    /// [`M2lScheme::precompute_for`]).
     fn matrix(&self, set: usize, v: usize) -> &[T] {
         let nn = self.n * self.n;
-        let start = (set * N_TRANSFER_VECTORS + v) * nn;
+        let slot = self.slots[set][v];
+        assert!(
+            slot != NOT_COMPUTED,
+            "M2L operator of transfer vector {v} (set {set}) was not precomputed: \
+             the interactions differ from the usage given to precompute_for"
+        );
+        let start = slot as usize * nn;
         &self.store.data[start..start + nn]
     }
+
+    /// Number of `K_v` matrices held.
+    pub fn n_matrices(&self) -> usize {
+        self.slots
+            .iter()
+            .flatten()
+            .filter(|&&s| s != NOT_COMPUTED)
+            .count()
+    }
+
+    /// Whether `K_v` of transfer vector index `vector` is held for `level`.
+    pub fn has_vector(&self, level: u32, vector: usize) -> bool {
+        if self.slots.is_empty() || level < FIRST_M2L_LEVEL {
+            return false;
+        }
+        let set = match self.levels.homogeneity {
+            Some(_) => 0,
+            None if level <= self.levels.depth => (level - FIRST_M2L_LEVEL) as usize,
+            None => return false,
+        };
+        self.slots
+            .get(set)
+            .and_then(|s| s.get(vector))
+            .is_some_and(|&s| s != NOT_COMPUTED)
+    }
+
+    /// Build for `plan` (`None`: all 316 vectors of every set).
+    fn build<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        domain_width: f64,
+        depth: u32,
+        plan: Option<&M2lUsage>,
+    ) -> Result<Self, FieldError> {
+        params.validate()?;
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let n = n_surface_points(params.order);
+        let n_sets = levels.n_sets();
+        let sets: Vec<Vec<usize>> = match plan {
+            None => vec![(0..N_TRANSFER_VECTORS).collect(); n_sets],
+            Some(u) => planned_sets(levels.homogeneity.is_some(), params, depth, u),
+        };
+        let full = sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
+        let monitor = &params.monitor;
+        monitor.check()?;
+        let total: usize = sets.iter().map(Vec::len).sum();
+        let units = monitor.units(total as u64);
+        // (set, vector) of each matrix slot, in storage order.
+        let order: Vec<(usize, usize)> = sets
+            .iter()
+            .enumerate()
+            .flat_map(|(set, vs)| vs.iter().map(move |&v| (set, v)))
+            .collect();
+        let compute = || -> Result<DenseStore<T>, FieldError> {
+            let mut data = vec![T::ZERO; order.len() * n * n];
+            data.par_chunks_mut(n * n)
+                .zip(order.par_iter())
+                .try_for_each(|(dst, &(set, v))| -> Result<(), FieldError> {
+                    units.check()?;
+                    let h = levels.set_half_width(set);
+                    let k = m2l_matrix(kernel, params.order, &params.radii, h, vectors()[v])?;
+                    for (d, s) in dst.iter_mut().zip(col_major(k.as_ref())) {
+                        *d = T::from_f64(s);
+                    }
+                    units.add(1)
+                })?;
+            Ok(DenseStore { n, n_sets, data })
+        };
+        let (store, cache_status) = if full {
+            let mut key =
+                CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array());
+            if levels.homogeneity.is_none() {
+                key.geometry = Some((domain_width, depth));
+            }
+            let accept = |s: &DenseStore<T>| {
+                if s.n == n && s.n_sets == n_sets {
+                    Ok(())
+                } else {
+                    Err("layout disagrees with the parameters".to_string())
+                }
+            };
+            load_or_compute::<T, DenseStore<T>>(params.cache_dir.as_deref(), &key, accept, compute)?
+        } else {
+            (compute()?, CacheStatus::Disabled)
+        };
+        let mut slots = vec![vec![NOT_COMPUTED; N_TRANSFER_VECTORS]; n_sets];
+        for (slot, &(set, v)) in order.iter().enumerate() {
+            slots[set][v] = slot as u32;
+        }
+        Ok(DenseM2l {
+            n,
+            levels,
+            store,
+            slots,
+            cache_status,
+        })
+    }
+}
+
+/// Marks a transfer vector without a matrix.
+const NOT_COMPUTED: u32 = u32::MAX;
+
+/// The 316 transfer vectors, computed once.
+fn vectors() -> &'static [[i32; 3]] {
+    static V: std::sync::OnceLock<Vec<[i32; 3]>> = std::sync::OnceLock::new();
+    V.get_or_init(transfer_vectors)
 }
 
 impl<T: Real> M2lScheme<T> for DenseM2l<T> {
@@ -96,49 +216,18 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         domain_width: f64,
         depth: u32,
     ) -> Result<Self, FieldError> {
-        params.validate()?;
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let n = n_surface_points(params.order);
-        let mut key =
-            CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array());
-        if levels.homogeneity.is_none() {
-            key.geometry = Some((domain_width, depth));
-        }
-        let accept = |s: &DenseStore<T>| {
-            if s.n == n && s.n_sets == levels.n_sets() {
-                Ok(())
-            } else {
-                Err("layout disagrees with the parameters".to_string())
-            }
-        };
-        let (store, cache_status) =
-            load_or_compute::<T, DenseStore<T>>(params.cache_dir.as_deref(), &key, accept, || {
-                let vectors = transfer_vectors();
-                let n_sets = levels.n_sets();
-                let mut data = vec![T::ZERO; n_sets * N_TRANSFER_VECTORS * n * n];
-                for set in 0..n_sets {
-                    let h = levels.set_half_width(set);
-                    let block = &mut data
-                        [set * N_TRANSFER_VECTORS * n * n..(set + 1) * N_TRANSFER_VECTORS * n * n];
-                    block
-                        .par_chunks_mut(n * n)
-                        .zip(vectors.par_iter())
-                        .try_for_each(|(dst, &v)| -> Result<(), FieldError> {
-                            let k = m2l_matrix(kernel, params.order, &params.radii, h, v)?;
-                            for (d, s) in dst.iter_mut().zip(col_major(k.as_ref())) {
-                                *d = T::from_f64(s);
-                            }
-                            Ok(())
-                        })?;
-                }
-                Ok(DenseStore { n, n_sets, data })
-            })?;
-        Ok(DenseM2l {
-            n,
-            levels,
-            store,
-            cache_status,
-        })
+        Self::build(kernel, params, domain_width, depth, None)
+    }
+
+    fn precompute_for<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        _config: &DenseConfig,
+        domain_width: f64,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> Result<Self, FieldError> {
+        Self::build(kernel, params, domain_width, depth, Some(usage))
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {

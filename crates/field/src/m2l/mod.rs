@@ -30,8 +30,10 @@ use rayon::prelude::*;
 
 use crate::interactions::ChunkView;
 use crate::linalg::kernel_matrix;
+use crate::precompute::{FLOPS_PER_THREAD, effective_threads};
 use crate::{
-    CacheStatus, FieldError, M2lInteractions, OperatorParams, SurfaceRadii, surface_points,
+    CacheStatus, FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams,
+    PrecomputeEstimate, SurfaceRadii, surface_points,
 };
 
 /// A swappable M2L translation scheme. The FMM driver is generic over it.
@@ -62,6 +64,64 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
         depth: u32,
     ) -> Result<Self, FieldError>;
 
+    /// Precompute only what `usage` needs: for a kernel homogeneous of
+    /// degree `d` the operators `K_v` for `v` in the union `V = U_l V_l` of
+    /// the used transfer vectors (one set, scaled by `h^d` per level);
+    /// otherwise for each level `l` with `V_l` nonempty, `K_v(h_l)` for
+    /// `v in V_l` only. An empty `usage` (a tree without V lists) computes
+    /// nothing at all. [`M2lScheme::apply`] may then only be called with
+    /// the interactions `usage` was made from.
+    ///
+    /// With a cache directory in `params`, all 316 vectors of every set are
+    /// computed (unless `usage` is empty) so that the cache file stays
+    /// complete and serves any later tree.
+    ///
+    /// The default implementation ignores `usage` and calls
+    /// [`M2lScheme::precompute`] (after checking the monitor).
+    fn precompute_for<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &Self::Config,
+        domain_width: f64,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> Result<Self, FieldError> {
+        let _ = usage;
+        params.monitor.check()?;
+        Self::precompute(kernel, params, config, domain_width, depth)
+    }
+
+    /// Predicted peak memory and time of
+    /// [`M2lScheme::precompute_for`]`(.., depth, usage)`, before any work.
+    ///
+    /// The default, right for [`DenseM2l`]: with `m` the matrices to
+    /// assemble (see [`planned_sets`]) and `n` points per surface, `m n^2`
+    /// stored values of `T` plus one `f64` matrix per worker thread;
+    /// `m n^2` kernel evaluations at about 20 flops each.
+    fn estimate<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &Self::Config,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> PrecomputeEstimate {
+        let _ = config;
+        let m: usize = planned_sets(kernel.homogeneity().is_some(), params, depth, usage)
+            .iter()
+            .map(Vec::len)
+            .sum();
+        let n = crate::n_surface_points(params.order) as u64;
+        let threads = effective_threads() as u64;
+        let size = std::mem::size_of::<T>() as u64;
+        let flops = 20.0 * m as f64 * (n * n) as f64;
+        PrecomputeEstimate {
+            matrices: m,
+            peak_bytes: m as u64 * n * n * size + if m > 0 { threads * n * n * 8 } else { 0 },
+            flops,
+            seconds: flops / (FLOPS_PER_THREAD * threads as f64),
+        }
+    }
+
     /// `check[:, t] += sum_{(t, s, v)} M2L_v(level) multipoles[:, s]`.
     ///
     /// # Panics
@@ -88,6 +148,31 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
 
 /// First tree level with V-list interactions.
 pub(crate) const FIRST_M2L_LEVEL: u32 = 2;
+
+/// The transfer vectors (indices) to compute per operator set for
+/// [`M2lScheme::precompute_for`]: nothing for an empty `usage`; all 316 per
+/// set with a cache directory (so the file stays complete); otherwise the
+/// union of the used vectors (homogeneous kernel, one set) or those of each
+/// level `2..=depth`.
+pub fn planned_sets(
+    homogeneous: bool,
+    params: &OperatorParams,
+    depth: u32,
+    usage: &M2lUsage,
+) -> Vec<Vec<usize>> {
+    let n_sets = if homogeneous {
+        1
+    } else {
+        (depth + 1).saturating_sub(FIRST_M2L_LEVEL) as usize
+    };
+    if usage.is_empty() {
+        vec![Vec::new(); n_sets]
+    } else if params.cache_dir.is_some() {
+        vec![(0..N_TRANSFER_VECTORS).collect(); n_sets]
+    } else {
+        usage.per_set(homogeneous, FIRST_M2L_LEVEL, depth)
+    }
+}
 
 /// `K_v` at half-width `h` (column-major `n x n`, `f64`).
 pub(crate) fn m2l_matrix<K: Kernel>(

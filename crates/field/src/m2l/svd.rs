@@ -6,14 +6,16 @@ use ferrofmm_kernels::{Kernel, Precision, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
+    scatter_add,
 };
 use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
 use crate::levels::LevelMap;
-use crate::linalg::{col_major, householder_r, round_to, svd};
+use crate::linalg::{col_major, householder_r_until, nested_par, round_to, svd};
+use crate::precompute::{FLOPS_PER_THREAD, Units, effective_threads};
 use crate::{
-    FieldError, M2lInteractions, N_TRANSFER_VECTORS, OperatorParams, gemm, gemm_scaled,
-    n_surface_points, transfer_vectors,
+    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
+    gemm, gemm_scaled, n_surface_points, transfer_vectors,
 };
 
 /// Configuration of [`SvdM2l`].
@@ -279,9 +281,113 @@ impl<T: Real> SvdM2l<T> {
             .sets
             .iter()
             .map(|s| {
-                s.vector_ranks.iter().map(|&r| r as f64).sum::<f64>() / s.vector_ranks.len() as f64
+                let used = s.vector_ranks.iter().filter(|&&r| r > 0).count().max(1);
+                s.vector_ranks.iter().map(|&r| r as f64).sum::<f64>() / used as f64
             })
             .fold(0.0, f64::max)
+    }
+
+    /// Build for `plan` (`None`: all 316 vectors of every set).
+    fn build<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &SvdConfig,
+        domain_width: f64,
+        depth: u32,
+        plan: Option<&M2lUsage>,
+    ) -> Result<Self, FieldError> {
+        params.validate()?;
+        if !config.tolerance.is_finite() || config.tolerance >= 1.0 {
+            return Err(FieldError::InvalidParams(format!(
+                "SVD tolerance must be finite and < 1, got {}",
+                config.tolerance
+            )));
+        }
+        if config.rank == Some(0) {
+            return Err(FieldError::InvalidParams(
+                "SVD rank must be positive".into(),
+            ));
+        }
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let n = n_surface_points(params.order);
+        let tolerance = if config.tolerance > 0.0 {
+            config.tolerance
+        } else {
+            default_svd_tolerance(T::PRECISION, params.order)
+        };
+        let plan_sets: Vec<Vec<usize>> = match plan {
+            None => vec![(0..N_TRANSFER_VECTORS).collect(); levels.n_sets()],
+            Some(u) => planned_sets(levels.homogeneity.is_some(), params, depth, u),
+        };
+        let full = plan_sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
+        let monitor = &params.monitor;
+        monitor.check()?;
+        let total: u64 = plan_sets
+            .iter()
+            .map(|vs| set_units(vs.len(), config.rank.is_none()))
+            .sum();
+        let units = monitor.units(total);
+        let compute = || -> Result<SvdStore<T>, FieldError> {
+            let mut sets = Vec::new();
+            let mut data = Vec::new();
+            for (set, vs) in plan_sets.iter().enumerate() {
+                if vs.is_empty() {
+                    sets.push(SvdSetInfo {
+                        rank: 0,
+                        dropped_fat: 0.0,
+                        dropped_tall: 0.0,
+                        vector_ranks: vec![0; N_TRANSFER_VECTORS],
+                    });
+                    continue;
+                }
+                let h = levels.set_half_width(set);
+                let (info, values) =
+                    compress_set(kernel, params, h, vs, config.rank, tolerance, &units)?;
+                sets.push(info);
+                data.extend(round_to::<T>(&values));
+            }
+            Ok(SvdStore { n, sets, data })
+        };
+        let (store, cache_status) = if full {
+            let mut key =
+                CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array());
+            key.scheme_config = format!(
+                "rank={:?};tolerance={:?};recompression={RECOMPRESSION_FACTOR:?}",
+                config.rank.map(|r| r.min(n)),
+                tolerance
+            );
+            if levels.homogeneity.is_none() {
+                key.geometry = Some((domain_width, depth));
+            }
+            let accept = |s: &SvdStore<T>| {
+                if s.n == n && s.sets.len() == levels.n_sets() {
+                    Ok(())
+                } else {
+                    Err("layout disagrees with the parameters".to_string())
+                }
+            };
+            load_or_compute::<T, SvdStore<T>>(params.cache_dir.as_deref(), &key, accept, compute)?
+        } else {
+            (compute()?, CacheStatus::Disabled)
+        };
+        let layout = Self::layout_of(&store);
+        Ok(SvdM2l {
+            n,
+            levels,
+            store,
+            layout,
+            tolerance,
+            cache_status,
+        })
+    }
+
+    /// Number of transfer vectors with an operator, over all sets.
+    pub fn n_vectors(&self) -> usize {
+        self.store
+            .sets
+            .iter()
+            .map(|s| s.vector_ranks.iter().filter(|&&r| r > 0).count())
+            .sum()
     }
 
     /// Start of each set in the store and where its 316 operators lie.
@@ -324,63 +430,69 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         domain_width: f64,
         depth: u32,
     ) -> Result<Self, FieldError> {
-        params.validate()?;
-        if !config.tolerance.is_finite() || config.tolerance >= 1.0 {
-            return Err(FieldError::InvalidParams(format!(
-                "SVD tolerance must be finite and < 1, got {}",
-                config.tolerance
-            )));
-        }
-        if config.rank == Some(0) {
-            return Err(FieldError::InvalidParams(
-                "SVD rank must be positive".into(),
-            ));
-        }
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let n = n_surface_points(params.order);
-        let tolerance = if config.tolerance > 0.0 {
-            config.tolerance
-        } else {
-            default_svd_tolerance(T::PRECISION, params.order)
-        };
-        let mut key =
-            CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array());
-        key.scheme_config = format!(
-            "rank={:?};tolerance={:?};recompression={RECOMPRESSION_FACTOR:?}",
-            config.rank.map(|r| r.min(n)),
-            tolerance
-        );
-        if levels.homogeneity.is_none() {
-            key.geometry = Some((domain_width, depth));
-        }
-        let accept = |s: &SvdStore<T>| {
-            if s.n == n && s.sets.len() == levels.n_sets() {
-                Ok(())
-            } else {
-                Err("layout disagrees with the parameters".to_string())
+        Self::build(kernel, params, config, domain_width, depth, None)
+    }
+
+    fn precompute_for<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &SvdConfig,
+        domain_width: f64,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> Result<Self, FieldError> {
+        Self::build(kernel, params, config, domain_width, depth, Some(usage))
+    }
+
+    /// Per set of `m` vectors (`n` points per surface, `t` threads): `t`
+    /// TSQR blocks in flight (two `16 n x n` matrices each), `2 m / 16` `R`
+    /// factors and their stack, and the `m` cores `C_v` with, when the rank
+    /// comes from the tolerance, their SVDs (`3 n^2` values each at most);
+    /// flops: two QRs of `m n x n` (`8 m n^3`) plus the projections and
+    /// SVDs of the cores (about `30 m n^3` at full rank).
+    fn estimate<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        config: &SvdConfig,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> PrecomputeEstimate {
+        let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
+        let n = n_surface_points(params.order) as f64;
+        let k = config.rank.map_or(n, |r| (r as f64).min(n));
+        let threads = effective_threads() as f64;
+        let per_core = if config.rank.is_some() { 1.0 } else { 4.0 };
+        let mut peak: f64 = 0.0;
+        let mut stored = 0.0;
+        let mut flops = 0.0;
+        let mut matrices = 0;
+        for vs in &sets {
+            let m = vs.len() as f64;
+            if vs.is_empty() {
+                continue;
             }
-        };
-        let (store, cache_status) =
-            load_or_compute::<T, SvdStore<T>>(params.cache_dir.as_deref(), &key, accept, || {
-                let mut sets = Vec::new();
-                let mut data = Vec::new();
-                for set in 0..levels.n_sets() {
-                    let h = levels.set_half_width(set);
-                    let (info, values) = compress_set(kernel, params, h, config.rank, tolerance)?;
-                    sets.push(info);
-                    data.extend(round_to::<T>(&values));
-                }
-                Ok(SvdStore { n, sets, data })
-            })?;
-        let layout = Self::layout_of(&store);
-        Ok(SvdM2l {
-            n,
-            levels,
-            store,
-            layout,
-            tolerance,
-            cache_status,
-        })
+            matrices += vs.len();
+            let blocks = (m / TSQR_BLOCK as f64).ceil();
+            let tsqr = threads.min(blocks) * 2.0 * TSQR_BLOCK as f64 * n * n + 2.0 * blocks * n * n;
+            let cores = m * per_core * k * k;
+            peak = peak.max(stored * 8.0 + (tsqr.max(cores) + 2.0 * n * k) * 8.0);
+            stored += 2.0 * n * k + m * k * k;
+            flops += 8.0 * m * n * n * n
+                + m * (2.0 * n * n * k + 2.0 * n * k * k)
+                + if config.rank.is_some() {
+                    0.0
+                } else {
+                    20.0 * m * k * k * k
+                };
+        }
+        let size = std::mem::size_of::<T>() as f64;
+        let peak_bytes = peak.max(stored * size);
+        PrecomputeEstimate {
+            matrices,
+            peak_bytes: peak_bytes as u64,
+            flops,
+            seconds: flops / (FLOPS_PER_THREAD * threads),
+        }
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
@@ -416,6 +528,12 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
                 let len = g.sources.len();
                 gather(k, mc, g.sources, &mut src[..k * len]);
                 let VectorOp { offset, rank: r } = ops[g.vector];
+                assert!(
+                    r > 0,
+                    "M2L operator of transfer vector {} was not precomputed: \
+                     the interactions differ from the usage given to precompute_for",
+                    g.vector
+                );
                 if r == k {
                     let cv = &store[offset..offset + k * k];
                     gemm(k, len, k, cv, &src[..k * len], &mut dst[..k * len], false);
@@ -458,24 +576,43 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
 /// Matrices per TSQR block.
 const TSQR_BLOCK: usize = 16;
 
+/// Progress units per transfer vector of the TSQR (two QRs of its rows),
+/// of the bases (its share of the two SVDs), of its projection and of its
+/// own SVD, so that units are roughly proportional to time.
+const TSQR_UNITS: u64 = 6;
+const BASES_UNITS: u64 = 1;
+
+/// Progress units of a set of `m` vectors.
+fn set_units(m: usize, refactor: bool) -> u64 {
+    if m == 0 {
+        return 0;
+    }
+    m as u64 * (TSQR_UNITS + BASES_UNITS + 1 + u64::from(refactor))
+}
+
 /// Compress the 316 operators of one set at half-width `h`: returns the
 /// summary and `[U_k, V_k^T, C_1 .. C_316]` (column-major, `f64`).
 fn compress_set<K: Kernel>(
     kernel: &K,
     params: &OperatorParams,
     h: f64,
+    used: &[usize],
     rank: Option<usize>,
     tolerance: f64,
+    units: &Units<'_>,
 ) -> Result<(SvdSetInfo, Vec<f64>), FieldError> {
     let p = params.order;
     let n = n_surface_points(p);
-    let vectors = transfer_vectors();
+    let all = transfer_vectors();
+    let vectors: Vec<[i32; 3]> = used.iter().map(|&v| all[v]).collect();
+    let stop = || units.cancelled();
     // First TSQR level: R factors of blocks of the tall stack [K_v] and of
     // the transposed fat stack [K_v^T].
     type RPair = Result<(Mat<f64>, Mat<f64>), FieldError>;
     let blocks: Vec<RPair> = vectors
         .par_chunks(TSQR_BLOCK)
         .map(|vs| {
+            units.check()?;
             let rows = vs.len() * n;
             let mut tall = vec![0.0f64; rows * n];
             let mut fat_t = vec![0.0f64; rows * n];
@@ -488,10 +625,11 @@ fn compress_set<K: Kernel>(
                     }
                 }
             }
-            Ok((
-                householder_r(&mut tall, rows, n, Par::Seq),
-                householder_r(&mut fat_t, rows, n, Par::Seq),
-            ))
+            let rt = householder_r_until(&mut tall, rows, n, Par::Seq, &stop);
+            units.check()?;
+            let rf = householder_r_until(&mut fat_t, rows, n, Par::Seq, &stop);
+            units.add(TSQR_UNITS * vs.len() as u64)?;
+            Ok((rt, rf))
         })
         .collect();
     let mut r_tall = Vec::with_capacity(blocks.len());
@@ -511,15 +649,18 @@ fn compress_set<K: Kernel>(
                 }
             }
         }
-        householder_r(&mut stacked, rows, n, Par::rayon(0))
+        householder_r_until(&mut stacked, rows, n, nested_par(), &stop)
     };
     let rt = reduce(&r_tall);
+    units.check()?;
     let rf = reduce(&r_fat);
+    units.check()?;
     // Right singular vectors of R_tall are V; of R_fat (from the fat
     // stack's transpose) they are the left singular vectors U of the fat
     // stack.
     let st = svd(rt.as_ref(), "the tall M2L stack")?;
     let sf = svd(rf.as_ref(), "the fat M2L stack")?;
+    units.add(BASES_UNITS * vectors.len() as u64)?;
     let count = |s: &[f64]| {
         s.iter()
             .take_while(|&&x| x > tolerance * s[0])
@@ -543,8 +684,11 @@ fn compress_set<K: Kernel>(
     let cs: Vec<Result<Vec<f64>, FieldError>> = vectors
         .par_iter()
         .map(|&v| {
+            units.check()?;
             let kv = m2l_matrix(kernel, p, &params.radii, h, v)?;
-            Ok(project(uk, kv.as_ref(), vk))
+            let c = project(uk, kv.as_ref(), vk);
+            units.add(1)?;
+            Ok(c)
         })
         .collect();
     let cs = cs.into_iter().collect::<Result<Vec<_>, _>>()?;
@@ -556,10 +700,13 @@ fn compress_set<K: Kernel>(
         let svds = cs
             .par_iter()
             .map(|c| {
-                svd(
+                units.check()?;
+                let d = svd(
                     MatRef::from_column_major_slice(c, k, k),
                     "a compressed M2L operator",
-                )
+                )?;
+                units.add(1)?;
+                Ok(d)
             })
             .collect::<Result<Vec<_>, _>>()?;
         let s_max = svds.iter().map(|d| d.s[0]).fold(0.0, f64::max);
@@ -584,10 +731,13 @@ fn compress_set<K: Kernel>(
         rank: k,
         dropped_fat: dropped(&sf.s),
         dropped_tall: dropped(&st.s),
-        vector_ranks: factored
-            .iter()
-            .map(|f| f.as_ref().map_or(k, |(r, _)| *r) as u32)
-            .collect(),
+        vector_ranks: {
+            let mut ranks = vec![0u32; N_TRANSFER_VECTORS];
+            for (f, &v) in factored.iter().zip(used) {
+                ranks[v] = f.as_ref().map_or(k, |(r, _)| *r) as u32;
+            }
+            ranks
+        },
     };
     let mut out = Vec::with_capacity(info.len(n));
     out.extend(col_major(uk));
