@@ -60,7 +60,9 @@ impl<T: Real> SourceSide<'_, T> {
                 let shift: [f64; 3] = std::array::from_fn(|c| centre[c] - origin[c]);
                 points
                     .chunks_exact(3)
-                    .flat_map(|p| std::array::from_fn::<T, 3, _>(|c| T::from_f64(p[c].to_f64() + shift[c])))
+                    .flat_map(|p| {
+                        std::array::from_fn::<T, 3, _>(|c| T::from_f64(p[c].to_f64() + shift[c]))
+                    })
                     .collect()
             }
             SidePoints::Absolute(p) => relative(p, origin),

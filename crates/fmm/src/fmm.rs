@@ -134,13 +134,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 let t = Instant::now();
                 let (s, tg) = match (&clusters.len(), &tgt64) {
                     (1, _) => (None, None),
-                    (_, Some(t)) => (Some(gather(&src64, &main.sources)), Some(gather(t, &main.targets))),
+                    (_, Some(t)) => (
+                        Some(gather(&src64, &main.sources)),
+                        Some(gather(t, &main.targets)),
+                    ),
                     (_, None) => (Some(gather(&src64, &main.sources)), None),
                 };
                 let c = Tuner::new(T::PRECISION).for_mode(b.mode).choose(
                     eps,
                     s.as_deref().unwrap_or(&src64),
-                    if clusters.len() == 1 { tgt64.as_deref() } else { tg.as_deref() },
+                    if clusters.len() == 1 {
+                        tgt64.as_deref()
+                    } else {
+                        tg.as_deref()
+                    },
                     b.domain,
                     b.max_level,
                 )?;
@@ -180,7 +187,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             };
             parts.push(Part {
                 body: part,
-                n_sources: if single { b.sources.len() / 3 } else { cluster.sources.len() },
+                n_sources: if single {
+                    b.sources.len() / 3
+                } else {
+                    cluster.sources.len()
+                },
                 n_targets: if single {
                     b.targets.map_or(b.sources.len(), <[T]>::len) / 3
                 } else {
@@ -238,7 +249,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         for part in &self.parts {
             if let Some(t) = part.tree_part() {
                 let mut s = SetupTimings::default();
-                rebuilt.push(build_operators(&self.kernel, &params, &config, &t.tree, &mut s)?);
+                rebuilt.push(build_operators(
+                    &self.kernel,
+                    &params,
+                    &config,
+                    &t.tree,
+                    &mut s,
+                )?);
                 setup.operators += s.operators;
                 setup.m2l_precompute += s.m2l_precompute;
             }
@@ -549,7 +566,11 @@ struct PartInput<'a, T> {
 impl<T: Copy> PartInput<'_, T> {
     /// The part's sources and targets (`None`: the targets are the sources,
     /// or the part has no targets of its own set).
-    fn points<'b, U: Copy>(&self, src: &'b [U], tgt: Option<&'b [U]>) -> (Cow<'b, [U]>, Option<Cow<'b, [U]>>) {
+    fn points<'b, U: Copy>(
+        &self,
+        src: &'b [U],
+        tgt: Option<&'b [U]>,
+    ) -> (Cow<'b, [U]>, Option<Cow<'b, [U]>>) {
         match self.ids {
             None => (Cow::Borrowed(src), tgt.map(Cow::Borrowed)),
             Some(c) => (
@@ -632,7 +653,10 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
 fn points_part<T: Real>(input: &PartInput<'_, T>) -> PointsPart<T> {
     let (src64, tgt64) = input.points(input.src64, input.tgt64);
     let (src, tgt) = input.points(input.sources, input.targets);
-    let sets: Vec<&[f64]> = [Some(&src64[..]), tgt64.as_deref()].into_iter().flatten().collect();
+    let sets: Vec<&[f64]> = [Some(&src64[..]), tgt64.as_deref()]
+        .into_iter()
+        .flatten()
+        .collect();
     let centre = Domain::from_points(&sets).map_or([0.0; 3], |d| coordinate_origin(&d));
     let identity: Vec<usize> = (0..src.len() / 3).collect();
     let targets = tgt.map(|t| {

@@ -87,8 +87,7 @@ impl MemoryReport {
                     // (4), two masks, colleague table (27 u32), leaves.
                     let per_box = size_of::<u64>() + us + 2 * us + 4 * us + 2 + 27 * 4;
                     let lists = tree.interaction_lists();
-                    let csr =
-                        |c: &ferrofmm_tree::Csr| (c.offsets().len() + c.indices().len()) * us;
+                    let csr = |c: &ferrofmm_tree::Csr| (c.offsets().len() + c.indices().len()) * us;
                     tree_bytes += tree.n_boxes() * per_box
                         + std::mem::size_of_val(tree.leaves())
                         + csr(&lists.u)

@@ -25,9 +25,9 @@ use rayon::prelude::*;
 
 use crate::batch::{gather_apply_scatter, par_columns};
 use crate::part::{Body, TreePart};
+use crate::timings::EvalTimings;
 use crate::{Fmm, coupling};
 use ferrofmm_tree::Octree;
-use crate::timings::EvalTimings;
 
 /// One full evaluation for one charge vector (already validated): every
 /// cluster's upward pass, the clusters' coupling ([`crate::coupling`]), then
@@ -76,7 +76,15 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
             Body::Tree(tp) if tp.has_targets => {
                 let mut locals = vec![T::ZERO; n * tp.tree.n_boxes()];
                 let root = (!root_checks[k].is_empty()).then_some(&root_checks[k][..]);
-                downward(fmm, tp, &local_q[k], &multipoles[k], root, &mut locals, &mut timings);
+                downward(
+                    fmm,
+                    tp,
+                    &local_q[k],
+                    &multipoles[k],
+                    root,
+                    &mut locals,
+                    &mut timings,
+                );
                 leaf_passes(
                     fmm,
                     tp,

@@ -256,7 +256,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// relative to the domain's centre.
     fn original_points(&self) -> (Vec<f64>, Vec<f64>) {
         let mut sources = vec![0.0f64; 3 * self.n_sources];
-        let mut targets = vec![0.0f64; if self.separate_targets { 3 * self.n_targets } else { 0 }];
+        let mut targets = vec![
+            0.0f64;
+            if self.separate_targets {
+                3 * self.n_targets
+            } else {
+                0
+            }
+        ];
         for part in &self.parts {
             part.write_original_points(&mut sources, &mut targets);
         }

@@ -186,7 +186,8 @@ fn merge_close(
     point: &(impl Fn(usize) -> [f64; 3] + Sync),
     separation: f64,
 ) -> Vec<Vec<usize>> {
-    let mut boxes: Vec<([f64; 3], [f64; 3])> = groups.par_iter().map(|g| bounds(g, point)).collect();
+    let mut boxes: Vec<([f64; 3], [f64; 3])> =
+        groups.par_iter().map(|g| bounds(g, point)).collect();
     loop {
         let c = groups.len();
         let mut root: Vec<usize> = (0..c).collect();
@@ -431,7 +432,11 @@ fn cut_cells(cells: &[Group], axis: usize, ratio: f64) -> Option<(f64, Vec<usize
         .map(|w| {
             let gap = w[1].1.lo[axis] - w[0].1.hi[axis];
             let wider = w[0].1.width().max(w[1].1.width());
-            if wider > 0.0 { gap / wider } else { f64::INFINITY }
+            if wider > 0.0 {
+                gap / wider
+            } else {
+                f64::INFINITY
+            }
         })
         .fold(0.0, f64::max);
     let mut piece_of_cell = vec![0; cells.len()];
@@ -578,7 +583,11 @@ mod tests {
             let p: Vec<f64> = (0..k * k * k)
                 .flat_map(|i| [(i % k) as f64, ((i / k) % k) as f64, (i / (k * k)) as f64])
                 .collect();
-            assert_eq!(separated_clusters(&p, None, DEFAULT_SEPARATION).len(), 1, "k = {k}");
+            assert_eq!(
+                separated_clusters(&p, None, DEFAULT_SEPARATION).len(),
+                1,
+                "k = {k}"
+            );
         }
     }
 
@@ -608,9 +617,18 @@ mod tests {
             let mut p = cloud(300 + 50 * trial, [0.0; 3], 1.0, trial as u64);
             for _ in 0..(trial % 7) {
                 let scale = 10f64.powf(1.0 + 14.0 * next());
-                let size = if next() < 0.5 { 0.0 } else { scale * 1e-3 * next() };
+                let size = if next() < 0.5 {
+                    0.0
+                } else {
+                    scale * 1e-3 * next()
+                };
                 let at = [0, 1, 2].map(|_| scale * (2.0 * next() - 1.0));
-                p.extend(cloud(1 + (next() * 40.0) as usize, at, size, trial as u64 + 7));
+                p.extend(cloud(
+                    1 + (next() * 40.0) as usize,
+                    at,
+                    size,
+                    trial as u64 + 7,
+                ));
             }
             let ratio = [4.0, DEFAULT_SEPARATION, 256.0][trial % 3];
             let c = separated_clusters(&p, None, ratio);
@@ -620,7 +638,11 @@ mod tests {
             let boxes = boxes_of(&c, &p);
             for i in 0..boxes.len() {
                 for j in i + 1..boxes.len() {
-                    assert!(separated(&boxes[i], &boxes[j], ratio.min(COUPLING_SEPARATION)));
+                    assert!(separated(
+                        &boxes[i],
+                        &boxes[j],
+                        ratio.min(COUPLING_SEPARATION)
+                    ));
                 }
             }
         }
