@@ -426,7 +426,9 @@ impl Chart for Operators<'_> {
         let root = root.titled(&title, (FAMILY, 20)).map_err(err)?;
         let (_, height) = root.dim_in_pixel();
         let (root, legend) = root.split_vertically(height.saturating_sub(36));
-        let op_colors: Vec<RGBColor> = (0..8).map(|k| COLORS[k % COLORS.len()]).collect();
+        let op_colors: Vec<RGBColor> = (0..OperatorSeconds::NAMES.len())
+            .map(|k| COLORS[k % COLORS.len()])
+            .collect();
         // One legend for all panels, in stacking order from the bottom.
         for (k, name) in OperatorSeconds::NAMES.iter().enumerate() {
             let x = 60 + 100 * k as i32;
@@ -644,6 +646,8 @@ pub(crate) mod tests {
                 w_list: 0,
                 x_list: 0,
                 m2l_bytes: 1 << 20,
+                clusters: 1,
+                far_points: 0,
             },
             setup: SetupSeconds {
                 tree_s: 0.01,
@@ -665,6 +669,7 @@ pub(crate) mod tests {
                     l2p: 0.1 * time,
                     m2p: 0.0,
                     p2p: 0.3 * time,
+                    far: 0.0,
                 },
             },
             errors: Some(ErrorFigures {

@@ -7,10 +7,11 @@
 //! command, geometry (demo only), n_sources, n_targets, order, leaf_size,
 //! scheme, precision, gradients, threads, tolerance, predicted_error,
 //! cache (null without --cache-dir, else in words),
-//! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes },
+//! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes,
+//!               clusters, far_points },
 //! setup:      { tree_s, operators_s, m2l_precompute_s, layout_s, total_s },
 //! evaluation: { repeats, best_s, median_s,
-//!               operators_s: { p2m, m2m, m2l, p2l, l2l, l2p, m2p, p2p } },
+//!               operators_s: { p2m, m2m, m2l, p2l, l2l, l2p, m2p, p2p, far } },
 //! charges (demo: "signed" or "positive"; eval: null),
 //! verification: { tolerance, met, rebuild_s,
 //!                 attempts: [ { order, svd_tolerance, predicted_error,
@@ -111,6 +112,18 @@ pub struct TreeFigures {
     pub x_list: usize,
     /// Bytes held by the M2L operators.
     pub m2l_bytes: usize,
+    /// Far-separated clusters, each with a tree of its own or its bare
+    /// points (1 for most inputs; the figures above are the largest
+    /// cluster's tree). Reports written before it existed read as 1.
+    #[serde(default = "one")]
+    pub clusters: usize,
+    /// Sources plus targets outside the largest cluster.
+    #[serde(default)]
+    pub far_points: usize,
+}
+
+fn one() -> usize {
+    1
 }
 
 impl From<&FmmSummary> for TreeFigures {
@@ -125,6 +138,8 @@ impl From<&FmmSummary> for TreeFigures {
             w_list: s.list_entries[2],
             x_list: s.list_entries[3],
             m2l_bytes: s.m2l_bytes,
+            clusters: s.clusters,
+            far_points: s.far_points,
         }
     }
 }
@@ -188,16 +203,23 @@ pub struct OperatorSeconds {
     pub m2p: f64,
     /// Particle to particle (U lists).
     pub p2p: f64,
+    /// Between far-separated clusters (root expansions or direct sums);
+    /// zero for a problem that is one cluster.
+    #[serde(default)]
+    pub far: f64,
 }
 
 impl OperatorSeconds {
     /// Operator names as the FMM literature writes them, in pass order.
-    pub const NAMES: [&'static str; 8] = ["P2M", "M2M", "M2L", "P2L", "L2L", "L2P", "M2P", "P2P"];
+    pub const NAMES: [&'static str; 9] = [
+        "P2M", "M2M", "M2L", "P2L", "L2L", "L2P", "M2P", "P2P", "Far",
+    ];
 
     /// Values in the order of [`OperatorSeconds::NAMES`].
-    pub fn values(&self) -> [f64; 8] {
+    pub fn values(&self) -> [f64; 9] {
         [
             self.p2m, self.m2m, self.m2l, self.p2l, self.l2l, self.l2p, self.m2p, self.p2p,
+            self.far,
         ]
     }
 }
@@ -214,6 +236,7 @@ impl From<&EvalTimings> for OperatorSeconds {
             l2p: s(&t.l2p),
             m2p: s(&t.m2p),
             p2p: s(&t.p2p),
+            far: s(&t.coupling),
         }
     }
 }
@@ -368,10 +391,19 @@ impl RunReport {
             &mut o,
             "tree",
             format!(
-                "depth {}, {} leaves, {} boxes",
+                "depth {}, {} leaves, {} boxes{}",
                 self.tree.depth,
                 thousands(self.tree.n_leaves),
-                thousands(self.tree.n_boxes)
+                thousands(self.tree.n_boxes),
+                if self.tree.clusters > 1 {
+                    format!(
+                        "; {} far clusters ({} points outside the largest)",
+                        self.tree.clusters,
+                        thousands(self.tree.far_points)
+                    )
+                } else {
+                    String::new()
+                }
             ),
         );
         row(
@@ -411,6 +443,9 @@ impl RunReport {
         };
         let _ = writeln!(o, "evaluation           {:>10}{repeats}", seconds(e.best_s));
         for (name, s) in OperatorSeconds::NAMES.iter().zip(e.operators_s.values()) {
+            if *name == "Far" && s == 0.0 {
+                continue;
+            }
             let share = if e.best_s > 0.0 {
                 100.0 * s / e.best_s
             } else {

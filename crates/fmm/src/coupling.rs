@@ -1,8 +1,9 @@
 //! Interactions between far-separated clusters ([`crate::part`]).
 //!
-//! Clusters `A` and `B` are separated along some axis by at least
-//! `ratio * max(w_A, w_B)` (`ratio` = 256), so each lies far outside the
-//! other's far-field surfaces. `A` acts on `B` through whichever is smaller
+//! Clusters `A` and `B` are apart along some axis by at least
+//! `4 max(w_A, w_B)` (`w` the largest extent over the three axes; box
+//! centres at least five widths apart, against two for a V-list pair of
+//! one tree), so each lies far outside the other's far-field surfaces. `A` acts on `B` through whichever is smaller
 //! on each side:
 //!
 //! * **source side** — `A`'s sources with their charges, or, when `A` has a

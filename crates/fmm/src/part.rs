@@ -4,8 +4,8 @@
 //! ([`ferrofmm_tree::clusters`]: cut along an axis where the gap is
 //! [`DEFAULT_SEPARATION`](ferrofmm_tree::DEFAULT_SEPARATION) times the
 //! groups' size along it, and every two clusters apart in 3D by at least
-//! four times the wider one's width). A set without such gaps is one cluster, and everything is as
-//! with a single octree. Otherwise each cluster is a [`Part`]:
+//! four times the wider one's width). A set without such gaps is one
+//! cluster, and everything is as with a single octree. Otherwise each cluster is a [`Part`]:
 //!
 //! * the largest cluster (part 0), and every cluster with more than
 //!   `leaf_size` sources or targets, gets an octree of its own with its own

@@ -12,7 +12,7 @@
 //! ```text
 //! geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,
 //! depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,
-//! eval_best_s,eval_median_s,p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,
+//! eval_best_s,eval_median_s,p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,far_s,
 //! potential_error,gradient_error,peak_rss_mib,m2l_mib
 //! ```
 //!
@@ -36,7 +36,7 @@ use crate::report::{RunReport, seconds};
 /// The header of `results.csv`.
 pub const CSV_HEADER: &str = "geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,\
 depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,eval_best_s,eval_median_s,\
-p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,potential_error,gradient_error,peak_rss_mib,m2l_mib";
+p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,far_s,potential_error,gradient_error,peak_rss_mib,m2l_mib";
 
 /// Arguments of `ferrofmm sweep`.
 #[derive(Args, Clone, Debug)]
