@@ -53,7 +53,8 @@ fn threads_above_the_cores_are_capped() {
 
     let (help, _) = texts(&ferrofmm(&["--help"]));
     assert!(
-        help.to_lowercase().contains("at most one per available core"),
+        help.to_lowercase()
+            .contains("at most one per available core"),
         "{help}"
     );
 }

@@ -13,12 +13,17 @@
 //! `A` and `B` with a gap `g` between them along `a` are cut apart when
 //!
 //! ```text
-//! g >= ratio * max(d(A), d(B)),    d(G) = max(e_a(G), w(G) / (2 ratio)),
+//! g >= ratio * max(d(A), d(B)),    d(G) = max(e_a(G), w(G) / (2 ratio), E_a / n),
 //! ```
 //!
-//! where `e_a` is a group's extent along `a` and `w` its largest extent
-//! over the three axes: groups far apart for their size along the cut (the
-//! gain: levels of one tree that the cloud would lose). The floor
+//! where `e_a` is a group's extent along `a`, `w` its largest extent
+//! over the three axes, and `E_a / n` the mean spacing of the `n` points
+//! of the piece being cut (`E_a` its extent along `a`): groups far apart
+//! for their size along the cut (the gain: levels of one tree that the
+//! cloud would lose). The spacing floor keeps sparse sets whole: points
+//! spread evenly or at random, each alone in a cell, are gaps of about the
+//! mean spacing apart, and a tree serves them well (an outlier `D` away
+//! from `n` points still comes off once `n >= ratio`). The floor
 //! `w / (2 ratio)` keeps flat groups together: the planes of a lattice
 //! have no extent along their normal but are not far apart; a cloud that
 //! still holds an outlier along another axis, `D2` away, lets one along
@@ -112,7 +117,7 @@ impl Cluster {
 ///     [t, (3.0 * t) % 1.0, (7.0 * t) % 1.0]
 /// }).collect();
 /// pts.extend([1e6, 1e6, 1e6]);
-/// let c = separated_clusters(&pts, None, 256.0);
+/// let c = separated_clusters(&pts, None, ferrofmm_tree::DEFAULT_SEPARATION);
 /// assert_eq!(c.len(), 2);
 /// assert_eq!(c[0].sources.len(), 100);
 /// assert_eq!(c[1].sources, vec![100]);
@@ -370,7 +375,8 @@ fn split_once(
                     a
                 },
             );
-        if let Some((score, piece_of_cell)) = cut_cells(&cells, axis, ratio)
+        let spacing = extent / set.len() as f64;
+        if let Some((score, piece_of_cell)) = cut_cells(&cells, axis, ratio, spacing)
             && best.as_ref().is_none_or(|(s, _, _)| score > *s)
         {
             best = Some((score, axis, piece_of_cell));
@@ -389,10 +395,16 @@ fn split_once(
 
 /// The largest set of cuts that hold between the runs of occupied `cells`
 /// along `axis`: the piece of each cell and the best cut's score
-/// `g / max(w(A), w(B))`, or `None` when no cut holds.
-fn cut_cells(cells: &[Group], axis: usize, ratio: f64) -> Option<(f64, Vec<usize>)> {
-    // A group's size along the cut, at least `1 / (2 ratio)` of its width.
-    let size = |g: &Group| -> f64 { (g.hi[axis] - g.lo[axis]).max(g.width() / (2.0 * ratio)) };
+/// `g / max(w(A), w(B))`, or `None` when no cut holds. `spacing` is the
+/// piece's mean point spacing along `axis` (its extent over its count).
+fn cut_cells(cells: &[Group], axis: usize, ratio: f64, spacing: f64) -> Option<(f64, Vec<usize>)> {
+    // A group's size along the cut, at least `1 / (2 ratio)` of its width
+    // and the mean spacing.
+    let size = |g: &Group| -> f64 {
+        (g.hi[axis] - g.lo[axis])
+            .max(g.width() / (2.0 * ratio))
+            .max(spacing)
+    };
     let holds = |a: &Group, b: &Group| -> bool {
         let gap = b.lo[axis] - a.hi[axis];
         gap > 0.0 && gap >= ratio * size(a).max(size(b))
@@ -577,6 +589,35 @@ mod tests {
 
     /// A regular lattice has no far groups: its planes are too close for
     /// their width.
+    /// Points each alone in a histogram cell (evenly spaced on a line or a
+    /// curve, or a coarse grid) are not singled out: their gaps are about
+    /// the mean spacing. One of them moved far away still comes off.
+    #[test]
+    fn evenly_spaced_points_stay_whole() {
+        for n in [20, 100, 1000, 5000] {
+            let line: Vec<f64> = (0..n)
+                .flat_map(|i| {
+                    let t = i as f64 / n as f64;
+                    [t, (3.0 * t) % 1.0, (7.0 * t) % 1.0]
+                })
+                .collect();
+            assert_eq!(
+                separated_clusters(&line, None, DEFAULT_SEPARATION).len(),
+                1,
+                "n = {n}"
+            );
+            let mut far = line.clone();
+            far[3 * n - 3..].copy_from_slice(&[1e6; 3]);
+            let c = separated_clusters(&far, None, DEFAULT_SEPARATION);
+            assert_eq!(c.len(), 2, "n = {n}");
+            assert_eq!(c[1].sources, vec![n - 1]);
+        }
+        let grid: Vec<f64> = (0..512)
+            .flat_map(|i| [(i % 8) as f64, ((i / 8) % 8) as f64, (i / 64) as f64].map(|x| 1e3 * x))
+            .collect();
+        assert_eq!(separated_clusters(&grid, None, DEFAULT_SEPARATION).len(), 1);
+    }
+
     #[test]
     fn a_lattice_stays_whole() {
         for k in [4usize, 5, 12, 20] {
@@ -656,7 +697,8 @@ mod tests {
         let same = separated_clusters(&[1.0, 2.0, 3.0, 1.0, 2.0, 3.0], None, 256.0);
         assert_eq!(same.len(), 1);
         let two = separated_clusters(&[0.0, 0.0, 0.0, 1.0, 0.0, 0.0], None, 256.0);
-        // Two points: each side has width 0, any gap is valid.
-        assert_eq!(two.len(), 2);
+        // Two points: each side is as wide as the mean spacing (the gap), so
+        // no ratio above 1 separates them; one tree serves them.
+        assert_eq!(two.len(), 1);
     }
 }
