@@ -97,7 +97,7 @@ pub use m2l::{
     DenseConfig, DenseM2l, M2lScheme, SvdConfig, SvdM2l, default_svd_tolerance, planned_sets,
 };
 pub use operators::{AMPLIFICATION_WARNING, OperatorDiagnostics, Operators, octant_offset};
-pub use params::{MAX_ORDER, OperatorParams, default_pinv_rcond};
+pub use params::{MAX_ORDER, MIN_ORDER, OperatorParams, default_pinv_rcond};
 pub use pinv::PinvSummary;
 pub use precompute::{
     M2lUsage, MEMORY_LIMIT_ENV, MemoryLimit, PrecomputeEstimate, PrecomputeMonitor,

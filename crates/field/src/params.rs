@@ -6,10 +6,16 @@ use ferrofmm_kernels::Precision;
 
 use crate::{FieldError, MemoryLimit, PrecomputeMonitor, SurfaceRadii};
 
-/// Highest accepted expansion order. At `p = 30` one expansion already has
-/// 5048 values and a dense M2L level would need `316 * 5048^2` matrix
-/// entries; nothing useful lies beyond.
-pub const MAX_ORDER: usize = 30;
+/// Lowest accepted expansion order (a surface of `6 (p - 1)^2 + 2 = 8`
+/// points, the cube's corners).
+pub const MIN_ORDER: usize = 2;
+
+/// Highest accepted expansion order, here and in the FMM driver (which
+/// re-exports it). Beyond it the f64 check-to-equivalent inversion has no
+/// digits left to gain (the error stops falling at `p ~ 16`, see
+/// docs/stability.md), while one expansion holds `6 (p - 1)^2 + 2` values
+/// (2168 at `p = 20`) and a dense M2L set `316` squares of that.
+pub const MAX_ORDER: usize = 20;
 
 /// Default relative cutoff of the check-to-equivalent pseudo-inverse for a
 /// float type: singular values `sigma_i <= rcond * sigma_0` are dropped.
@@ -90,7 +96,7 @@ impl OperatorParams {
     }
 
     /// Check the parameters:
-    /// * `2 <= order <= MAX_ORDER`;
+    /// * `MIN_ORDER <= order <= MAX_ORDER`;
     /// * all radii finite, `1 < r_ue < r_uc <= 3`, `1 <= r_dc < r_de <= 3`
     ///   (equivalent surfaces enclose the box, check surfaces lie between
     ///   the equivalent surface and the far field three half-widths out);
@@ -101,8 +107,11 @@ impl OperatorParams {
     /// * `pinv_rcond`, if given, finite and in `[0, 1)`.
     pub fn validate(&self) -> Result<(), FieldError> {
         let bad = |m: String| Err(FieldError::InvalidParams(m));
-        if self.order < 2 {
-            return bad(format!("order must be at least 2, got {}", self.order));
+        if self.order < MIN_ORDER {
+            return bad(format!(
+                "order must be at least {MIN_ORDER}, got {}",
+                self.order
+            ));
         }
         if self.order > MAX_ORDER {
             return bad(format!(
@@ -166,9 +175,9 @@ mod tests {
 
     #[test]
     fn validation() {
-        assert!(OperatorParams::new(2).validate().is_ok());
-        assert!(OperatorParams::new(30).validate().is_ok());
-        for p in [0, 1, 31, 1000] {
+        assert!(OperatorParams::new(MIN_ORDER).validate().is_ok());
+        assert!(OperatorParams::new(MAX_ORDER).validate().is_ok());
+        for p in [0, MIN_ORDER - 1, MAX_ORDER + 1, 1000] {
             assert!(OperatorParams::new(p).validate().is_err(), "order {p}");
         }
         let mut q = OperatorParams::new(4);

@@ -14,11 +14,7 @@ use crate::fmm::ChosenScheme;
 use crate::tuning::ChosenParameters;
 use crate::{Fmm, FmmError, tuning};
 
-/// Smallest supported expansion order.
-pub const MIN_ORDER: usize = 2;
-/// Largest supported expansion order (beyond it even f64 check-to-equivalent
-/// inversion has no digits left; see docs/stability.md).
-pub const MAX_ORDER: usize = 20;
+pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
 /// Default points per leaf: measured best for Laplace in f64 around p = 6 on
 /// a 2-core AVX-512 machine (docs/performance.md).
 pub const DEFAULT_LEAF_SIZE: usize = 150;
