@@ -298,7 +298,11 @@ impl M2lInteractions {
         self.chunks.len()
     }
 
-    pub(crate) fn chunk_views(&self) -> impl Iterator<Item = ChunkView<'_>> + '_ {
+    /// The chunks in target order: chunk `c` owns a contiguous range of
+    /// target columns, the next chunk starts where it ends, and together
+    /// they cover `0..n_target_cols`. See
+    /// [`plumbing::for_each_chunk`](crate::plumbing::for_each_chunk).
+    pub fn chunk_views(&self) -> impl Iterator<Item = ChunkView<'_>> + '_ {
         self.chunks.iter().map(move |c| ChunkView {
             inter: self,
             chunk: c,
@@ -378,18 +382,26 @@ fn out_of_range(
     ))
 }
 
-/// One chunk as seen by a scheme's apply.
-#[derive(Clone, Copy)]
-pub(crate) struct ChunkView<'a> {
+/// One chunk of an [`M2lInteractions`] as a scheme's apply sees it: a
+/// contiguous range of target columns and its pairs, grouped by transfer
+/// vector (ascending vector index; within a group, pairs in target order).
+#[derive(Clone, Copy, Debug)]
+pub struct ChunkView<'a> {
     inter: &'a M2lInteractions,
     chunk: &'a Chunk,
 }
 
-/// One group: transfer vector index, source columns, chunk-local target
-/// columns.
-pub(crate) struct GroupView<'a> {
+/// The pairs of one chunk that share a transfer vector: pair `k` adds
+/// `K_v multipoles[:, sources[k]]` to the chunk's target column
+/// `targets[k]` (relative to the chunk's first column).
+#[derive(Clone, Copy, Debug)]
+pub struct GroupView<'a> {
+    /// Index of the transfer vector `v` in
+    /// [`transfer_vectors`](crate::transfer_vectors).
     pub vector: usize,
+    /// Source columns (boxes whose multipoles are read).
     pub sources: &'a [u32],
+    /// Target columns, relative to the chunk's first target column.
     pub targets: &'a [u32],
 }
 
@@ -409,6 +421,13 @@ impl<'a> ChunkView<'a> {
         self.chunk.group_start == self.chunk.group_end
     }
 
+    /// First target column of the chunk (in the level's numbering).
+    pub fn first_target(&self) -> usize {
+        self.chunk.target_start
+    }
+
+    /// The chunk's groups, one per transfer vector present, in ascending
+    /// vector index.
     pub fn groups(&self) -> impl Iterator<Item = GroupView<'a>> + use<'a> {
         let inter = self.inter;
         inter.groups[self.chunk.group_start..self.chunk.group_end]

@@ -4,7 +4,7 @@ use crate::FieldError;
 
 /// Half-width of the reference box at which the operators of a homogeneous
 /// kernel are computed (independent of the domain, so cache files are too).
-pub(crate) const REFERENCE_HALF_WIDTH: f64 = 1.0;
+pub const REFERENCE_HALF_WIDTH: f64 = 1.0;
 
 /// Maps tree levels to precomputed operator sets.
 ///
@@ -13,15 +13,40 @@ pub(crate) const REFERENCE_HALF_WIDTH: f64 = 1.0;
 /// `(h / h_ref)^(power * d)` (kernel matrices: `power = 1`, pseudo-inverses:
 /// `power = -1`). Otherwise there is one set per level in
 /// `first_level..=depth`, each computed at its own half-width.
+///
+/// ```
+/// use ferrofmm_field::plumbing::LevelMap;
+/// // Laplace (degree -1), levels 2..=5 of a domain of width 8.
+/// let map = LevelMap::new(Some(-1.0), 8.0, 5, 2).unwrap();
+/// assert_eq!(map.n_sets(), 1);
+/// assert_eq!(map.half_width(3), 0.5);
+/// // Kernel matrices at level 3 are those at h = 1 times 0.5^-1.
+/// assert_eq!(map.lookup(3, 1.0), (0, 2.0));
+/// // A non-homogeneous kernel: one set per level 2..=5.
+/// let map = LevelMap::new(None, 8.0, 5, 2).unwrap();
+/// assert_eq!((map.n_sets(), map.lookup(4, 1.0)), (4, (2, 1.0)));
+/// ```
 #[derive(Clone, Debug)]
-pub(crate) struct LevelMap {
+pub struct LevelMap {
+    /// Degree `d` of homogeneity (`K(s x, s y) = s^d K(x, y)`), `None` for
+    /// a kernel that has none.
     pub homogeneity: Option<f64>,
+    /// Width of the cubic domain (the root box).
     pub domain_width: f64,
+    /// Deepest level served.
     pub depth: u32,
+    /// Shallowest level served (2 for M2L, see
+    /// [`FIRST_M2L_LEVEL`](crate::plumbing::FIRST_M2L_LEVEL)).
     pub first_level: u32,
 }
 
 impl LevelMap {
+    /// The map for a kernel of `homogeneity` on a domain of
+    /// `domain_width`, levels `first_level..=depth`.
+    ///
+    /// # Errors
+    /// [`FieldError::InvalidGeometry`] for a width that is not finite and
+    /// positive, a depth above 30 or a non-finite degree.
     pub fn new(
         homogeneity: Option<f64>,
         domain_width: f64,
@@ -99,6 +124,6 @@ impl LevelMap {
 }
 
 /// Half-width of a box at `level` of a cubic domain of width `domain_width`.
-pub(crate) fn half_width(domain_width: f64, level: u32) -> f64 {
+pub fn half_width(domain_width: f64, level: u32) -> f64 {
     domain_width / f64::powi(2.0, level as i32 + 1)
 }

@@ -84,6 +84,7 @@ mod m2l;
 mod operators;
 mod params;
 mod pinv;
+pub mod plumbing;
 mod precompute;
 mod surface;
 

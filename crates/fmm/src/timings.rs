@@ -42,7 +42,8 @@ pub struct EvalTimings {
     pub m2p: Duration,
     /// Direct interactions over U lists (and inside small far clusters).
     pub p2p: Duration,
-    /// Interactions between far-separated clusters ([`crate::coupling`]);
+    /// Interactions between far-separated clusters (root expansions or
+    /// direct sums; see [`Fmm::n_clusters`](crate::Fmm::n_clusters));
     /// zero for a problem that is one cluster.
     pub coupling: Duration,
     /// The whole evaluation, permutations included.

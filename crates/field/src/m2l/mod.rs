@@ -146,8 +146,9 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     }
 }
 
-/// First tree level with V-list interactions.
-pub(crate) const FIRST_M2L_LEVEL: u32 = 2;
+/// First tree level with V-list interactions (boxes of level 1 are all
+/// neighbours of each other).
+pub const FIRST_M2L_LEVEL: u32 = 2;
 
 /// The transfer vectors (indices) to compute per operator set for
 /// [`M2lScheme::precompute_for`]: nothing for an empty `usage`; all 316 per
@@ -174,8 +175,15 @@ pub fn planned_sets(
     }
 }
 
-/// `K_v` at half-width `h` (column-major `n x n`, `f64`).
-pub(crate) fn m2l_matrix<K: Kernel>(
+/// `K_v` at half-width `h` (column-major `n x n`, `f64`):
+/// `K_v[j, i] = K(y_i + 2 h v, x_j)` with `y_i` the upward equivalent
+/// points (radius `r_ue h`) and `x_j` the downward check points (radius
+/// `r_dc h`) of a box of half-width `h` at the origin.
+///
+/// # Errors
+/// [`FieldError::NonFiniteKernel`] when the kernel returns a non-finite
+/// value.
+pub fn m2l_matrix<K: Kernel>(
     kernel: &K,
     order: usize,
     radii: &SurfaceRadii,
@@ -192,8 +200,12 @@ pub(crate) fn m2l_matrix<K: Kernel>(
     kernel_matrix(kernel, &ue, &dc, "an M2L matrix")
 }
 
-/// Check the slice lengths of an apply call.
-pub(crate) fn check_lengths<T>(n: usize, inter: &M2lInteractions, multipoles: &[T], check: &[T]) {
+/// Check the slice lengths of an [`M2lScheme::apply`] call: `multipoles`
+/// must be `n x n_source_cols` and `check` `n x n_target_cols`.
+///
+/// # Panics
+/// When they are not (the contract of `apply`).
+pub fn check_lengths<T>(n: usize, inter: &M2lInteractions, multipoles: &[T], check: &[T]) {
     assert_eq!(
         multipoles.len(),
         n * inter.n_source_cols(),
@@ -208,9 +220,15 @@ pub(crate) fn check_lengths<T>(n: usize, inter: &M2lInteractions, multipoles: &[
     );
 }
 
-/// Run `f(chunk, check_columns_of_chunk)` in parallel over the chunks of
-/// `inter` (disjoint column blocks of `check`, `rows` values per column).
-pub(crate) fn for_each_chunk<T: Real>(
+/// Run `f(chunk, check_columns_of_chunk)` in parallel (rayon) over the
+/// chunks of `inter`: each call gets the chunk and its own disjoint block
+/// of `check` (the chunk's target columns, `rows` values each, column
+/// `first_target() + t` at `t * rows`), so no two tasks write the same
+/// value. Empty chunks are skipped.
+///
+/// # Panics
+/// When `check` is shorter than `rows * inter.n_target_cols()`.
+pub fn for_each_chunk<T: Real>(
     inter: &M2lInteractions,
     rows: usize,
     check: &mut [T],
@@ -230,17 +248,29 @@ pub(crate) fn for_each_chunk<T: Real>(
     });
 }
 
-/// Copy the source columns of a group into a contiguous `rows x len` block.
-pub(crate) fn gather<T: Real>(rows: usize, src: &[T], cols: &[u32], out: &mut [T]) {
+/// Copy columns `cols` of the column-major `src` (`rows` values per
+/// column) into the contiguous `rows x cols.len()` block `out`.
+///
+/// ```
+/// use ferrofmm_field::plumbing::{gather, scatter_add};
+/// let src = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0]; // three columns of two
+/// let mut block = [0.0; 4];
+/// gather(2, &src, &[2, 0], &mut block);
+/// assert_eq!(block, [5.0, 6.0, 1.0, 2.0]);
+/// let mut dst = [0.0; 4];
+/// scatter_add(2, &block, &[1, 1], &mut dst);
+/// assert_eq!(dst, [0.0, 0.0, 6.0, 8.0]);
+/// ```
+pub fn gather<T: Real>(rows: usize, src: &[T], cols: &[u32], out: &mut [T]) {
     for (j, &s) in cols.iter().enumerate() {
         let s = s as usize;
         out[j * rows..(j + 1) * rows].copy_from_slice(&src[s * rows..(s + 1) * rows]);
     }
 }
 
-/// Add the columns of a contiguous `rows x len` block to columns `cols` of
-/// `dst`.
-pub(crate) fn scatter_add<T: Real>(rows: usize, block: &[T], cols: &[u32], dst: &mut [T]) {
+/// Add the columns of a contiguous `rows x cols.len()` block to columns
+/// `cols` of `dst` (repeated columns add up).
+pub fn scatter_add<T: Real>(rows: usize, block: &[T], cols: &[u32], dst: &mut [T]) {
     for (j, &t) in cols.iter().enumerate() {
         let t = t as usize;
         for (d, &b) in dst[t * rows..(t + 1) * rows]

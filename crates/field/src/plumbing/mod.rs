@@ -1,0 +1,58 @@
+//! Plumbing for those who implement [`M2lScheme`](crate::M2lScheme) outside
+//! this crate: the pieces the built-in schemes are made of, public and
+//! documented, in the spirit of rayon's `iter::plumbing`. A user of the
+//! FMM never needs this module.
+//!
+//! # What a scheme does
+//!
+//! [`M2lScheme::apply`](crate::M2lScheme::apply) adds, for every V-list
+//! pair `(t, s, v)` of one level,
+//!
+//! ```text
+//! check[:, t] += K_v(h) multipoles[:, s],    K_v(h)[j, i] = K(y_i + 2 h v, x_j),
+//! ```
+//!
+//! where `y_i` are the upward equivalent points and `x_j` the downward
+//! check points of a box of half-width `h` centred at the origin
+//! ([`m2l_matrix`] assembles `K_v(h)` in `f64`). For a kernel homogeneous
+//! of degree `d`, `K_v(h) = (h / h_ref)^d K_v(h_ref)`, so one operator set
+//! serves every level; otherwise each level `2..=depth` has its own set.
+//! [`LevelMap`] says which set serves a level and with which factor.
+//!
+//! # The building blocks
+//!
+//! * [`M2lInteractions`](crate::M2lInteractions) holds a level's pairs cut
+//!   into chunks of target columns ([`ChunkView`]), each grouped by transfer
+//!   vector ([`GroupView`]): every group is one product `K_v * block`.
+//! * [`for_each_chunk`] runs a closure per chunk in parallel, giving it the
+//!   chunk's own columns of `check` (disjoint `&mut` slices, no locks).
+//! * [`gather`] copies a group's source columns into a contiguous block,
+//!   [`crate::gemm_scaled`] multiplies, [`scatter_add`] adds the result to
+//!   the group's target columns.
+//! * [`check_lengths`] asserts the slice lengths `apply` promises.
+//! * [`crate::planned_sets`] and [`crate::M2lUsage`] say which transfer
+//!   vectors a tree uses, for
+//!   [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for).
+//! * [`conformance::check_scheme`] compares a scheme with per-vector dense
+//!   products on two full levels; run it in your scheme's tests.
+//!
+//! A dense scheme is then, per chunk: `for g in chunk.groups() { gather;
+//! gemm_scaled(n, len, n, scale, K[g.vector], ..); scatter_add }` (see
+//! `examples/custom_m2l.rs` in the repository for a complete scheme
+//! written outside this crate, run through the FMM).
+//!
+//! # What stays sealed
+//!
+//! The operator cache (file format, checksums, [`crate::CacheStatus`]
+//! values) is not part of the plumbing: its layout is versioned with the
+//! built-in schemes' stores, and a scheme from outside would need its own
+//! format version anyway. An outside scheme keeps its own files (or none)
+//! and reports [`crate::CacheStatus::Disabled`], the trait's default.
+
+pub mod conformance;
+
+pub use crate::interactions::{ChunkView, GroupView};
+pub use crate::levels::{LevelMap, REFERENCE_HALF_WIDTH, half_width};
+pub use crate::m2l::{
+    FIRST_M2L_LEVEL, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+};
