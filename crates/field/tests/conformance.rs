@@ -81,3 +81,36 @@ fn a_broken_scheme_fails() {
     let e = r.unwrap_err();
     assert!(e.contains("relative error"), "{e}");
 }
+
+#[test]
+fn fft_conforms_exactly() {
+    use ferrofmm_field::{FftConfig, FftM2l};
+    for p in [2, 3, 4, 6, 7] {
+        let r = check_scheme::<f64, FftM2l<f64>, _>(
+            &Laplace3d,
+            &OperatorParams::new(p),
+            &FftConfig,
+            1e-12,
+        )
+        .unwrap();
+        println!("fft p = {p}: {:.2e}", r.relative_error);
+    }
+    let k = ModifiedHelmholtz3d::new(2.0).unwrap();
+    check_scheme::<f64, FftM2l<f64>, _>(&k, &OperatorParams::new(5), &FftConfig, 1e-12).unwrap();
+    check_scheme::<f32, FftM2l<f32>, _>(&Laplace3d, &OperatorParams::new(5), &FftConfig, 1e-6)
+        .unwrap();
+}
+
+#[test]
+fn fft_needs_one_lattice() {
+    use ferrofmm_field::{FftConfig, FftM2l, FieldError, M2lScheme};
+    let mut params = OperatorParams::new(4);
+    params.radii.downward_check = 1.2;
+    let e = FftM2l::<f64>::precompute(&Laplace3d, &params, &FftConfig, 1.0, 3)
+        .err()
+        .unwrap();
+    assert!(
+        matches!(e, FieldError::InvalidParams(ref m) if m.contains("equal")),
+        "{e}"
+    );
+}

@@ -40,14 +40,18 @@ pub enum SchemeArg {
     Svd,
     /// One full matrix per transfer vector: the reference.
     Dense,
+    /// Convolution on the surface lattice with FFTs: the dense operator
+    /// (no compression), precomputed in milliseconds.
+    Fft,
 }
 
 impl SchemeArg {
-    /// `"svd"` or `"dense"`.
+    /// `"svd"`, `"dense"` or `"fft"`.
     pub fn name(self) -> &'static str {
         match self {
             SchemeArg::Svd => "svd",
             SchemeArg::Dense => "dense",
+            SchemeArg::Fft => "fft",
         }
     }
 }

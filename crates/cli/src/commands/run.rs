@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ferrofmm_field::{DenseM2l, M2lScheme, SvdM2l};
+use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors, sample_indices,
@@ -82,7 +82,7 @@ pub struct Settings {
 /// `output` when given (format by extension).
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
     use PrecisionArg::{Auto, F32, F64};
-    use SchemeArg::{Dense, Svd};
+    use SchemeArg::{Dense, Fft, Svd};
     let precision = match (settings.precision, settings.tolerance) {
         (Auto, Some(eps)) => auto_precision(&input, eps, settings.gradients)?,
         (Auto, None) => F64,
@@ -97,6 +97,8 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         (F64, Dense) => run_typed::<f64, DenseM2l<f64>>(input, settings, output),
         (F32, Svd) => run_typed::<f32, SvdM2l<f32>>(input, settings, output),
         (F32, Dense) => run_typed::<f32, DenseM2l<f32>>(input, settings, output),
+        (F64, Fft) => run_typed::<f64, FftM2l<f64>>(input, settings, output),
+        (F32, Fft) => run_typed::<f32, FftM2l<f32>>(input, settings, output),
         (Auto, _) => unreachable!("auto precision is resolved above"),
     }
 }
@@ -168,6 +170,14 @@ impl<T: Real> BuildScheme<T> for DenseM2l<T> {
         builder: FmmBuilder<'_, T, Laplace3d>,
     ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
         builder.build_dense()
+    }
+}
+
+impl<T: Real> BuildScheme<T> for FftM2l<T> {
+    fn build(
+        builder: FmmBuilder<'_, T, Laplace3d>,
+    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+        builder.build_with(Default::default())
     }
 }
 

@@ -19,9 +19,11 @@
 //! lists) gets its own.
 
 mod dense;
+mod fft;
 mod svd;
 
 pub use dense::{DenseConfig, DenseM2l};
+pub use fft::{FftConfig, FftM2l};
 pub use svd::{SvdConfig, SvdM2l, default_svd_tolerance};
 
 use faer::Mat;
