@@ -14,9 +14,10 @@ use std::hint::black_box;
 use std::time::{Duration, Instant};
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
+use ferrofmm::field::plumbing::conformance::full_level_pairs;
 use ferrofmm::field::{
-    DenseConfig, DenseM2l, M2lInteractions, M2lScheme, OperatorParams, SvdConfig, SvdM2l,
-    n_surface_points,
+    DenseConfig, DenseM2l, FftConfig, FftM2l, M2lInteractions, M2lScheme, OperatorParams,
+    SvdConfig, SvdM2l, n_surface_points,
 };
 use ferrofmm::kernels::{Laplace3d, Real};
 use rand::rngs::StdRng;
@@ -24,32 +25,6 @@ use rand::{RngExt, SeedableRng};
 
 const LEVEL: u32 = 4;
 const SIDE: i32 = 16;
-
-/// All V-list pairs `(target, source, v)` of a uniform grid of `side^3`
-/// boxes (column `x * side^2 + y * side + z`): children of the parent's
-/// neighbours that are not adjacent.
-fn uniform_v_lists(side: i32) -> Vec<(usize, usize, [i32; 3])> {
-    let idx = |x: i32, y: i32, z: i32| (x * side * side + y * side + z) as usize;
-    let mut pairs = Vec::new();
-    for x in 0..side {
-        for y in 0..side {
-            for z in 0..side {
-                let p = [x / 2, y / 2, z / 2];
-                for sx in (2 * (p[0] - 1)).max(0)..(2 * (p[0] + 2)).min(side) {
-                    for sy in (2 * (p[1] - 1)).max(0)..(2 * (p[1] + 2)).min(side) {
-                        for sz in (2 * (p[2] - 1)).max(0)..(2 * (p[2] + 2)).min(side) {
-                            let v = [sx - x, sy - y, sz - z];
-                            if v.iter().map(|c| c.abs()).max().unwrap() >= 2 {
-                                pairs.push((idx(x, y, z), idx(sx, sy, sz), v));
-                            }
-                        }
-                    }
-                }
-            }
-        }
-    }
-    pairs
-}
 
 fn bench_scheme<T: Real, S: M2lScheme<T>>(
     c: &mut Criterion,
@@ -109,7 +84,7 @@ fn bench_scheme<T: Real, S: M2lScheme<T>>(
 }
 
 fn m2l(c: &mut Criterion) {
-    let pairs = uniform_v_lists(SIDE);
+    let pairs = full_level_pairs(LEVEL);
     let nb = (SIDE * SIDE * SIDE) as usize;
     let inter = M2lInteractions::new(nb, nb, &pairs);
     println!(
@@ -122,6 +97,7 @@ fn m2l(c: &mut Criterion) {
     for order in [4, 6, 8, 10] {
         bench_scheme::<f64, DenseM2l<f64>>(c, order, DenseConfig, &inter);
         bench_scheme::<f64, SvdM2l<f64>>(c, order, SvdConfig::default(), &inter);
+        bench_scheme::<f64, FftM2l<f64>>(c, order, FftConfig, &inter);
     }
     bench_scheme::<f32, DenseM2l<f32>>(c, 6, DenseConfig, &inter);
     bench_scheme::<f32, SvdM2l<f32>>(c, 6, SvdConfig::default(), &inter);
