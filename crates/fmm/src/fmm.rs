@@ -609,6 +609,7 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         max_level: b.max_level,
         domain: b.domain,
         uniform_depth: None,
+        balance: true,
     };
     let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
     setup.tree += t0.elapsed();

@@ -98,6 +98,17 @@ pub struct InteractionLists {
 impl InteractionLists {
     /// Builds all four lists for `tree` (its structure and colleague table
     /// must be complete).
+    /// Lists with `n` empty rows (a tree built without 2:1 balance).
+    pub(crate) fn empty(n: usize) -> Self {
+        let e = || Csr::build(n, |_, _| {});
+        InteractionLists {
+            u: e(),
+            v: e(),
+            w: e(),
+            x: e(),
+        }
+    }
+
     pub(crate) fn build(tree: &Octree) -> Self {
         let n = tree.n_boxes();
         InteractionLists {

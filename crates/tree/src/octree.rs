@@ -89,6 +89,8 @@ pub struct Octree {
     targets: Option<Sorted>,
     colleagues: ColleagueTable,
     lists: InteractionLists,
+    /// Whether the tree is 2:1 balanced (and has interaction lists).
+    balanced: bool,
 }
 
 const NONE: usize = usize::MAX;
@@ -148,14 +150,20 @@ impl Octree {
             },
         };
         let mut levels = refine(&pts, rule);
-        if matches!(rule, Refinement::Adaptive { .. }) {
+        let adaptive = matches!(rule, Refinement::Adaptive { .. });
+        if adaptive && options.balance {
             balance(&mut levels, &pts);
         }
         let mut tree = Self::flatten(domain, &levels);
         tree.sources = Sorted::new(src);
         tree.targets = tgt.map(Sorted::new);
         tree.colleagues = ColleagueTable::build(&tree);
-        tree.lists = InteractionLists::build(&tree);
+        tree.lists = if adaptive && !options.balance {
+            InteractionLists::empty(tree.n_boxes())
+        } else {
+            InteractionLists::build(&tree)
+        };
+        tree.balanced = !adaptive || options.balance;
         Ok(tree)
     }
 
@@ -226,6 +234,7 @@ impl Octree {
             targets: None,
             colleagues: ColleagueTable::default(),
             lists: InteractionLists::default(),
+            balanced: true,
         }
     }
 
@@ -414,7 +423,15 @@ impl Octree {
         self.targets.as_ref().unwrap_or(&self.sources)
     }
 
-    /// All four interaction lists.
+    /// Whether the interaction lists were built: `true` for every 2:1
+    /// balanced tree (the default, and uniform trees), `false` for an
+    /// adaptive tree built with [`TreeOptions::balance`] off, whose lists
+    /// are all empty.
+    pub fn has_lists(&self) -> bool {
+        self.balanced
+    }
+
+    /// All four interaction lists (empty rows when not [`Octree::has_lists`]).
     pub fn interaction_lists(&self) -> &InteractionLists {
         &self.lists
     }

@@ -7,7 +7,9 @@
 //! side of a leaf-to-leaf (P2P) interaction exceeds `leaf_size` points; when
 //! sources are targets it is simply the number of points. Only the non-empty
 //! children of a split box are created. Afterwards the tree is 2:1 balanced
-//! (see [`balance`](crate::balance)), which may split a few more leaves.
+//! (see [`balance`](crate::balance)), which may split a few more leaves,
+//! unless `balance` is off: then the refined tree is kept as it is and no
+//! interaction lists are built (their construction relies on the balance).
 //!
 //! **Uniform trees** (`uniform_depth = Some(d)`): every non-empty box above
 //! level `d` is split, whatever it holds, so every leaf is at level `d`;
@@ -35,6 +37,11 @@ pub struct TreeOptions {
     /// `Some(d)`: a uniform tree whose leaves are all at level `d` (still
     /// without empty boxes). Default `None` (adaptive).
     pub uniform_depth: Option<u32>,
+    /// 2:1-balance an adaptive tree (default `true`). Off, the tree is the
+    /// plain refinement of the points, and its interaction lists are empty
+    /// ([`Octree::has_lists`](crate::Octree::has_lists) is `false`): the
+    /// lists, and so the FMM, need a balanced tree.
+    pub balance: bool,
 }
 
 impl Default for TreeOptions {
@@ -44,6 +51,7 @@ impl Default for TreeOptions {
             max_level: DEEPEST_LEVEL,
             domain: None,
             uniform_depth: None,
+            balance: true,
         }
     }
 }
@@ -75,6 +83,20 @@ impl TreeOptions {
     /// The same options with a fixed domain.
     pub fn with_domain(mut self, domain: Domain) -> Self {
         self.domain = Some(domain);
+        self
+    }
+
+    /// The same options with the 2:1 balance on or off (see
+    /// [`TreeOptions::balance`]).
+    ///
+    /// ```
+    /// use ferrofmm_tree::{Octree, TreeOptions};
+    /// let points: Vec<f64> = (0..300).map(|i| ((i * 37) % 101) as f64 / 101.0).collect();
+    /// let tree = Octree::new(&points, None, &TreeOptions::adaptive(5).with_balance(false)).unwrap();
+    /// assert!(!tree.has_lists());
+    /// ```
+    pub fn with_balance(mut self, balance: bool) -> Self {
+        self.balance = balance;
         self
     }
 

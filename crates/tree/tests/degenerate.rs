@@ -301,3 +301,44 @@ fn errors() {
     let e = Octree::new(&nan, None, &opts).unwrap_err();
     assert!(e.to_string().contains("sources: point 1"), "{e}");
 }
+
+/// `balance: false` keeps the plain refinement: the same leaves as the
+/// balanced tree minus the ones balance split, leaves of adjacent levels
+/// that differ by more than one, and no interaction lists.
+#[test]
+fn unbalanced_tree_is_the_plain_refinement() {
+    // A tight cluster in one corner of a sparse cloud forces balance to act.
+    let mut pts = uniform(200, 3);
+    let tight = uniform(2000, 4);
+    pts.extend(tight.iter().map(|x| 0.01 + 1e-4 * x));
+    let plain = TreeOptions::adaptive(8).with_balance(false);
+    let tree = Octree::new(&pts, None, &plain).unwrap();
+    check_tree(&tree, &pts, None, &plain);
+    assert!(!tree.has_lists());
+    for b in 0..tree.n_boxes() {
+        for list in [
+            tree.u_list(b),
+            tree.v_list(b),
+            tree.w_list(b),
+            tree.x_list(b),
+        ] {
+            assert!(list.is_empty());
+        }
+    }
+    let keys = tree.keys();
+    let leaves = tree.leaves();
+    let jump = leaves.iter().any(|&a| {
+        leaves
+            .iter()
+            .any(|&b| keys[a].is_adjacent(keys[b]) && keys[a].level().abs_diff(keys[b].level()) > 1)
+    });
+    assert!(jump, "this input must need balancing");
+
+    let balanced = Octree::new(&pts, None, &TreeOptions::adaptive(8)).unwrap();
+    assert!(balanced.has_lists());
+    assert!(balanced.n_boxes() > tree.n_boxes());
+    // Every box of the plain refinement is in the balanced tree.
+    for &k in keys {
+        assert!(balanced.index_of(k).is_some(), "{k} lost by balancing");
+    }
+}

@@ -241,12 +241,15 @@ pub fn check_tree(tree: &Octree, src: &[f64], tgt: Option<&[f64]>, opts: &TreeOp
                 }
                 assert!(tree.level(b) <= opts.max_level);
             }
-            check_balance(tree);
+            if opts.balance {
+                check_balance(tree);
+            }
             // Minimality: a box split although it was small enough must have
             // been split by balance, i.e. touch an internal box one level
-            // deeper.
+            // deeper (without balance: never).
             for b in 0..n {
                 if !tree.is_leaf(b) && set_size(tree, b) <= opts.leaf_size {
+                    assert!(opts.balance, "box {} split without balance", keys[b]);
                     let l = tree.level(b);
                     let forced = tree
                         .level_range(l + 1)

@@ -1,0 +1,531 @@
+"""ferrofmm: the kernel-independent fast multipole method (KIFMM) in 3D.
+
+Computes, for N sources x_i with charges q_i and M targets y_j,
+
+    phi(y_j) = sum_i K(x_i, y_j) q_i          (K(x, x) := 0)
+
+and optionally grad phi(y_j), in O(N + M) work to a requested accuracy, for
+the Laplace kernel K = 1 / (4 pi r) and the Yukawa (modified Helmholtz)
+kernel K = exp(-k r) / (4 pi r).
+
+One call::
+
+    import numpy as np, ferrofmm
+    x = np.random.rand(100_000, 3)
+    q = np.random.rand(100_000) - 0.5
+    r = ferrofmm.laplace(x, q, eps=1e-6, gradient=True)
+    r.potential            # (100000,)
+    r.gradient             # (100000, 3)
+    r.info["measured_error"]
+
+Build once, evaluate many times (iterative solvers)::
+
+    fmm = ferrofmm.Fmm(x, eps=1e-6)
+    for q in charge_vectors:
+        phi = fmm.evaluate(q).potential
+
+The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
+
+Arrays are (n, 3) float64 or float32, in any memory order; they are copied,
+never modified. The run's float type follows the sources unless ``dtype``
+says otherwise. Bad input raises ValueError or TypeError; the GIL is
+released while the library works, and Ctrl-C interrupts within a second.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Dict, Optional
+
+import numpy as np
+
+from . import _ferrofmm
+from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE, MAX_ORDER, MIN_ORDER
+
+__version__: str = _ferrofmm.__version__
+
+__all__ = [
+    "laplace",
+    "yukawa",
+    "Fmm",
+    "FmmResult",
+    "Octree",
+    "MIN_ORDER",
+    "MAX_ORDER",
+    "DEFAULT_LEAF_SIZE",
+    "DEEPEST_LEVEL",
+    "__version__",
+]
+
+#: Tolerance used when neither ``eps`` nor ``order`` is given, per dtype.
+DEFAULT_EPS = {np.dtype(np.float64): 1e-6, np.dtype(np.float32): 1e-4}
+
+_FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
+_SCHEMES = ("svd", "dense", "fft")
+
+
+def _float_dtype(dtype: Any) -> Optional[np.dtype]:
+    if dtype is None:
+        return None
+    try:
+        d = np.dtype(dtype)
+    except TypeError as e:
+        raise TypeError(f"dtype must be float32 or float64, got {dtype!r}") from e
+    if d not in _FLOATS:
+        raise TypeError(f"dtype must be float32 or float64, got {d}")
+    return d
+
+
+def _as_float_array(name: str, value: Any) -> np.ndarray:
+    """The caller's array as a NumPy array of float32 or float64 (no copy yet)."""
+    if isinstance(value, np.ndarray):
+        a = value
+    else:
+        try:
+            a = np.asarray(value)
+        except (ValueError, TypeError) as e:
+            raise ValueError(f"{name} is not a numeric array: {e}") from e
+        if a.dtype.kind in "iu":  # plain Python numbers: lists of ints are fine
+            a = a.astype(np.float64)
+    kind = a.dtype.kind
+    if kind == "c":
+        raise TypeError(f"{name} must be real (float32 or float64), got complex dtype {a.dtype}")
+    if kind in "iub":
+        raise TypeError(
+            f"{name} must be float32 or float64, got {a.dtype} (convert with .astype(np.float64))"
+        )
+    if a.dtype not in _FLOATS:
+        raise TypeError(f"{name} must be float32 or float64, got {a.dtype}")
+    return a
+
+
+def _points(name: str, value: Any) -> np.ndarray:
+    a = _as_float_array(name, value)
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (n, 3), got {a.shape}")
+    if a.shape[0] == 0:
+        raise ValueError(f"{name} are empty")
+    return a
+
+
+def _flat(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
+    """A new C-contiguous copy of ``a`` in ``dtype``, flattened (x, y, z interleaved)."""
+    return np.array(a, dtype=dtype, order="C", copy=True).reshape(-1)
+
+
+def _check_eps_order(eps: Optional[float], order: Optional[int]) -> None:
+    """Types here; ranges in the library (one message for every front end)."""
+    if eps is not None and (
+        isinstance(eps, bool) or not isinstance(eps, (int, float, np.floating, np.integer))
+    ):
+        raise TypeError(f"eps must be a float, got {type(eps).__name__}")
+    if order is not None:
+        if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
+            raise TypeError(f"order must be an int, got {type(order).__name__}")
+        if order < 0:
+            raise ValueError(
+                f"expansion order {order} is not supported (use {MIN_ORDER}..={MAX_ORDER})"
+            )
+
+
+def _positive_int(name: str, value: Optional[int]) -> Optional[int]:
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, np.integer)):
+        raise TypeError(f"{name} must be an int, got {type(value).__name__}")
+    if value < 1:
+        raise ValueError(f"{name} must be at least 1 (got {value})")
+    return int(value)
+
+
+class FmmResult:
+    """What an evaluation returns.
+
+    Attributes
+    ----------
+    potential : numpy.ndarray
+        ``(m,)`` for one charge vector, ``(k, m)`` for ``k`` vectors.
+    gradient : numpy.ndarray or None
+        ``(m, 3)`` or ``(k, m, 3)``: the gradient of the potential with
+        respect to the target; ``None`` unless ``gradient=True``.
+    info : dict
+        ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``dtype``,
+        ``eps``, ``predicted_error``, ``measured_error`` (estimated on a
+        sample of targets against direct summation, for the first
+        evaluation of a tolerance), ``verified``, ``threads``, tree figures
+        and ``timings`` (seconds, ``setup`` and ``evaluate`` per operator).
+    """
+
+    __slots__ = ("potential", "gradient", "info")
+
+    def __init__(self, potential: np.ndarray, gradient: Optional[np.ndarray], info: Dict[str, Any]):
+        self.potential = potential
+        self.gradient = gradient
+        self.info = info
+
+    def __repr__(self) -> str:
+        g = None if self.gradient is None else self.gradient.shape
+        return (
+            f"FmmResult(potential={self.potential.shape}, gradient={g}, "
+            f"order={self.info.get('order')}, dtype={self.info.get('dtype')})"
+        )
+
+
+class Fmm:
+    """A fast multipole method built once for fixed points, kernel and accuracy.
+
+    Parameters
+    ----------
+    sources : array_like, shape (n, 3)
+        Source positions, float64 or float32 (any memory order).
+    targets : array_like, shape (m, 3), optional
+        Where to evaluate; the sources when ``None`` (then a source does
+        not act on itself).
+    kernel : {"laplace", "yukawa"}
+        ``1 / (4 pi r)`` or ``exp(-k r) / (4 pi r)`` (give ``k``).
+    k : float, optional
+        The Yukawa kernel's screening wavenumber (``k >= 0``).
+    eps : float, optional
+        Requested relative L2 error of the potential (and of the gradient
+        when ``gradient=True``). The order and leaf size are chosen from it;
+        the first evaluation estimates the achieved error on a sample of
+        targets and raises the order (at most twice) when it falls short.
+        Default: 1e-6 in float64, 1e-4 in float32, unless ``order`` is given.
+    order : int, optional
+        Expansion order instead of ``eps`` (``MIN_ORDER..=MAX_ORDER``).
+    leaf_size : int, optional
+        Points per leaf at most (only with ``order``; default
+        ``DEFAULT_LEAF_SIZE``).
+    gradient : bool
+        Also compute gradients.
+    dtype : {None, "float32", "float64"}
+        Float type of the run; ``None`` follows ``sources``.
+    threads : int, optional
+        Threads (lowered to the number of cores); ``None``: one per core
+        (or ``RAYON_NUM_THREADS``).
+    scheme : {"svd", "dense", "fft"}
+        M2L translation scheme.
+    verify : bool
+        Check ``eps`` on the first evaluation (a few percent of its time).
+    cache_dir : str or os.PathLike, optional
+        Directory for the on-disk operator cache.
+    """
+
+    def __init__(
+        self,
+        sources: Any,
+        targets: Any = None,
+        kernel: str = "laplace",
+        *,
+        k: Optional[float] = None,
+        eps: Optional[float] = None,
+        order: Optional[int] = None,
+        leaf_size: Optional[int] = None,
+        gradient: bool = False,
+        dtype: Any = None,
+        threads: Optional[int] = None,
+        scheme: str = "svd",
+        verify: bool = True,
+        cache_dir: Any = None,
+    ) -> None:
+        src = _points("sources", sources)
+        tgt = None if targets is None else _points("targets", targets)
+        run = _float_dtype(dtype) or src.dtype
+        _check_eps_order(eps, order)
+        if eps is None and order is None:
+            eps = DEFAULT_EPS[run]
+        if not isinstance(kernel, str):
+            raise TypeError(f"kernel must be a string, got {type(kernel).__name__}")
+        if not isinstance(scheme, str) or scheme not in _SCHEMES:
+            raise ValueError(f'unknown M2L scheme {scheme!r}: use "svd", "dense" or "fft"')
+        if k is not None:
+            k = float(k)
+        self._native = _ferrofmm.NativeFmm(
+            _flat(src, run),
+            None if tgt is None else _flat(tgt, run),
+            kernel,
+            k,
+            None if eps is None else float(eps),
+            None if order is None else int(order),
+            _positive_int("leaf_size", leaf_size),
+            scheme,
+            bool(gradient),
+            bool(verify),
+            _positive_int("threads", threads),
+            None if cache_dir is None else str(cache_dir),
+        )
+        self._dtype = run
+        self._gradient = bool(gradient)
+        self._last_info: Optional[Dict[str, Any]] = None
+
+    @property
+    def n_sources(self) -> int:
+        """Number of sources."""
+        return self._native.n_sources
+
+    @property
+    def n_targets(self) -> int:
+        """Number of targets."""
+        return self._native.n_targets
+
+    @property
+    def dtype(self) -> np.dtype:
+        """Float type of the run."""
+        return self._dtype
+
+    def evaluate(self, charges: Any) -> FmmResult:
+        """Potentials (and gradients) at the targets for ``charges``.
+
+        ``charges`` is ``(n,)`` (one value per source) or ``(k, n)`` for
+        ``k`` charge vectors evaluated in one call; nothing is rebuilt.
+        """
+        q = _as_float_array("charges", charges)
+        n = self.n_sources
+        if q.ndim == 1:
+            k, batched = 1, False
+            if q.shape[0] != n:
+                raise ValueError(f"charges has {q.shape[0]} values but there are {n} sources")
+        elif q.ndim == 2:
+            k, batched = q.shape[0], True
+            if q.shape[1] != n:
+                raise ValueError(
+                    f"charges must have shape (k, {n}) (one row per charge vector), got {q.shape}"
+                )
+            if k == 0:
+                raise ValueError("charges holds no charge vector (shape (0, n))")
+        else:
+            raise ValueError(f"charges must have shape (n,) or (k, n), got {q.shape}")
+        values, info_json = self._native.evaluate(_flat(q, self._dtype), k)
+        info = json.loads(info_json)
+        self._last_info = info
+        m = self.n_targets
+        per = 4 if self._gradient else 1
+        v = values.reshape(k, m, per)
+        potential = np.ascontiguousarray(v[:, :, 0])
+        gradient = np.ascontiguousarray(v[:, :, 1:]) if self._gradient else None
+        if not batched:
+            potential = potential[0]
+            gradient = None if gradient is None else gradient[0]
+        return FmmResult(potential, gradient, info)
+
+    def summary(self) -> Dict[str, Any]:
+        """Tree, operator and parameter figures (a dict; as the CLI's ``--json``)."""
+        return json.loads(self._native.summary_json())
+
+    def timings(self) -> Dict[str, Any]:
+        """Seconds of the setup (``setup``) and of the last evaluation (``evaluate``)."""
+        out: Dict[str, Any] = {"setup": json.loads(self._native.setup_timings_json())}
+        if self._last_info is not None:
+            out["evaluate"] = self._last_info["timings"]["evaluate"]
+        return out
+
+    def __repr__(self) -> str:
+        return f"Fmm(n_sources={self.n_sources}, n_targets={self.n_targets}, dtype={self._dtype})"
+
+
+def _one_call(kernel: str, k: Optional[float], sources: Any, charges: Any, **kw: Any) -> FmmResult:
+    return Fmm(sources, kw.pop("targets"), kernel, k=k, **kw).evaluate(charges)
+
+
+def laplace(
+    sources: Any,
+    charges: Any,
+    *,
+    targets: Any = None,
+    eps: Optional[float] = None,
+    order: Optional[int] = None,
+    gradient: bool = False,
+    dtype: Any = None,
+    threads: Optional[int] = None,
+    leaf_size: Optional[int] = None,
+    scheme: str = "svd",
+    verify: bool = True,
+) -> FmmResult:
+    """Laplace potentials ``phi(y) = sum_i q_i / (4 pi |y - x_i|)`` by the FMM.
+
+    Parameters
+    ----------
+    sources : array_like, shape (n, 3)
+        Float64 or float32 positions, any memory order (copied, never modified).
+    charges : array_like, shape (n,) or (k, n)
+        One charge per source, or ``k`` charge vectors evaluated at once.
+    targets : array_like, shape (m, 3), optional
+        Evaluation points; the sources when ``None`` (self-interaction excluded).
+    eps : float, optional
+        Requested relative L2 error (default 1e-6 in float64, 1e-4 in
+        float32); checked on a sample of targets after evaluating.
+    order : int, optional
+        Expansion order instead of ``eps``.
+    gradient : bool
+        Also return the gradient with respect to the target.
+    dtype : {None, "float32", "float64"}
+        Float type of the run (default: that of ``sources``).
+    threads : int, optional
+        Number of threads (default: one per core).
+    leaf_size : int, optional
+        Points per leaf (only with ``order``).
+    scheme : {"svd", "dense", "fft"}
+        M2L translation scheme.
+    verify : bool
+        Estimate the achieved error against direct summation on a sample.
+
+    Returns
+    -------
+    FmmResult
+        ``.potential`` (m,) or (k, m), ``.gradient`` (m, 3) or (k, m, 3)
+        or None, ``.info`` (dict).
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> x = np.random.default_rng(0).random((2000, 3))
+    >>> r = ferrofmm.laplace(x, np.ones(2000), eps=1e-6)
+    >>> r.potential.shape
+    (2000,)
+    """
+    return _one_call(
+        "laplace", None, sources, charges, targets=targets, eps=eps, order=order,
+        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
+        scheme=scheme, verify=verify,
+    )
+
+
+def yukawa(
+    sources: Any,
+    charges: Any,
+    *,
+    k: float,
+    targets: Any = None,
+    eps: Optional[float] = None,
+    order: Optional[int] = None,
+    gradient: bool = False,
+    dtype: Any = None,
+    threads: Optional[int] = None,
+    leaf_size: Optional[int] = None,
+    scheme: str = "svd",
+    verify: bool = True,
+) -> FmmResult:
+    """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
+
+    ``r = |y - x_i|`` and ``k >= 0`` is the screening wavenumber (inverse
+    length). The other parameters and the result are as for :func:`laplace`.
+    """
+    return _one_call(
+        "yukawa", k, sources, charges, targets=targets, eps=eps, order=order,
+        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
+        scheme=scheme, verify=verify,
+    )
+
+
+class Octree:
+    """The linear adaptive octree of a point set (as the FMM builds it).
+
+    Boxes are numbered in (level, Morton) order; every box holds a
+    contiguous range of the points sorted along the Morton curve. Only
+    boxes holding points exist. A box is split while it holds more than
+    ``leaf_size`` points (the larger of the source and target counts),
+    then the tree is 2:1 balanced (adjacent leaves differ by at most one
+    level) unless ``balance=False``.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        The (source) points, float64 or float32.
+    leaf_size : int
+        Points per leaf at most (except at ``max_level``).
+    balance : bool
+        2:1-balance the tree; the interaction lists need it.
+    targets : array_like, shape (m, 3), optional
+        A separate target set sharing the tree.
+    max_level : int
+        Deepest level (at most ``DEEPEST_LEVEL``).
+
+    Attributes (NumPy arrays, one entry per box unless said)
+    --------------------------------------------------------
+    keys (uint64: Morton code and level), morton (uint64), levels (uint32),
+    anchors (n_boxes, 3), parents (-1 for the root), leaves (box indices),
+    centers (n_boxes, 3), half_widths, source_ranges / target_ranges
+    (n_boxes, 2: start, end in the sorted order), permutation /
+    target_permutation (caller's index of each sorted point).
+    """
+
+    def __init__(
+        self,
+        points: Any,
+        leaf_size: int = DEFAULT_LEAF_SIZE,
+        balance: bool = True,
+        *,
+        targets: Any = None,
+        max_level: int = DEEPEST_LEVEL,
+    ) -> None:
+        p = _points("points", points)
+        t = None if targets is None else _points("targets", targets)
+        leaf = _positive_int("leaf_size", leaf_size)
+        if isinstance(max_level, bool) or not isinstance(max_level, (int, np.integer)):
+            raise TypeError(f"max_level must be an int, got {type(max_level).__name__}")
+        if not (0 <= max_level <= DEEPEST_LEVEL):
+            raise ValueError(f"max_level must lie in 0..={DEEPEST_LEVEL}, got {max_level}")
+        f64 = np.dtype(np.float64)
+        self._native = _ferrofmm.NativeOctree(
+            _flat(p, f64), None if t is None else _flat(t, f64), leaf, bool(balance), int(max_level)
+        )
+        n = self._native
+        self.n_boxes: int = n.n_boxes
+        self.depth: int = n.depth
+        self.balanced: bool = n.has_lists
+        origin, width = n.domain
+        self.domain_origin = np.array(origin)
+        self.domain_width: float = width
+        self.keys: np.ndarray = n.keys
+        self.morton: np.ndarray = n.morton
+        self.levels: np.ndarray = n.levels
+        self.anchors: np.ndarray = n.anchors
+        self.parents: np.ndarray = n.parents
+        self.leaves: np.ndarray = n.leaves
+        self.centers: np.ndarray = n.centers
+        self.half_widths: np.ndarray = n.half_widths
+        self.source_ranges: np.ndarray = n.source_ranges
+        self.target_ranges: np.ndarray = n.target_ranges
+        self.permutation: np.ndarray = n.source_permutation
+        self.target_permutation: np.ndarray = n.target_permutation
+        self._lists: Dict[str, Any] = {}
+
+    def lists(self, kind: str):
+        """The ``kind`` (``"u"``, ``"v"``, ``"w"`` or ``"x"``) interaction list in
+        CSR form ``(offsets, indices)``: row ``b`` is ``indices[offsets[b]:offsets[b+1]]``.
+
+        U: adjacent leaves and the leaf itself (direct sums); V: same-level
+        well-separated boxes (M2L); W: finer boxes near a leaf (M2P); X: the
+        dual of W (P2L). Raises ValueError for a tree built with ``balance=False``.
+        """
+        if kind not in self._lists:
+            self._lists[kind] = self._native.list_csr(kind)
+        return self._lists[kind]
+
+    def _row(self, kind: str, b: int) -> np.ndarray:
+        if not (0 <= b < self.n_boxes):
+            raise IndexError(f"box {b} out of range 0..{self.n_boxes}")
+        offsets, indices = self.lists(kind)
+        return indices[offsets[b] : offsets[b + 1]]
+
+    def u_list(self, b: int) -> np.ndarray:
+        """U list of box ``b`` (near field)."""
+        return self._row("u", b)
+
+    def v_list(self, b: int) -> np.ndarray:
+        """V list of box ``b`` (M2L)."""
+        return self._row("v", b)
+
+    def w_list(self, b: int) -> np.ndarray:
+        """W list of box ``b`` (M2P)."""
+        return self._row("w", b)
+
+    def x_list(self, b: int) -> np.ndarray:
+        """X list of box ``b`` (P2L)."""
+        return self._row("x", b)
+
+    def __repr__(self) -> str:
+        return (
+            f"Octree(n_boxes={self.n_boxes}, depth={self.depth}, "
+            f"leaves={len(self.leaves)}, balanced={self.balanced})"
+        )

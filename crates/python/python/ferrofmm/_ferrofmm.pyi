@@ -1,0 +1,70 @@
+"""Type stubs of the native module (use the wrappers in ``ferrofmm``)."""
+
+from typing import Optional, Tuple
+
+import numpy as np
+import numpy.typing as npt
+
+__version__: str
+MIN_ORDER: int
+MAX_ORDER: int
+DEFAULT_LEAF_SIZE: int
+DEEPEST_LEVEL: int
+
+class NativeFmm:
+    def __init__(
+        self,
+        sources: npt.NDArray[np.floating],
+        targets: Optional[npt.NDArray[np.floating]],
+        kernel: str,
+        k: Optional[float],
+        eps: Optional[float],
+        order: Optional[int],
+        leaf_size: Optional[int],
+        scheme: str,
+        gradient: bool,
+        verify: bool,
+        threads: Optional[int],
+        cache_dir: Optional[str],
+    ) -> None: ...
+    def evaluate(
+        self, charges: npt.NDArray[np.floating], n_vectors: int
+    ) -> Tuple[npt.NDArray[np.floating], str]: ...
+    def summary_json(self) -> str: ...
+    def setup_timings_json(self) -> str: ...
+    @property
+    def dtype(self) -> str: ...
+    @property
+    def n_sources(self) -> int: ...
+    @property
+    def n_targets(self) -> int: ...
+    @property
+    def threads(self) -> int: ...
+
+class NativeOctree:
+    def __init__(
+        self,
+        sources: npt.NDArray[np.floating],
+        targets: Optional[npt.NDArray[np.floating]],
+        leaf_size: int,
+        balance: bool,
+        max_level: int,
+    ) -> None: ...
+    n_boxes: int
+    depth: int
+    has_lists: bool
+    sources_are_targets: bool
+    domain: Tuple[Tuple[float, float, float], float]
+    keys: npt.NDArray[np.uint64]
+    morton: npt.NDArray[np.uint64]
+    levels: npt.NDArray[np.uint32]
+    anchors: npt.NDArray[np.uint32]
+    parents: npt.NDArray[np.int64]
+    leaves: npt.NDArray[np.int64]
+    centers: npt.NDArray[np.float64]
+    half_widths: npt.NDArray[np.float64]
+    source_ranges: npt.NDArray[np.int64]
+    target_ranges: npt.NDArray[np.int64]
+    source_permutation: npt.NDArray[np.int64]
+    target_permutation: npt.NDArray[np.int64]
+    def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...

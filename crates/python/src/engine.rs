@@ -1,0 +1,540 @@
+//! `NativeFmm`: one built [`Fmm`] of any float type, kernel and M2L
+//! scheme behind one object-safe trait, evaluated many times.
+
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, RwLock};
+
+use ferrofmm_field::{DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
+use ferrofmm_fmm::{
+    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
+};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
+use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
+use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::prelude::*;
+use serde_json::{Value, json};
+
+use crate::errors::fmm_error;
+use crate::run::{Threads, interruptible};
+
+/// A float type a run can use: the library's [`Real`] and a NumPy element.
+pub(crate) trait Float: Real + Element {
+    /// Wrap owned values.
+    fn wrap(values: Vec<Self>) -> Floats;
+    /// The values of `f` in this type (copied only when the types differ).
+    fn unwrap(f: Floats) -> Vec<Self>;
+}
+
+impl Float for f32 {
+    fn wrap(values: Vec<Self>) -> Floats {
+        Floats::F32(values)
+    }
+    fn unwrap(f: Floats) -> Vec<Self> {
+        match f {
+            Floats::F32(v) => v,
+            Floats::F64(v) => v.into_iter().map(|x| x as f32).collect(),
+        }
+    }
+}
+
+impl Float for f64 {
+    fn wrap(values: Vec<Self>) -> Floats {
+        Floats::F64(values)
+    }
+    fn unwrap(f: Floats) -> Vec<Self> {
+        match f {
+            Floats::F64(v) => v,
+            Floats::F32(v) => v.into_iter().map(f64::from).collect(),
+        }
+    }
+}
+
+/// Values of either float type.
+pub(crate) enum Floats {
+    F32(Vec<f32>),
+    F64(Vec<f64>),
+}
+
+impl Floats {
+    /// A flat, C-contiguous `float32` or `float64` NumPy array, copied.
+    pub(crate) fn from_numpy(what: &str, array: &Bound<'_, PyAny>) -> PyResult<Self> {
+        if let Ok(a) = array.extract::<PyReadonlyArray1<'_, f64>>() {
+            return Ok(Floats::F64(contiguous(what, &a)?.to_vec()));
+        }
+        if let Ok(a) = array.extract::<PyReadonlyArray1<'_, f32>>() {
+            return Ok(Floats::F32(contiguous(what, &a)?.to_vec()));
+        }
+        Err(PyTypeError::new_err(format!(
+            "{what} must be a one-dimensional float32 or float64 NumPy array"
+        )))
+    }
+
+    /// The NumPy array of these values (moved, not copied).
+    fn into_numpy(self, py: Python<'_>) -> Bound<'_, PyAny> {
+        match self {
+            Floats::F32(v) => PyArray1::from_vec(py, v).into_any(),
+            Floats::F64(v) => PyArray1::from_vec(py, v).into_any(),
+        }
+    }
+
+    fn len(&self) -> usize {
+        match self {
+            Floats::F32(v) => v.len(),
+            Floats::F64(v) => v.len(),
+        }
+    }
+}
+
+fn contiguous<'a, T: Element>(what: &str, a: &'a PyReadonlyArray1<'_, T>) -> PyResult<&'a [T]> {
+    a.as_slice().map_err(|_| {
+        PyValueError::new_err(format!(
+            "{what} must be contiguous (got strides {:?})",
+            a.strides()
+        ))
+    })
+}
+
+/// What one evaluation returns: the values, their timings and, for the
+/// first evaluation of a tolerance, its verification.
+struct Evaluated {
+    values: Floats,
+    timings: EvalTimings,
+    verification: Option<Verification>,
+}
+
+/// An [`Fmm`] with its type parameters erased.
+trait Engine: Send + Sync {
+    /// `n_vectors` charge vectors one after another; values likewise.
+    fn evaluate(&self, charges: Floats, n_vectors: usize) -> Result<Evaluated, FmmError>;
+    /// The first vector through [`Fmm::evaluate_verified`] (which may
+    /// raise the order), the others as [`Engine::evaluate`].
+    fn evaluate_verified(
+        &mut self,
+        charges: Floats,
+        n_vectors: usize,
+    ) -> Result<Evaluated, FmmError>;
+    fn summary(&self) -> FmmSummary;
+    fn setup_timings(&self) -> SetupTimings;
+    fn n_sources(&self) -> usize;
+    fn n_targets(&self) -> usize;
+}
+
+impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
+    fn evaluate(&self, charges: Floats, n_vectors: usize) -> Result<Evaluated, FmmError> {
+        let q = T::unwrap(charges);
+        let per_vector = self.n_targets() * self.mode().values_per_target();
+        let mut values = Vec::with_capacity(n_vectors * per_vector);
+        let mut timings = EvalTimings::default();
+        for one in q.chunks_exact(self.n_sources()) {
+            let (v, t) = self.evaluate_timed(one)?;
+            values.extend_from_slice(&v);
+            timings.accumulate(&t);
+        }
+        Ok(Evaluated {
+            values: T::wrap(values),
+            timings,
+            verification: None,
+        })
+    }
+
+    fn evaluate_verified(
+        &mut self,
+        charges: Floats,
+        n_vectors: usize,
+    ) -> Result<Evaluated, FmmError> {
+        let q = T::unwrap(charges);
+        let n = self.n_sources();
+        let first = Fmm::evaluate_verified(self, &q[..n])?;
+        let mut values = first.values;
+        let mut timings = first.timings;
+        if n_vectors > 1 {
+            let rest = Engine::evaluate(self, T::wrap(q[n..].to_vec()), n_vectors - 1)?;
+            values.extend(T::unwrap(rest.values));
+            timings.accumulate(&rest.timings);
+        }
+        Ok(Evaluated {
+            values: T::wrap(values),
+            timings,
+            verification: first.verification,
+        })
+    }
+
+    fn summary(&self) -> FmmSummary {
+        Fmm::summary(self)
+    }
+
+    fn setup_timings(&self) -> SetupTimings {
+        *Fmm::setup_timings(self)
+    }
+
+    fn n_sources(&self) -> usize {
+        Fmm::n_sources(self)
+    }
+
+    fn n_targets(&self) -> usize {
+        Fmm::n_targets(self)
+    }
+}
+
+/// The kernels the module offers.
+#[derive(Clone, Copy, Debug)]
+enum KernelChoice {
+    Laplace,
+    Yukawa(f64),
+}
+
+/// The M2L schemes the module offers.
+#[derive(Clone, Copy, Debug)]
+enum SchemeChoice {
+    Svd,
+    Dense,
+    Fft,
+}
+
+/// Everything a build needs besides the points.
+#[derive(Clone, Debug)]
+struct BuildOptions {
+    kernel: KernelChoice,
+    scheme: SchemeChoice,
+    eps: Option<f64>,
+    order: Option<usize>,
+    leaf_size: Option<usize>,
+    mode: EvalMode,
+    verify: bool,
+    cache_dir: Option<PathBuf>,
+}
+
+fn build<T: Float>(
+    o: &BuildOptions,
+    monitor: PrecomputeMonitor,
+    sources: &[T],
+    targets: Option<&[T]>,
+) -> Result<Box<dyn Engine>, FmmError> {
+    match o.kernel {
+        KernelChoice::Laplace => build_with(Laplace3d, o, monitor, sources, targets),
+        KernelChoice::Yukawa(k) => {
+            build_with(ModifiedHelmholtz3d::new(k)?, o, monitor, sources, targets)
+        }
+    }
+}
+
+fn build_with<T: Float, K: Kernel>(
+    kernel: K,
+    o: &BuildOptions,
+    monitor: PrecomputeMonitor,
+    sources: &[T],
+    targets: Option<&[T]>,
+) -> Result<Box<dyn Engine>, FmmError> {
+    let mut b = FmmBuilder::new(sources)
+        .kernel(kernel)
+        .mode(o.mode)
+        .monitor(monitor)
+        .verify(o.verify);
+    if let Some(t) = targets {
+        b = b.targets(t);
+    }
+    if let Some(eps) = o.eps {
+        b = b.tolerance(eps);
+    }
+    if let Some(p) = o.order {
+        b = b.order(p);
+    }
+    if let Some(l) = o.leaf_size {
+        b = b.leaf_size(l);
+    }
+    if let Some(dir) = &o.cache_dir {
+        b = b.cache_dir(dir);
+    }
+    Ok(match o.scheme {
+        SchemeChoice::Svd => Box::new(b.build_svd()?),
+        SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
+        SchemeChoice::Fft => Box::new(b.build_with::<FftM2l<T>>(FftConfig)?),
+    })
+}
+
+/// A built FMM: tree and operators for fixed sources, targets, kernel and
+/// accuracy; `evaluate` any number of charge vectors.
+///
+/// The public wrapper is `ferrofmm.Fmm`; this class takes flat,
+/// C-contiguous arrays (interleaved `x, y, z`).
+#[pyclass(module = "ferrofmm._ferrofmm", frozen)]
+pub(crate) struct NativeFmm {
+    engine: Arc<RwLock<Box<dyn Engine>>>,
+    threads: Threads,
+    /// The first evaluation of a tolerance is checked (when `verify`).
+    verify_pending: AtomicBool,
+    /// Verification of the first evaluation, reported by every later one.
+    verification: Mutex<Option<Verification>>,
+    options: BuildOptions,
+    dtype: &'static str,
+}
+
+#[pymethods]
+impl NativeFmm {
+    #[new]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        sources: &Bound<'_, PyAny>,
+        targets: Option<&Bound<'_, PyAny>>,
+        kernel: &str,
+        k: Option<f64>,
+        eps: Option<f64>,
+        order: Option<usize>,
+        leaf_size: Option<usize>,
+        scheme: &str,
+        gradient: bool,
+        verify: bool,
+        threads: Option<usize>,
+        cache_dir: Option<PathBuf>,
+    ) -> PyResult<Self> {
+        let kernel = match (kernel, k) {
+            ("laplace", None) => KernelChoice::Laplace,
+            ("laplace", Some(_)) => {
+                return Err(PyValueError::new_err(
+                    "k is a parameter of the yukawa kernel, not laplace",
+                ));
+            }
+            ("yukawa", Some(k)) => KernelChoice::Yukawa(k),
+            ("yukawa", None) => {
+                return Err(PyValueError::new_err(
+                    "the yukawa kernel exp(-k r) / (4 pi r) needs k (k >= 0)",
+                ));
+            }
+            (other, _) => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown kernel {other:?}: use \"laplace\" or \"yukawa\""
+                )));
+            }
+        };
+        let scheme = match scheme {
+            "svd" => SchemeChoice::Svd,
+            "dense" => SchemeChoice::Dense,
+            "fft" => SchemeChoice::Fft,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown M2L scheme {other:?}: use \"svd\", \"dense\" or \"fft\""
+                )));
+            }
+        };
+        match (eps, order, leaf_size) {
+            (Some(_), Some(_), _) => {
+                return Err(PyValueError::new_err(
+                    "give eps (the order and leaf size are then chosen) or order, not both",
+                ));
+            }
+            (Some(_), None, Some(_)) => {
+                return Err(PyValueError::new_err(
+                    "leaf_size is chosen from eps: give order instead of eps to set it",
+                ));
+            }
+            (None, None, _) => {
+                return Err(PyValueError::new_err("give eps (e.g. 1e-6) or order"));
+            }
+            _ => {}
+        }
+        let options = BuildOptions {
+            kernel,
+            scheme,
+            eps,
+            order,
+            leaf_size,
+            mode: if gradient {
+                EvalMode::PotentialGradient
+            } else {
+                EvalMode::Potential
+            },
+            verify,
+            cache_dir,
+        };
+        let sources = Floats::from_numpy("sources", sources)?;
+        let targets = targets
+            .map(|t| Floats::from_numpy("targets", t))
+            .transpose()?;
+        let threads = Threads::new(threads)?;
+        let cancel = Arc::new(AtomicBool::new(false));
+        let monitor = PrecomputeMonitor::new().with_cancel_flag(cancel.clone());
+        let job_options = options.clone();
+        let (dtype, engine) = match sources {
+            Floats::F64(s) => ("float64", {
+                let t = targets.map(f64::unwrap);
+                interruptible(py, &threads, Some(&cancel), move || {
+                    build(&job_options, monitor, &s, t.as_deref())
+                })?
+            }),
+            Floats::F32(s) => ("float32", {
+                let t = targets.map(f32::unwrap);
+                interruptible(py, &threads, Some(&cancel), move || {
+                    build(&job_options, monitor, &s, t.as_deref())
+                })?
+            }),
+        };
+        let engine = engine.map_err(fmm_error)?;
+        Ok(NativeFmm {
+            engine: Arc::new(RwLock::new(engine)),
+            threads,
+            verify_pending: AtomicBool::new(verify && eps.is_some()),
+            verification: Mutex::new(None),
+            options,
+            dtype,
+        })
+    }
+
+    /// Evaluate `n_vectors` charge vectors stored one after another in the
+    /// flat array `charges`; returns the flat values (per vector, per
+    /// target: `phi` or `phi, gx, gy, gz`) and a JSON report.
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        charges: &Bound<'py, PyAny>,
+        n_vectors: usize,
+    ) -> PyResult<(Bound<'py, PyAny>, String)> {
+        let charges = Floats::from_numpy("charges", charges)?;
+        let n_sources = self.read().n_sources();
+        if n_vectors == 0 || charges.len() != n_vectors * n_sources {
+            return Err(PyValueError::new_err(format!(
+                "expected {} charges ({n_vectors} vector(s) of one per source, {n_sources} sources), got {}",
+                n_vectors * n_sources,
+                charges.len()
+            )));
+        }
+        let verify = self.verify_pending.swap(false, Ordering::SeqCst);
+        let engine = self.engine.clone();
+        let result = interruptible(py, &self.threads, None, move || {
+            if verify {
+                let mut e = engine.write().unwrap_or_else(|p| p.into_inner());
+                e.evaluate_verified(charges, n_vectors)
+            } else {
+                let e = engine.read().unwrap_or_else(|p| p.into_inner());
+                e.evaluate(charges, n_vectors)
+            }
+        });
+        let evaluated = match result {
+            Ok(Ok(e)) => e,
+            Ok(Err(e)) => {
+                self.verify_pending.fetch_or(verify, Ordering::SeqCst);
+                return Err(fmm_error(e));
+            }
+            Err(e) => {
+                self.verify_pending.fetch_or(verify, Ordering::SeqCst);
+                return Err(e);
+            }
+        };
+        let mut last = self.verification.lock().unwrap_or_else(|p| p.into_inner());
+        if evaluated.verification.is_some() {
+            last.clone_from(&evaluated.verification);
+        }
+        let info = self.info(&evaluated.timings, last.as_ref(), n_vectors);
+        Ok((evaluated.values.into_numpy(py), info.to_string()))
+    }
+
+    /// JSON of the tree, operator and parameter figures.
+    fn summary_json(&self) -> String {
+        let last = self.verification.lock().unwrap_or_else(|p| p.into_inner());
+        let mut s = serde_json::to_value(self.read().summary()).unwrap_or(Value::Null);
+        if let (Some(v), Value::Object(map)) = (last.as_ref(), &mut s) {
+            map.insert(
+                "verification".into(),
+                serde_json::to_value(v).unwrap_or(Value::Null),
+            );
+        }
+        s.to_string()
+    }
+
+    /// JSON of the setup times (seconds).
+    fn setup_timings_json(&self) -> String {
+        setup_seconds(&self.read().setup_timings()).to_string()
+    }
+
+    /// `"float32"` or `"float64"`.
+    #[getter]
+    fn dtype(&self) -> &'static str {
+        self.dtype
+    }
+
+    /// Number of sources.
+    #[getter]
+    fn n_sources(&self) -> usize {
+        self.read().n_sources()
+    }
+
+    /// Number of targets.
+    #[getter]
+    fn n_targets(&self) -> usize {
+        self.read().n_targets()
+    }
+
+    /// Number of threads the work runs on.
+    #[getter]
+    fn threads(&self) -> usize {
+        self.threads.count()
+    }
+}
+
+impl NativeFmm {
+    fn read(&self) -> std::sync::RwLockReadGuard<'_, Box<dyn Engine>> {
+        self.engine.read().unwrap_or_else(|p| p.into_inner())
+    }
+
+    /// The report of one evaluation (`info` in Python).
+    fn info(
+        &self,
+        timings: &EvalTimings,
+        verification: Option<&Verification>,
+        n_vectors: usize,
+    ) -> Value {
+        let (s, setup) = {
+            let engine = self.read();
+            (engine.summary(), engine.setup_timings())
+        };
+        let chosen = s.chosen.as_ref();
+        json!({
+            "kernel": s.kernel,
+            "dtype": self.dtype,
+            "order": s.order,
+            "leaf_size": s.leaf_size,
+            "scheme": s.m2l_scheme,
+            "eps": self.options.eps,
+            "predicted_error": verification
+                .map(Verification::predicted_error)
+                .or(chosen.map(|c| c.predicted_error)),
+            "measured_error": verification.map(|v| {
+                let m = v.measured();
+                json!({"potential": m.potential, "gradient": m.gradient, "sampled_targets": m.n_sampled})
+            }),
+            "verified": verification.map(|v| v.met),
+            "n_vectors": n_vectors,
+            "threads": self.threads.count(),
+            "depth": s.depth,
+            "boxes": s.n_boxes,
+            "leaves": s.n_leaves,
+            "clusters": s.clusters,
+            "timings": {
+                "setup": setup_seconds(&setup),
+                "evaluate": eval_seconds(timings),
+            },
+        })
+    }
+}
+
+fn setup_seconds(t: &SetupTimings) -> Value {
+    json!({
+        "tuning": t.tuning.as_secs_f64(),
+        "tree": t.tree.as_secs_f64(),
+        "operators": t.operators.as_secs_f64(),
+        "m2l_precompute": t.m2l_precompute.as_secs_f64(),
+        "layout": t.layout.as_secs_f64(),
+        "total": t.total.as_secs_f64(),
+    })
+}
+
+fn eval_seconds(t: &EvalTimings) -> Value {
+    let mut map = serde_json::Map::new();
+    for (name, d) in t.operators() {
+        map.insert(name.to_lowercase(), json!(d.as_secs_f64()));
+    }
+    map.insert("total".into(), json!(t.total.as_secs_f64()));
+    Value::Object(map)
+}

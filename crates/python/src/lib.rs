@@ -1,0 +1,41 @@
+//! # ferrofmm-python
+//!
+//! The native part (`ferrofmm._ferrofmm`) of the Python package
+//! `ferrofmm`: the FMM driver ([`ferrofmm_fmm::Fmm`]) and the octree
+//! ([`ferrofmm_tree::Octree`]) behind two classes that take and return
+//! flat, C-contiguous NumPy arrays.
+//!
+//! The public Python API (`ferrofmm.laplace`, `ferrofmm.yukawa`,
+//! `ferrofmm.Fmm`, `ferrofmm.Octree`) lives in `python/ferrofmm/__init__.py`:
+//! it turns whatever the caller passes (any float dtype the run accepts, C
+//! or Fortran order, any strides) into the flat arrays this module reads,
+//! and shapes the results. Everything that can fail on values (NaN
+//! coordinates, bad orders or tolerances, memory limits) is checked here,
+//! by the same library code as the command line, and raised as
+//! `ValueError` with the library's message.
+//!
+//! Every build and evaluation runs on a worker thread with the GIL
+//! released ([`run::interruptible`]); the calling thread wakes every
+//! 100 ms to let Python handle signals, so Ctrl-C raises
+//! `KeyboardInterrupt` at once (a precomputation in progress is cancelled;
+//! an evaluation in progress finishes in the background and is dropped).
+
+mod engine;
+mod errors;
+mod octree;
+mod run;
+
+use pyo3::prelude::*;
+
+/// The native module `ferrofmm._ferrofmm`.
+#[pymodule]
+fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<engine::NativeFmm>()?;
+    m.add_class::<octree::NativeOctree>()?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    m.add("MIN_ORDER", ferrofmm_fmm::MIN_ORDER)?;
+    m.add("MAX_ORDER", ferrofmm_fmm::MAX_ORDER)?;
+    m.add("DEFAULT_LEAF_SIZE", ferrofmm_fmm::DEFAULT_LEAF_SIZE)?;
+    m.add("DEEPEST_LEVEL", ferrofmm_tree::DEEPEST_LEVEL)?;
+    Ok(())
+}
