@@ -33,7 +33,19 @@ pub fn flag() -> Arc<AtomicBool> {
 
 /// Install the handlers and start the watcher thread. Without handlers
 /// (registration failed) Ctrl-C keeps its default effect.
+///
+/// `SIGXFSZ` (a write beyond the file size limit, `ulimit -f`) gets a
+/// handler that does nothing, so that instead of killing the process (and
+/// leaving its temporary file) the write fails with `EFBIG`, which the
+/// output code reports and cleans up like any other failed write.
 pub fn install() {
+    #[cfg(unix)]
+    {
+        let _ = signal_hook::flag::register(
+            signal_hook::consts::SIGXFSZ,
+            Arc::new(AtomicBool::new(false)),
+        );
+    }
     let flag = flag();
     for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
         if signal_hook::flag::register(signal, flag.clone()).is_err() {

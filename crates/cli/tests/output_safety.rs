@@ -172,7 +172,8 @@ fn unusable_outputs_are_refused_before_any_work() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
-/// `ulimit -f 4` with `SIGXFSZ` ignored: the write fails with EFBIG (the
+/// `ulimit -f 4`, with `SIGXFSZ` ignored by the shell and with its default
+/// disposition (the command catches it): the write fails with EFBIG (the
 /// output needs 8128 bytes), the command exits 1 naming the reason, and
 /// neither a partial output nor a temporary file is left; an existing
 /// output keeps its contents.
@@ -182,16 +183,24 @@ fn a_failed_write_leaves_no_partial_file() {
     let dir = scratch("failed-write");
     let (p, q) = inputs(&dir, N);
     let bin = env!("CARGO_BIN_EXE_ferrofmm");
-    let limited = |out: &Path| {
+    let limited_with = |script: &str, out: &Path| {
         Command::new("sh")
             .arg("-c")
-            .arg("trap '' XFSZ; ulimit -f 4; exec \"$0\" \"$@\"")
+            .arg(script)
             .arg(bin)
             .args(eval_args(&p, &q, out))
             .output()
             .expect("sh runs")
     };
+    let limited = |out: &Path| limited_with("trap '' XFSZ; ulimit -f 4; exec \"$0\" \"$@\"", out);
     let before = listing(&dir);
+
+    // The default disposition of SIGXFSZ would kill the process mid-write.
+    let fresh = dir.join("default-signal.npy");
+    let out = limited_with("ulimit -f 4; exec \"$0\" \"$@\"", &fresh);
+    assert!(!fresh.exists(), "a partial output was left behind");
+    expect_one_line_failure(&out, &["cannot write", "default-signal.npy", "too large"]);
+    assert_eq!(listing(&dir), before, "a temporary file was left behind");
 
     let fresh = dir.join("fresh.npy");
     let out = limited(&fresh);

@@ -11,9 +11,11 @@
 //!   any failure the temporary file is removed and the previous contents of
 //!   the output (if any) are untouched: there is never a partial file.
 //!
-//! A process killed by a signal in the middle of a write (Ctrl-C, or
-//! `SIGXFSZ` when a file size limit is exceeded and the signal is not
-//! ignored) may leave the temporary file behind, never a truncated output.
+//! A file size limit (`ulimit -f`) makes the write fail (the command
+//! catches `SIGXFSZ`, see `crate::interrupt::install`), so it is cleaned up
+//! like any other failure. A process killed by a signal in the middle of a
+//! write (`SIGKILL`) may leave the temporary file behind, never a truncated
+//! output.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Write};
