@@ -41,16 +41,17 @@
 //!
 //! ## Vectorisation and dispatch
 //!
-//! The crate builds for the portable baseline (no `-C target-cpu`). Hot loops
-//! exist as AVX-512F and AVX2+FMA versions (`#[target_feature]`, chosen at
-//! run time by [`SimdLevel::detected`], cached) and as portable lane-chunked
-//! Rust that also serves other architectures. [`SimdLevel`] lets tests and
-//! benchmarks force a level, per call ([`laplace_p2p_with`]) or globally
-//! ([`set_simd_level`], env `FERROFMM_SIMD=scalar|avx2|avx512`). The AVX-512
-//! path uses `vrsqrt14` with a polynomial refinement to full precision; see
-//! the [`laplace_p2p_with`] docs for the error analysis. The modified
-//! Helmholtz P2P ([`modified_helmholtz_p2p_with`]) is one portable
-//! lane-chunked loop with a polynomial `exp`, compiled for each level.
+//! The crate builds for the portable baseline (no `-C target-cpu`). One P2P
+//! loop serves every kernel ([`lanes`]): a kernel plugs in a per-pair
+//! micro-kernel on SIMD registers ([`lanes::LaneKernel`]), and the loop is
+//! compiled as AVX-512F, AVX2+FMA and portable lane-chunked versions
+//! (`#[target_feature]`, chosen at run time by [`SimdLevel::detected`],
+//! cached). Laplace, modified Helmholtz and kernels written outside the
+//! crate all run in it. [`SimdLevel`] lets tests and benchmarks force a
+//! level, per call ([`laplace_p2p_with`], [`lanes::evaluate_with`]) or
+//! globally ([`set_simd_level`], env `FERROFMM_SIMD=scalar|avx2|avx512`).
+//! The AVX-512 path uses `vrsqrt14` with a polynomial refinement to full
+//! precision; see [`lanes`] for the error analysis.
 //!
 //! ## Conventions
 //!
@@ -62,10 +63,10 @@
 
 mod direct;
 mod error;
-mod fast_exp;
 mod helmholtz;
 mod helmholtz_p2p;
 mod kernel;
+pub mod lanes;
 mod laplace;
 mod laplace_simd;
 mod real;

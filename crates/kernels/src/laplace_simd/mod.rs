@@ -1,17 +1,7 @@
 //! Laplace P2P (`phi(y) = sum_i q_i / (4 pi |y - x_i|)`, optionally with its
-//! gradient) vectorised over **target lanes**, with runtime dispatch.
-//!
-//! # Algorithm
-//! Targets are taken in blocks of one or two *chunks* of `L` lanes
-//! (`L` = 8 `f64` / 16 `f32` with AVX-512, 4 / 8 with AVX2). A block's target
-//! coordinates are de-interleaved once into registers (`x`, `y`, `z` vectors,
-//! padded with zeros past the last target), and the potential / gradient
-//! accumulators live in registers for the whole sweep over the sources. Each
-//! source costs three scalar broadcasts of its coordinates and one of its
-//! charge, shared by both chunks; two independent chunks per block hide the
-//! latency of the reciprocal square root chain. No horizontal reductions are
-//! needed, and the sources are read in the order they are stored, so each
-//! target's sum runs over sources in the same order as the scalar reference.
+//! gradient): the micro-kernel of [`Laplace3d`] in the vectorised
+//! target-lane loop of [`crate::lanes`] (blocking, dispatch), and the dense
+//! assembly.
 //!
 //! Per pair: `d = x - y` (source minus target), `r2 = |d|^2` (FMA),
 //! `rinv ~ 1/sqrt(r2)`, `phi += q rinv`, and with gradients
@@ -40,15 +30,11 @@
 //! with [`check_inputs`](crate::check_inputs) where that matters.
 
 mod assemble;
-#[cfg(target_arch = "x86_64")]
-mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod avx512;
-mod scalar;
 
 pub use assemble::laplace_assemble_with;
 
-use crate::{EvalMode, Real, SimdLevel};
+use crate::lanes::{self, LaneFloat, LaneKernel, Simd};
+use crate::{EvalMode, Laplace3d, Real, SimdLevel};
 
 /// Accumulate the Laplace potential (and gradient) of `sources` with
 /// `charges` at `targets` into `out`, using [`SimdLevel::active`].
@@ -126,109 +112,36 @@ pub fn laplace_p2p_with<T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    let w = mode.values_per_target();
-    assert!(
-        sources.len().is_multiple_of(3) && targets.len().is_multiple_of(3),
-        "laplace_p2p: coordinate slices must hold interleaved xyz triples"
-    );
-    assert_eq!(
-        charges.len(),
-        sources.len() / 3,
-        "laplace_p2p: one charge per source"
-    );
-    assert_eq!(
-        out.len(),
-        w * (targets.len() / 3),
-        "laplace_p2p: output length"
-    );
-    if sources.is_empty() || targets.is_empty() {
-        return;
-    }
-    let level = level.clamp_supported();
-    let grad = mode == EvalMode::PotentialGradient;
-    if let (Some(s), Some(q), Some(t)) = (
-        T::as_f64_slice(sources),
-        T::as_f64_slice(charges),
-        T::as_f64_slice(targets),
-    ) {
-        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
-        p2p_f64(level, grad, s, q, t, o);
-    } else if let (Some(s), Some(q), Some(t)) = (
-        T::as_f32_slice(sources),
-        T::as_f32_slice(charges),
-        T::as_f32_slice(targets),
-    ) {
-        let o = T::as_f32_slice_mut(out).expect("same type as the inputs");
-        p2p_f32(level, grad, s, q, t, o);
-    } else if grad {
-        scalar::p2p::<T, 64, true>(sources, charges, targets, out);
-    } else {
-        scalar::p2p::<T, 64, false>(sources, charges, targets, out);
-    }
+    lanes::evaluate_with(level, &Laplace3d, mode, sources, charges, targets, out);
 }
 
-/// `level` must be supported by the CPU (callers clamp it).
-fn p2p_f64(level: SimdLevel, grad: bool, s: &[f64], q: &[f64], t: &[f64], o: &mut [f64]) {
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the CPU
-        // supports avx512f (the only feature these functions enable).
-        SimdLevel::Avx512 => unsafe {
-            if grad {
-                avx512::p2p_f64::<true>(s, q, t, o)
-            } else {
-                avx512::p2p_f64::<false>(s, q, t, o)
-            }
-        },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the CPU
-        // supports avx2 and fma.
-        SimdLevel::Avx2 => unsafe {
-            if grad {
-                avx2::p2p_f64::<true>(s, q, t, o)
-            } else {
-                avx2::p2p_f64::<false>(s, q, t, o)
-            }
-        },
-        _ => {
-            if grad {
-                scalar::p2p::<f64, 64, true>(s, q, t, o)
-            } else {
-                scalar::p2p::<f64, 64, false>(s, q, t, o)
-            }
+impl LaneKernel for Laplace3d {
+    /// `qr = q / r` into the potential and, with gradients, `qr / r^2 (x - y)`
+    /// (`q grad_y K` without `1/(4 pi)`, written without a negation so that
+    /// it stays three fused multiply-adds); `1/r = 0` makes coincident lanes
+    /// zero.
+    #[inline(always)]
+    fn pair<T: LaneFloat, S: Simd<T>, const GRAD: bool>(
+        &self,
+        s: S,
+        d: [S::V; 3],
+        r2: S::V,
+        q: S::V,
+        acc: &mut [S::V; 4],
+    ) {
+        let rinv = s.rsqrt_or_zero(r2);
+        let qr = s.mul(q, rinv);
+        acc[0] = s.add(acc[0], qr);
+        if GRAD {
+            let qr3 = s.mul(qr, s.mul(rinv, rinv));
+            acc[1] = s.mul_add(qr3, d[0], acc[1]);
+            acc[2] = s.mul_add(qr3, d[1], acc[2]);
+            acc[3] = s.mul_add(qr3, d[2], acc[3]);
         }
     }
-}
 
-/// `level` must be supported by the CPU (callers clamp it).
-fn p2p_f32(level: SimdLevel, grad: bool, s: &[f32], q: &[f32], t: &[f32], o: &mut [f32]) {
-    match level {
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the CPU
-        // supports avx512f.
-        SimdLevel::Avx512 => unsafe {
-            if grad {
-                avx512::p2p_f32::<true>(s, q, t, o)
-            } else {
-                avx512::p2p_f32::<false>(s, q, t, o)
-            }
-        },
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the CPU
-        // supports avx2 and fma.
-        SimdLevel::Avx2 => unsafe {
-            if grad {
-                avx2::p2p_f32::<true>(s, q, t, o)
-            } else {
-                avx2::p2p_f32::<false>(s, q, t, o)
-            }
-        },
-        _ => {
-            if grad {
-                scalar::p2p::<f32, 64, true>(s, q, t, o)
-            } else {
-                scalar::p2p::<f32, 64, false>(s, q, t, o)
-            }
-        }
+    /// `1 / (4 pi)`.
+    fn lane_scale(&self) -> f64 {
+        0.25 * std::f64::consts::FRAC_1_PI
     }
 }

@@ -1,0 +1,471 @@
+//! The instruction-set tokens and their [`Simd`] implementations.
+//!
+//! * [`Avx512`]: 8 `f64` / 16 `f32` lanes, mask registers; `1/sqrt` from
+//!   `vrsqrt14` (relative error `< 2^-14`) refined with the series
+//!   `y (1 - e)^(-1/2) = y (1 + e/2 + 3e^2/8 + 5e^3/16 + ...)`,
+//!   `e = 1 - r2 y^2`: to `e^3` in `f64` (truncation `< 4.4 * 2^-56`), to
+//!   `e` in `f32` (`< 1.5 * 2^-28`), both below half an ulp. Coincident
+//!   lanes start from the masked estimate `y = 0` and stay exactly 0.
+//! * [`Avx2`] (with FMA): 4 `f64` / 8 `f32` lanes; `f64` `1/sqrt` is an
+//!   exact `sqrt` and division (no `f64` estimate in AVX2), `f32` uses
+//!   `vrsqrtps` (`< 1.5 * 2^-12`) refined to `e^2` (truncation `~1.3e-10`);
+//!   coincident lanes are cleared with a compare mask afterwards.
+//! * [`Portable`]: one lane per "register", plain Rust (exact `sqrt` and
+//!   division, unfused multiply-add), which the compiler vectorises across
+//!   the 64 lanes of a block for the baseline target.
+
+use super::{LaneFloat, Simd};
+
+/// The AVX-512F instruction set. Only this crate makes one, after the CPU
+/// was found to support it.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx512(pub(in crate::lanes) ());
+
+/// The AVX2 + FMA instruction sets. Only this crate makes one, after the
+/// CPU was found to support them.
+#[derive(Clone, Copy, Debug)]
+pub struct Avx2(pub(in crate::lanes) ());
+
+/// Portable Rust, one lane per register: runs everywhere.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Portable;
+
+macro_rules! portable_impl {
+    ($t:ty, $bits:ty, $exp_bias:expr, $mantissa:expr) => {
+        impl Simd<$t> for Portable {
+            type V = $t;
+            const LANES: usize = 1;
+            #[inline(always)]
+            fn splat(self, x: $t) -> $t {
+                x
+            }
+            #[inline(always)]
+            fn add(self, a: $t, b: $t) -> $t {
+                a + b
+            }
+            #[inline(always)]
+            fn sub(self, a: $t, b: $t) -> $t {
+                a - b
+            }
+            #[inline(always)]
+            fn mul(self, a: $t, b: $t) -> $t {
+                a * b
+            }
+            #[inline(always)]
+            fn mul_add(self, a: $t, b: $t, c: $t) -> $t {
+                // Unfused: a fused form would be a library call without FMA.
+                a * b + c
+            }
+            #[inline(always)]
+            fn div(self, a: $t, b: $t) -> $t {
+                a / b
+            }
+            #[inline(always)]
+            fn sqrt(self, a: $t) -> $t {
+                a.sqrt()
+            }
+            #[inline(always)]
+            fn min(self, a: $t, b: $t) -> $t {
+                if a < b { a } else { b }
+            }
+            #[inline(always)]
+            fn max(self, a: $t, b: $t) -> $t {
+                if a > b { a } else { b }
+            }
+            #[inline(always)]
+            fn rsqrt_or_zero(self, r2: $t) -> $t {
+                if r2 >= <$t>::MIN_POSITIVE {
+                    1.0 / r2.sqrt()
+                } else {
+                    0.0
+                }
+            }
+            #[inline(always)]
+            fn zero_unless_ge(self, v: $t, x: $t, bound: $t) -> $t {
+                if x >= bound { v } else { 0.0 }
+            }
+            #[inline(always)]
+            fn pow2_from_magic(self, t: $t) -> $t {
+                let n = t
+                    .to_bits()
+                    .wrapping_sub(<$t as LaneFloat>::EXP_MAGIC.to_bits());
+                <$t>::from_bits(n.wrapping_add($exp_bias) << $mantissa)
+            }
+            #[inline(always)]
+            fn load(self, a: &[$t]) -> $t {
+                a[0]
+            }
+            #[inline(always)]
+            fn store(self, v: $t, a: &mut [$t]) {
+                a[0] = v;
+            }
+        }
+    };
+}
+
+portable_impl!(f64, u64, 1023, 52);
+portable_impl!(f32, u32, 127, 23);
+
+#[cfg(target_arch = "x86_64")]
+pub(super) use x86::{run_avx2, run_avx512};
+
+#[cfg(target_arch = "x86_64")]
+mod x86 {
+    use std::arch::x86_64::*;
+
+    use super::super::{LaneFloat, LaneKernel, SIMD_BLOCK, Simd, p2p};
+    use super::{Avx2, Avx512};
+
+    /// Run an intrinsic of the token's instruction set.
+    macro_rules! simd {
+        ($e:expr) => {
+            // SAFETY: a token (`Avx512`, `Avx2`) is only made by the
+            // `run_*` functions below, which callers enter only after
+            // `SimdLevel` detection confirmed the CPU supports the
+            // instruction set; the pointer intrinsics (loads, stores) get
+            // slices checked to hold `LANES` values.
+            unsafe { $e }
+        };
+    }
+
+    /// The loop compiled for AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    pub(in crate::lanes) fn run_avx512<T: LaneFloat, K: LaneKernel, const GRAD: bool>(
+        kernel: &K,
+        s: &[T],
+        q: &[T],
+        t: &[T],
+        o: &mut [T],
+    ) where
+        Avx512: Simd<T>,
+    {
+        p2p::<T, Avx512, K, SIMD_BLOCK, GRAD>(Avx512(()), kernel, s, q, t, o);
+    }
+
+    /// The loop compiled for AVX2 + FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(in crate::lanes) fn run_avx2<T: LaneFloat, K: LaneKernel, const GRAD: bool>(
+        kernel: &K,
+        s: &[T],
+        q: &[T],
+        t: &[T],
+        o: &mut [T],
+    ) where
+        Avx2: Simd<T>,
+    {
+        p2p::<T, Avx2, K, SIMD_BLOCK, GRAD>(Avx2(()), kernel, s, q, t, o);
+    }
+
+    impl Simd<f64> for Avx512 {
+        type V = __m512d;
+        const LANES: usize = 8;
+        #[inline(always)]
+        fn splat(self, x: f64) -> __m512d {
+            simd!(_mm512_set1_pd(x))
+        }
+        #[inline(always)]
+        fn add(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_add_pd(a, b))
+        }
+        #[inline(always)]
+        fn sub(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_sub_pd(a, b))
+        }
+        #[inline(always)]
+        fn mul(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_mul_pd(a, b))
+        }
+        #[inline(always)]
+        fn mul_add(self, a: __m512d, b: __m512d, c: __m512d) -> __m512d {
+            simd!(_mm512_fmadd_pd(a, b, c))
+        }
+        #[inline(always)]
+        fn div(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_div_pd(a, b))
+        }
+        #[inline(always)]
+        fn sqrt(self, a: __m512d) -> __m512d {
+            simd!(_mm512_sqrt_pd(a))
+        }
+        #[inline(always)]
+        fn min(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_min_pd(a, b))
+        }
+        #[inline(always)]
+        fn max(self, a: __m512d, b: __m512d) -> __m512d {
+            simd!(_mm512_max_pd(a, b))
+        }
+        #[inline(always)]
+        fn rsqrt_or_zero(self, r2: __m512d) -> __m512d {
+            simd!({
+                let nonzero =
+                    _mm512_cmp_pd_mask::<_CMP_GE_OQ>(r2, _mm512_set1_pd(f64::MIN_POSITIVE));
+                let y = _mm512_maskz_rsqrt14_pd(nonzero, r2);
+                let ry = _mm512_mul_pd(r2, y);
+                let e = _mm512_fnmadd_pd(ry, y, _mm512_set1_pd(1.0));
+                let p = _mm512_fmadd_pd(_mm512_set1_pd(5.0 / 16.0), e, _mm512_set1_pd(3.0 / 8.0));
+                let p = _mm512_fmadd_pd(p, e, _mm512_set1_pd(0.5));
+                let ye = _mm512_mul_pd(y, e);
+                _mm512_fmadd_pd(ye, p, y)
+            })
+        }
+        #[inline(always)]
+        fn zero_unless_ge(self, v: __m512d, x: __m512d, bound: __m512d) -> __m512d {
+            simd!(_mm512_maskz_mov_pd(
+                _mm512_cmp_pd_mask::<_CMP_GE_OQ>(x, bound),
+                v
+            ))
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, t: __m512d) -> __m512d {
+            simd!({
+                let magic = _mm512_set1_epi64(<f64 as LaneFloat>::EXP_MAGIC.to_bits() as i64);
+                let n = _mm512_sub_epi64(_mm512_castpd_si512(t), magic);
+                let e = _mm512_add_epi64(n, _mm512_set1_epi64(1023));
+                _mm512_castsi512_pd(_mm512_slli_epi64::<52>(e))
+            })
+        }
+        #[inline(always)]
+        fn load(self, a: &[f64]) -> __m512d {
+            let a = &a[..8];
+            simd!(_mm512_loadu_pd(a.as_ptr()))
+        }
+        #[inline(always)]
+        fn store(self, v: __m512d, a: &mut [f64]) {
+            let a = &mut a[..8];
+            simd!(_mm512_storeu_pd(a.as_mut_ptr(), v))
+        }
+    }
+
+    impl Simd<f32> for Avx512 {
+        type V = __m512;
+        const LANES: usize = 16;
+        #[inline(always)]
+        fn splat(self, x: f32) -> __m512 {
+            simd!(_mm512_set1_ps(x))
+        }
+        #[inline(always)]
+        fn add(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_add_ps(a, b))
+        }
+        #[inline(always)]
+        fn sub(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_sub_ps(a, b))
+        }
+        #[inline(always)]
+        fn mul(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_mul_ps(a, b))
+        }
+        #[inline(always)]
+        fn mul_add(self, a: __m512, b: __m512, c: __m512) -> __m512 {
+            simd!(_mm512_fmadd_ps(a, b, c))
+        }
+        #[inline(always)]
+        fn div(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_div_ps(a, b))
+        }
+        #[inline(always)]
+        fn sqrt(self, a: __m512) -> __m512 {
+            simd!(_mm512_sqrt_ps(a))
+        }
+        #[inline(always)]
+        fn min(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_min_ps(a, b))
+        }
+        #[inline(always)]
+        fn max(self, a: __m512, b: __m512) -> __m512 {
+            simd!(_mm512_max_ps(a, b))
+        }
+        #[inline(always)]
+        fn rsqrt_or_zero(self, r2: __m512) -> __m512 {
+            simd!({
+                let nonzero =
+                    _mm512_cmp_ps_mask::<_CMP_GE_OQ>(r2, _mm512_set1_ps(f32::MIN_POSITIVE));
+                let y = _mm512_maskz_rsqrt14_ps(nonzero, r2);
+                let ry = _mm512_mul_ps(r2, y);
+                let e = _mm512_fnmadd_ps(ry, y, _mm512_set1_ps(1.0));
+                let ye = _mm512_mul_ps(y, e);
+                _mm512_fmadd_ps(ye, _mm512_set1_ps(0.5), y)
+            })
+        }
+        #[inline(always)]
+        fn zero_unless_ge(self, v: __m512, x: __m512, bound: __m512) -> __m512 {
+            simd!(_mm512_maskz_mov_ps(
+                _mm512_cmp_ps_mask::<_CMP_GE_OQ>(x, bound),
+                v
+            ))
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, t: __m512) -> __m512 {
+            simd!({
+                let magic = _mm512_set1_epi32(<f32 as LaneFloat>::EXP_MAGIC.to_bits() as i32);
+                let n = _mm512_sub_epi32(_mm512_castps_si512(t), magic);
+                let e = _mm512_add_epi32(n, _mm512_set1_epi32(127));
+                _mm512_castsi512_ps(_mm512_slli_epi32::<23>(e))
+            })
+        }
+        #[inline(always)]
+        fn load(self, a: &[f32]) -> __m512 {
+            let a = &a[..16];
+            simd!(_mm512_loadu_ps(a.as_ptr()))
+        }
+        #[inline(always)]
+        fn store(self, v: __m512, a: &mut [f32]) {
+            let a = &mut a[..16];
+            simd!(_mm512_storeu_ps(a.as_mut_ptr(), v))
+        }
+    }
+
+    impl Simd<f64> for Avx2 {
+        type V = __m256d;
+        const LANES: usize = 4;
+        #[inline(always)]
+        fn splat(self, x: f64) -> __m256d {
+            simd!(_mm256_set1_pd(x))
+        }
+        #[inline(always)]
+        fn add(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_add_pd(a, b))
+        }
+        #[inline(always)]
+        fn sub(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_sub_pd(a, b))
+        }
+        #[inline(always)]
+        fn mul(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_mul_pd(a, b))
+        }
+        #[inline(always)]
+        fn mul_add(self, a: __m256d, b: __m256d, c: __m256d) -> __m256d {
+            simd!(_mm256_fmadd_pd(a, b, c))
+        }
+        #[inline(always)]
+        fn div(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_div_pd(a, b))
+        }
+        #[inline(always)]
+        fn sqrt(self, a: __m256d) -> __m256d {
+            simd!(_mm256_sqrt_pd(a))
+        }
+        #[inline(always)]
+        fn min(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_min_pd(a, b))
+        }
+        #[inline(always)]
+        fn max(self, a: __m256d, b: __m256d) -> __m256d {
+            simd!(_mm256_max_pd(a, b))
+        }
+        #[inline(always)]
+        fn rsqrt_or_zero(self, r2: __m256d) -> __m256d {
+            simd!({
+                let nonzero = _mm256_cmp_pd::<_CMP_GE_OQ>(r2, _mm256_set1_pd(f64::MIN_POSITIVE));
+                // 1/sqrt(0) = Inf: the mask turns it into exactly 0.
+                _mm256_and_pd(
+                    nonzero,
+                    _mm256_div_pd(_mm256_set1_pd(1.0), _mm256_sqrt_pd(r2)),
+                )
+            })
+        }
+        #[inline(always)]
+        fn zero_unless_ge(self, v: __m256d, x: __m256d, bound: __m256d) -> __m256d {
+            simd!(_mm256_and_pd(_mm256_cmp_pd::<_CMP_GE_OQ>(x, bound), v))
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, t: __m256d) -> __m256d {
+            simd!({
+                let magic = _mm256_set1_epi64x(<f64 as LaneFloat>::EXP_MAGIC.to_bits() as i64);
+                let n = _mm256_sub_epi64(_mm256_castpd_si256(t), magic);
+                let e = _mm256_add_epi64(n, _mm256_set1_epi64x(1023));
+                _mm256_castsi256_pd(_mm256_slli_epi64::<52>(e))
+            })
+        }
+        #[inline(always)]
+        fn load(self, a: &[f64]) -> __m256d {
+            let a = &a[..4];
+            simd!(_mm256_loadu_pd(a.as_ptr()))
+        }
+        #[inline(always)]
+        fn store(self, v: __m256d, a: &mut [f64]) {
+            let a = &mut a[..4];
+            simd!(_mm256_storeu_pd(a.as_mut_ptr(), v))
+        }
+    }
+
+    impl Simd<f32> for Avx2 {
+        type V = __m256;
+        const LANES: usize = 8;
+        #[inline(always)]
+        fn splat(self, x: f32) -> __m256 {
+            simd!(_mm256_set1_ps(x))
+        }
+        #[inline(always)]
+        fn add(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_add_ps(a, b))
+        }
+        #[inline(always)]
+        fn sub(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_sub_ps(a, b))
+        }
+        #[inline(always)]
+        fn mul(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_mul_ps(a, b))
+        }
+        #[inline(always)]
+        fn mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
+            simd!(_mm256_fmadd_ps(a, b, c))
+        }
+        #[inline(always)]
+        fn div(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_div_ps(a, b))
+        }
+        #[inline(always)]
+        fn sqrt(self, a: __m256) -> __m256 {
+            simd!(_mm256_sqrt_ps(a))
+        }
+        #[inline(always)]
+        fn min(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_min_ps(a, b))
+        }
+        #[inline(always)]
+        fn max(self, a: __m256, b: __m256) -> __m256 {
+            simd!(_mm256_max_ps(a, b))
+        }
+        #[inline(always)]
+        fn rsqrt_or_zero(self, r2: __m256) -> __m256 {
+            simd!({
+                let nonzero = _mm256_cmp_ps::<_CMP_GE_OQ>(r2, _mm256_set1_ps(f32::MIN_POSITIVE));
+                // vrsqrtps flushes subnormal input to 0 and gives Inf, the
+                // refinement NaN: the mask turns it into exactly 0.
+                let y = _mm256_rsqrt_ps(r2);
+                let ry = _mm256_mul_ps(r2, y);
+                let e = _mm256_fnmadd_ps(ry, y, _mm256_set1_ps(1.0));
+                let p = _mm256_fmadd_ps(_mm256_set1_ps(3.0 / 8.0), e, _mm256_set1_ps(0.5));
+                let ye = _mm256_mul_ps(y, e);
+                _mm256_and_ps(nonzero, _mm256_fmadd_ps(ye, p, y))
+            })
+        }
+        #[inline(always)]
+        fn zero_unless_ge(self, v: __m256, x: __m256, bound: __m256) -> __m256 {
+            simd!(_mm256_and_ps(_mm256_cmp_ps::<_CMP_GE_OQ>(x, bound), v))
+        }
+        #[inline(always)]
+        fn pow2_from_magic(self, t: __m256) -> __m256 {
+            simd!({
+                let magic = _mm256_set1_epi32(<f32 as LaneFloat>::EXP_MAGIC.to_bits() as i32);
+                let n = _mm256_sub_epi32(_mm256_castps_si256(t), magic);
+                let e = _mm256_add_epi32(n, _mm256_set1_epi32(127));
+                _mm256_castsi256_ps(_mm256_slli_epi32::<23>(e))
+            })
+        }
+        #[inline(always)]
+        fn load(self, a: &[f32]) -> __m256 {
+            let a = &a[..8];
+            simd!(_mm256_loadu_ps(a.as_ptr()))
+        }
+        #[inline(always)]
+        fn store(self, v: __m256, a: &mut [f32]) {
+            let a = &mut a[..8];
+            simd!(_mm256_storeu_ps(a.as_mut_ptr(), v))
+        }
+    }
+}
