@@ -1,0 +1,341 @@
+//! The chooser: the cheapest (order, leaf size, SVD tolerance) the error
+//! model admits.
+
+// The parent's imports and the sibling modules' items (one namespace,
+// split by job).
+#[allow(unused_imports)]
+use super::*;
+
+/// The parameters chosen for a tolerance, and what the models predict for
+/// them. Reported by [`Fmm::chosen_parameters`](crate::Fmm::chosen_parameters)
+/// and in [`FmmSummary`](crate::FmmSummary) (JSON), so they can be read and
+/// reused with [`FmmBuilder::order`](crate::FmmBuilder::order),
+/// [`FmmBuilder::leaf_size`](crate::FmmBuilder::leaf_size) and
+/// [`SvdConfig`](ferrofmm_field::SvdConfig).
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ChosenParameters {
+    /// The relative L2 potential error asked for.
+    pub tolerance: f64,
+    /// Float type (`"f32"` or `"f64"`).
+    pub precision: String,
+    /// Expansion order.
+    pub order: usize,
+    /// Leaf size (largest number of points in a leaf).
+    pub leaf_size: usize,
+    /// SVD tolerance of the M2L compression.
+    pub svd_tolerance: f64,
+    /// Rank of the built SVD M2L operators (`None` before building, or for
+    /// another scheme).
+    pub svd_rank: Option<usize>,
+    /// Rank the cost model assumed.
+    pub estimated_svd_rank: usize,
+    /// Predicted relative L2 potential error (`S` times this is at most the
+    /// tolerance).
+    pub predicted_error: f64,
+    /// Predicted seconds for the tree and one evaluation.
+    pub predicted_seconds: f64,
+    /// Estimated work of the chosen tree.
+    pub estimated_work: WorkCounts,
+}
+
+/// One `(order, leaf size)` the chooser weighed.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct Candidate {
+    /// Expansion order.
+    pub order: usize,
+    /// Leaf size.
+    pub leaf_size: usize,
+    /// SVD tolerance for this order and the tolerance asked for.
+    pub svd_tolerance: f64,
+    /// Estimated rank at that SVD tolerance.
+    pub estimated_rank: usize,
+    /// Predicted error.
+    pub predicted_error: f64,
+    /// Predicted seconds (tree + one evaluation).
+    pub predicted: CostPrediction,
+    /// Estimated work.
+    pub work: WorkCounts,
+}
+
+/// Chooses order, leaf size and SVD tolerance for a tolerance (see the
+/// [module docs](crate::tuning)). [`Tuner::new`] holds the measured models; both
+/// can be replaced.
+#[derive(Clone, Debug)]
+pub struct Tuner {
+    /// The error model.
+    pub error: ErrorModel,
+    /// The cost model.
+    pub cost: CostModel,
+    /// Leaf sizes to consider.
+    pub leaf_sizes: Vec<usize>,
+    /// How many admissible orders to consider, from the smallest up.
+    pub orders: usize,
+}
+
+impl Tuner {
+    /// The measured Laplace models for `precision`.
+    pub fn new(precision: Precision) -> Self {
+        Tuner {
+            error: ErrorModel::laplace(precision),
+            cost: CostModel::default(),
+            leaf_sizes: LEAF_SIZE_CANDIDATES.to_vec(),
+            orders: 3,
+        }
+    }
+
+    /// The same tuner for evaluation mode `mode` (the cost model of
+    /// [`CostModel::for_mode`] and [`ErrorModel::for_mode`]).
+    pub fn for_mode(mut self, mode: EvalMode) -> Self {
+        self.cost = self.cost.for_mode(mode);
+        self.error = self.error.for_mode(mode);
+        self
+    }
+
+    /// The admissible `(order, svd tolerance, estimated rank, predicted
+    /// error)` for `eps` on a tree with rounding ratio `ratio`: the
+    /// smallest admissible order and the next `orders - 1`.
+    pub(super) fn orders_for(&self, eps: f64, ratio: f64) -> Vec<(usize, f64, usize, f64)> {
+        let Some(p0) = self.error.smallest_order(eps, ratio) else {
+            return Vec::new();
+        };
+        (p0..p0 + self.orders.max(1))
+            .filter(|&p| self.error.admissible(p, eps, ratio))
+            .map(|p| {
+                let tau = self.error.svd_tolerance(p, eps, ratio);
+                let err = self
+                    .error
+                    .predicted_error(p, tau, ratio)
+                    .expect("admissible order");
+                (p, tau, estimated_svd_rank(p, tau), err)
+            })
+            .collect()
+    }
+
+    /// Every `(order, leaf size)` weighed for `eps` on `occupancy`, in
+    /// order of increasing leaf size then order; leaf sizes giving the same
+    /// tree appear once (with the smallest of them). Empty when no setting
+    /// reaches `eps` on these points.
+    ///
+    /// The search first scans every other candidate leaf size from the
+    /// largest down (large leaves make small trees, cheap to simulate),
+    /// then tries the two neighbours of the best. The scan stops when the
+    /// work that grows with the number of boxes alone is predicted to cost
+    /// more than the best setting so far (it only grows as leaves shrink),
+    /// after two trees in a row predicted more than 1.5x slower than the
+    /// best, or before simulating a tree would take the search past
+    /// [`CHOICE_BUDGET`] of the best predicted time (or
+    /// [`MIN_CHOICE_SECONDS`], whichever is larger).
+    pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
+        validate_tolerance(eps, self.error.precision)?;
+        let mut sizes = self.leaf_sizes.clone();
+        sizes.sort_unstable_by(|a, b| b.cmp(a));
+        sizes.dedup();
+        let permissive = self.orders_for(eps, 0.0);
+        let cost_of = |w: &WorkCounts| {
+            self.orders_for(eps, w.rounding_ratio)
+                .iter()
+                .map(|&(p, _, k, _)| self.cost.predict(w, p, k).total)
+                .fold(f64::INFINITY, f64::min)
+        };
+        // (leaf size, work, boxes per level of the refinement, cost)
+        let mut trees: Vec<(usize, WorkCounts, Vec<usize>, f64)> = Vec::new();
+        let mut best = f64::INFINITY;
+        // Simulated boxes so far, in units of a fully simulated box.
+        let mut spent = 0.0;
+        // Simulate the tree of leaf size `s` unless it is a known one or
+        // over the budget; `Some(cost)` when simulated, `None` to stop.
+        let mut visit = |s: usize,
+                         trees: &mut Vec<(usize, WorkCounts, Vec<usize>, f64)>,
+                         best: &mut f64,
+                         bounded: bool|
+         -> Option<f64> {
+            let refined = occupancy.refine(s.max(1));
+            let shape: Vec<usize> = refined.iter().map(|l| l.keys.len()).collect();
+            let boxes: usize = shape.iter().sum();
+            spent += REFINE_SHARE * boxes as f64;
+            if let Some(t) = trees.iter_mut().find(|t| t.2 == shape) {
+                // The same tree: report the smallest leaf size giving it.
+                t.0 = t.0.min(s);
+                return Some(t.3);
+            }
+            // The search may spend CHOICE_BUDGET of the best time so far.
+            if !trees.is_empty()
+                && (spent + boxes as f64) * SECONDS_PER_SIMULATED_BOX
+                    > (CHOICE_BUDGET * *best).max(MIN_CHOICE_SECONDS)
+            {
+                return None;
+            }
+            // Boxes only grow as leaves shrink: once the work that grows
+            // with the boxes alone costs more than the best so far, no
+            // smaller leaf size can win.
+            if bounded {
+                let bound = WorkCounts {
+                    n_sources: occupancy.n_sources(),
+                    n_targets: occupancy.n_targets(),
+                    n_boxes: boxes,
+                    m2l_boxes: shape.iter().skip(2).sum(),
+                    ..Default::default()
+                };
+                let lower = permissive
+                    .iter()
+                    .map(|&(p, _, k, _)| self.cost.predict(&bound, p, k).total)
+                    .fold(f64::INFINITY, f64::min);
+                if lower > *best {
+                    return None;
+                }
+            }
+            spent += boxes as f64;
+            let w = occupancy.work_of(refined);
+            let cost = cost_of(&w);
+            trees.push((s, w, shape, cost));
+            *best = best.min(cost);
+            Some(cost)
+        };
+        // Coarse scan (every other candidate, large leaves first: small
+        // trees are cheap to simulate), then the neighbours of the best.
+        let mut sizes = self.leaf_sizes.clone();
+        sizes.sort_unstable();
+        sizes.dedup();
+        let mut worse = 0;
+        for &s in sizes.iter().rev().step_by(2) {
+            let Some(cost) = visit(s, &mut trees, &mut best, true) else {
+                break;
+            };
+            worse = if cost > STOP_FACTOR * best && cost.is_finite() {
+                worse + 1
+            } else {
+                0
+            };
+            if worse >= 2 {
+                break;
+            }
+        }
+        if let Some(&(s_best, ..)) = trees
+            .iter()
+            .filter(|t| t.3.is_finite())
+            .min_by(|a, b| a.3.total_cmp(&b.3))
+            && let Some(i) = sizes.iter().position(|&s| s == s_best)
+        {
+            for j in [i.wrapping_sub(1), i + 1] {
+                if let Some(&s) = sizes.get(j)
+                    && !trees.iter().any(|t| t.0 == s)
+                    && visit(s, &mut trees, &mut best, false).is_none()
+                {
+                    break;
+                }
+            }
+        }
+        trees.sort_by_key(|t| t.0);
+        let mut out = Vec::new();
+        for (s, w, ..) in &trees {
+            for (p, tau, k, err) in self.orders_for(eps, w.rounding_ratio) {
+                out.push(Candidate {
+                    order: p,
+                    leaf_size: *s,
+                    svd_tolerance: tau,
+                    estimated_rank: k,
+                    predicted_error: err,
+                    predicted: self.cost.predict(w, p, k),
+                    work: *w,
+                });
+            }
+        }
+        Ok(out)
+    }
+
+    /// The cheapest predicted candidate for `eps` on `occupancy`; a higher
+    /// order than the smallest admissible one only when predicted at least
+    /// [`HIGHER_ORDER_GAIN`] cheaper.
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidTolerance`], or
+    /// [`FmmError::ToleranceBeyondPrecision`] when no order reaches `eps`
+    /// at any leaf size on these points (with the limit for them).
+    pub fn choose_with(
+        &self,
+        eps: f64,
+        occupancy: &Occupancy,
+    ) -> Result<ChosenParameters, FmmError> {
+        let candidates = self.candidates(eps, occupancy)?;
+        let Some(p_min) = candidates.iter().map(|c| c.order).min() else {
+            // No leaf size works: report the limit at the finest resolution
+            // the points need (the coarsest tree considered).
+            let w = occupancy.work(*self.leaf_sizes.iter().max().unwrap_or(&1));
+            return Err(FmmError::ToleranceBeyondPrecision {
+                tolerance: eps,
+                precision: self.error.precision.name(),
+                limit: self.error.smallest_reachable(w.rounding_ratio),
+            });
+        };
+        let best_of = |p: usize| {
+            candidates
+                .iter()
+                .filter(|c| c.order == p)
+                .min_by(|a, b| a.predicted.total.total_cmp(&b.predicted.total))
+        };
+        let p_max = candidates.iter().map(|c| c.order).max().unwrap_or(p_min);
+        let mut best = best_of(p_min).expect("candidates of the smallest order");
+        for p in p_min + 1..=p_max {
+            if let Some(c) = best_of(p)
+                && c.predicted.total < (1.0 - HIGHER_ORDER_GAIN) * best.predicted.total
+            {
+                best = c;
+            }
+        }
+        Ok(ChosenParameters {
+            tolerance: eps,
+            precision: self.error.precision.name().to_string(),
+            order: best.order,
+            leaf_size: best.leaf_size,
+            svd_tolerance: best.svd_tolerance,
+            svd_rank: None,
+            estimated_svd_rank: best.estimated_rank,
+            predicted_error: best.predicted_error,
+            predicted_seconds: best.predicted.total,
+            estimated_work: best.work,
+        })
+    }
+
+    /// Choose for `eps` and these points (interleaved `x, y, z`; `targets`
+    /// `None` when they are the sources), in `domain` (or the bounding cube)
+    /// with boxes no deeper than `max_level`.
+    pub fn choose(
+        &self,
+        eps: f64,
+        sources: &[f64],
+        targets: Option<&[f64]>,
+        domain: Option<Domain>,
+        max_level: u32,
+    ) -> Result<ChosenParameters, FmmError> {
+        validate_tolerance(eps, self.error.precision)?;
+        let occupancy = Occupancy::new(sources, targets, domain, max_level)?;
+        self.choose_with(eps, &occupancy)
+    }
+}
+
+/// Choose order, leaf size and SVD tolerance for the Laplace FMM of these
+/// points in float type `T` to the relative L2 potential error `eps`,
+/// without building anything (what [`FmmBuilder::tolerance`](
+/// crate::FmmBuilder::tolerance) does before building).
+///
+/// ```
+/// use ferrofmm_fmm::{Geometry, tuning::{self, choose_parameters}};
+/// let points: Vec<f64> = Geometry::Sphere.points(10_000, 3);
+/// let c = choose_parameters(1e-7, &points, None).unwrap();
+/// assert!(c.order >= 6);
+/// assert!(tuning::SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
+/// let points32: Vec<f32> = points.iter().map(|&x| x as f32).collect();
+/// assert!(choose_parameters(1e-7, &points32, None).is_err());
+/// ```
+pub fn choose_parameters<T: Real>(
+    eps: f64,
+    sources: &[T],
+    targets: Option<&[T]>,
+) -> Result<ChosenParameters, FmmError> {
+    validate_tolerance(eps, T::PRECISION)?;
+    crate::builder::check_sources_and_targets(sources, targets)?;
+    let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
+    let src = up(sources);
+    let tgt = targets.map(up);
+    Tuner::new(T::PRECISION).choose(eps, &src, tgt.as_deref(), None, DEEPEST_LEVEL)
+}

@@ -1,0 +1,300 @@
+//! The cost model: predicted seconds from work counts, and its least-
+//! squares fit.
+
+// The parent's imports and the sibling modules' items (one namespace,
+// split by job).
+#[allow(unused_imports)]
+use super::*;
+
+/// Seconds per unit of work, one coefficient per kind of work, fitted on a
+/// 2-core AMD EPYC Zen 4 with AVX-512 and 2 rayon threads
+/// (`docs/tolerance.md`). Only the ratios matter to the choice, so another
+/// machine of the same kind chooses the same. When an operator gets faster,
+/// re-fit with [`CostModel::fit`] (the example `tolerance_grid -- fit`
+/// prints a new set to paste into [`CostModel::default`]).
+///
+/// With `n` points per surface and M2L rank `k`, the predicted time of the
+/// tree and one evaluation is
+///
+/// ```text
+/// P2P    p2p_pair p2p_pairs + p2p_entry u_entries
+/// far    surface_point n (N_s + N_t) + far_point n far_points
+///        + dense n^2 boxes + box_surface n boxes
+/// M2L    m2l_flop k^2 v_pairs + m2l_pair k v_pairs + m2l_box n k m2l_boxes
+/// tree   tree_point (N_s + N_t) + tree_box boxes + tree_pair v_pairs
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
+pub struct CostModel {
+    /// Per P2P source-target pair.
+    pub p2p_pair: f64,
+    /// Per U-list entry (one leaf-to-leaf block).
+    pub p2p_entry: f64,
+    /// Per point-surface kernel evaluation of P2M and L2P (`n` per point).
+    pub surface_point: f64,
+    /// Per point-surface kernel evaluation of M2P and P2L (`n` per far
+    /// point).
+    pub far_point: f64,
+    /// Per `n^2` per box (check-to-equivalent, M2M and L2L products).
+    pub dense: f64,
+    /// Per `n` per box (surfaces, gathers, scatters).
+    pub box_surface: f64,
+    /// Per `k^2` per V-list pair (the compressed M2L products).
+    pub m2l_flop: f64,
+    /// Per `k` per V-list pair (gathering and scattering compressed
+    /// expansions).
+    pub m2l_pair: f64,
+    /// Per `n k` per box on levels `>= 2` (compressing multipoles,
+    /// expanding check potentials).
+    pub m2l_box: f64,
+    /// Tree: per point (Morton codes, sort, permutations).
+    pub tree_point: f64,
+    /// Tree: per box (refinement, balance).
+    pub tree_box: f64,
+    /// Tree: per V-list pair (interaction lists).
+    pub tree_pair: f64,
+}
+
+impl Default for CostModel {
+    /// The model fitted on this machine (`docs/tolerance.md`).
+    fn default() -> Self {
+        CostModel {
+            p2p_pair: 2.45e-10,
+            p2p_entry: 3.06e-8,
+            surface_point: 3.18e-10,
+            far_point: 2.63e-10,
+            dense: 9.67e-11,
+            box_surface: 1.84e-8,
+            m2l_flop: 5.32e-12,
+            m2l_pair: 9.48e-10,
+            m2l_box: 2.32e-10,
+            tree_point: 2.43e-8,
+            tree_box: 1.00e-6,
+            tree_pair: 1.51e-8,
+        }
+    }
+}
+
+/// Cost of a target-side kernel evaluation with the gradient relative to
+/// the potential alone: the measured P2P rates on one core, 2.32e9
+/// (potential) against 1.55e9 (potential and gradient) interactions per
+/// second.
+pub const GRADIENT_COST_FACTOR: f64 = 1.5;
+
+impl CostModel {
+    /// The model for evaluation mode `mode`. The coefficients are fitted on
+    /// potentials; with gradients, target-side kernel work (P2P, L2P, M2P)
+    /// costs [`GRADIENT_COST_FACTOR`] more. Surface work counts P2M and L2P
+    /// (and P2L and M2P) together, so it takes half of the extra.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::CostModel;
+    /// use ferrofmm_kernels::EvalMode;
+    /// let pot = CostModel::default();
+    /// let grad = CostModel::default().for_mode(EvalMode::PotentialGradient);
+    /// assert!(grad.p2p_pair > pot.p2p_pair);
+    /// assert_eq!(CostModel::default().for_mode(EvalMode::Potential), pot);
+    /// ```
+    pub fn for_mode(self, mode: EvalMode) -> Self {
+        match mode {
+            EvalMode::Potential => self,
+            EvalMode::PotentialGradient => {
+                let half = 0.5 * (1.0 + GRADIENT_COST_FACTOR);
+                CostModel {
+                    p2p_pair: self.p2p_pair * GRADIENT_COST_FACTOR,
+                    surface_point: self.surface_point * half,
+                    far_point: self.far_point * half,
+                    ..self
+                }
+            }
+        }
+    }
+}
+
+/// Predicted seconds, by kind of work.
+#[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
+pub struct CostPrediction {
+    /// P2P.
+    pub p2p: f64,
+    /// P2M, L2P, M2P, P2L kernel evaluations, check-to-equivalent, M2M, L2L.
+    pub far: f64,
+    /// M2L.
+    pub m2l: f64,
+    /// Building the tree.
+    pub tree: f64,
+    /// All of the above.
+    pub total: f64,
+}
+
+/// One measured run, for [`CostModel::fit`].
+#[derive(Clone, Copy, Debug)]
+pub struct CostSample {
+    /// Work of the run's tree ([`WorkCounts::of_tree`]).
+    pub work: WorkCounts,
+    /// Expansion order.
+    pub order: usize,
+    /// M2L rank (`n` for the dense scheme).
+    pub rank: usize,
+    /// Measured evaluation.
+    pub eval: EvalTimings,
+    /// Measured tree construction, seconds.
+    pub tree_seconds: f64,
+}
+
+/// Units of work of each group, in the order of the coefficients.
+pub(super) struct Features {
+    pub(super) p2p: [f64; 2],
+    pub(super) far: [f64; 4],
+    pub(super) m2l: [f64; 3],
+    pub(super) tree: [f64; 3],
+}
+
+pub(super) fn features(w: &WorkCounts, order: usize, rank: usize) -> Features {
+    let n = n_surface_points(order) as f64;
+    let k = rank as f64;
+    let points = (w.n_sources + w.n_targets) as f64;
+    let boxes = w.n_boxes as f64;
+    Features {
+        p2p: [w.p2p_pairs, w.u_entries],
+        far: [n * points, n * w.far_points, n * n * boxes, n * boxes],
+        m2l: [
+            k * k * w.m2l_pairs,
+            k * w.m2l_pairs,
+            n * k * w.m2l_boxes as f64,
+        ],
+        tree: [points, boxes, w.m2l_pairs],
+    }
+}
+
+pub(super) fn dot(c: &[f64], x: &[f64]) -> f64 {
+    c.iter().zip(x).map(|(a, b)| a * b).sum()
+}
+
+impl CostModel {
+    pub(super) fn groups(&self) -> ([f64; 2], [f64; 4], [f64; 3], [f64; 3]) {
+        (
+            [self.p2p_pair, self.p2p_entry],
+            [
+                self.surface_point,
+                self.far_point,
+                self.dense,
+                self.box_surface,
+            ],
+            [self.m2l_flop, self.m2l_pair, self.m2l_box],
+            [self.tree_point, self.tree_box, self.tree_pair],
+        )
+    }
+
+    /// Predicted time of building the tree and one evaluation.
+    pub fn predict(&self, work: &WorkCounts, order: usize, rank: usize) -> CostPrediction {
+        let f = features(work, order, rank);
+        let (p2p, far, m2l, tree) = self.groups();
+        let p = CostPrediction {
+            p2p: dot(&p2p, &f.p2p),
+            far: dot(&far, &f.far),
+            m2l: dot(&m2l, &f.m2l),
+            tree: dot(&tree, &f.tree),
+            total: 0.0,
+        };
+        CostPrediction {
+            total: p.p2p + p.far + p.m2l + p.tree,
+            ..p
+        }
+    }
+
+    /// Fit the coefficients to measured runs: non-negative least squares
+    /// of the relative error, group by group (P2P; P2M + L2P + M2P + P2L +
+    /// M2M + L2L; M2L; the tree). A group without data keeps the default.
+    pub fn fit(samples: &[CostSample]) -> CostModel {
+        let mut m = CostModel::default();
+        let fs: Vec<Features> = samples
+            .iter()
+            .map(|s| features(&s.work, s.order, s.rank))
+            .collect();
+        let secs = |d: std::time::Duration| d.as_secs_f64();
+        let rows = |x: &dyn Fn(&Features) -> Vec<f64>, y: &dyn Fn(&CostSample) -> f64| {
+            fs.iter()
+                .zip(samples)
+                .map(|(f, s)| (x(f), y(s)))
+                .collect::<Vec<_>>()
+        };
+        if let Some(c) = fit_nonnegative(&rows(&|f| f.p2p.to_vec(), &|s| secs(s.eval.p2p))) {
+            [m.p2p_pair, m.p2p_entry] = [c[0], c[1]];
+        }
+        let far = rows(&|f| f.far.to_vec(), &|s| {
+            let e = &s.eval;
+            secs(e.p2m) + secs(e.l2p) + secs(e.m2p) + secs(e.p2l) + secs(e.m2m) + secs(e.l2l)
+        });
+        if let Some(c) = fit_nonnegative(&far) {
+            [m.surface_point, m.far_point, m.dense, m.box_surface] = [c[0], c[1], c[2], c[3]];
+        }
+        if let Some(c) = fit_nonnegative(&rows(&|f| f.m2l.to_vec(), &|s| secs(s.eval.m2l))) {
+            [m.m2l_flop, m.m2l_pair, m.m2l_box] = [c[0], c[1], c[2]];
+        }
+        if let Some(c) = fit_nonnegative(&rows(&|f| f.tree.to_vec(), &|s| s.tree_seconds)) {
+            [m.tree_point, m.tree_box, m.tree_pair] = [c[0], c[1], c[2]];
+        }
+        m
+    }
+}
+
+/// Non-negative least squares of the relative residual: minimise
+/// `sum_i ((c . x_i - y_i) / y_i)^2` over `c >= 0` (features whose
+/// coefficient would be negative are dropped one at a time). `None` when
+/// no row has a positive finite `y`.
+pub(super) fn fit_nonnegative(rows: &[(Vec<f64>, f64)]) -> Option<Vec<f64>> {
+    let rows: Vec<(Vec<f64>, f64)> = rows
+        .iter()
+        .filter(|(_, y)| *y > 0.0 && y.is_finite())
+        .map(|(x, y)| (x.iter().map(|v| v / y).collect(), 1.0))
+        .collect();
+    let dim = rows.first()?.0.len();
+    let mut active: Vec<bool> = vec![true; dim];
+    loop {
+        let idx: Vec<usize> = (0..dim).filter(|&i| active[i]).collect();
+        let c = least_squares(&rows, &idx)?;
+        let mut full = vec![0.0; dim];
+        for (&i, &v) in idx.iter().zip(&c) {
+            full[i] = v;
+        }
+        match idx
+            .iter()
+            .zip(&c)
+            .filter(|(_, v)| **v < 0.0)
+            .min_by(|a, b| a.1.total_cmp(b.1))
+        {
+            Some((&i, _)) => active[i] = false,
+            None => return Some(full),
+        }
+    }
+}
+
+/// Least squares on the columns `idx` (scaled to unit norm) through faer's
+/// thin SVD: `c = V diag(1 / s) U^T y` over the singular values above
+/// `1e-10 s_0`, so a column that depends on the others takes no weight
+/// instead of blowing up. `None` when the SVD fails.
+pub(super) fn least_squares(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<Vec<f64>> {
+    let d = idx.len();
+    let scale: Vec<f64> = idx
+        .iter()
+        .map(|&i| {
+            let s = rows.iter().map(|(x, _)| x[i] * x[i]).sum::<f64>().sqrt();
+            if s > 0.0 { s } else { 1.0 }
+        })
+        .collect();
+    let x = faer::Mat::<f64>::from_fn(rows.len(), d, |r, c| rows[r].0[idx[c]] / scale[c]);
+    let svd = x.thin_svd().ok()?;
+    let (u, sv, v) = (svd.U(), svd.S(), svd.V());
+    let s0 = if sv.dim() > 0 { sv[0] } else { 0.0 };
+    let mut c = vec![0.0; d];
+    for k in 0..sv.dim() {
+        let sk = sv[k];
+        if sk.is_nan() || sk <= 1e-10 * s0 {
+            continue;
+        }
+        let uty: f64 = (0..rows.len()).map(|r| u[(r, k)] * rows[r].1).sum();
+        for (j, cj) in c.iter_mut().enumerate() {
+            *cj += v[(j, k)] * uty / sk;
+        }
+    }
+    Some(c.iter().zip(&scale).map(|(c, s)| c / s).collect())
+}

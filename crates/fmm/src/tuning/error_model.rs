@@ -1,0 +1,446 @@
+//! The error model: measured errors per order, SVD and rounding terms, the
+//! f32/f64 limits.
+
+// The parent's imports and the sibling modules' items (one namespace,
+// split by job).
+#[allow(unused_imports)]
+use super::*;
+
+/// Safety factor `S` between the measured worst error of an order and the
+/// tolerance it is used for. The table is already the worst of 42 settings
+/// per order (seven geometries, two kinds of charges, three leaf sizes);
+/// `S` covers larger N (errors grow about 1.5x from 2e4 to 1e6 points)
+/// and inputs not measured, and the after-the-fact verification
+/// ([`crate::verify`]) catches what it does not.
+pub const SAFETY_FACTOR: f64 = 1.6;
+
+/// Error `f32` rounding adds at every order (measured worst over the four
+/// test geometries: about `1e-6` on uniform points, `2.4e-6` on two
+/// clusters whose coordinates are `1.0 + 1e-4 u`).
+pub const F32_ERROR_FLOOR: f64 = 2.5e-6;
+
+/// As [`F32_ERROR_FLOOR`] for the gradient (measured on zero-mean and
+/// positive charges, orders 7 to 10: 2.9e-6 to 5.4e-6).
+pub const F32_GRADIENT_FLOOR: f64 = 6e-6;
+
+/// Rounding error per unit roundoff and unit of [`WorkCounts::rounding_ratio`]
+/// (measured: `f32` on two clusters, ratios 0.7e5 to 4.5e5, errors 1.3e-4 to
+/// 9e-4, i.e. 0.02 to 0.06 `u ratio`).
+pub const ROUNDING_FACTOR: f64 = 0.1;
+
+/// `e_svd(tau) = SVD_POTENTIAL_FACTOR tau`: upper envelope of the extra
+/// relative potential error of an SVD tolerance `tau` (measured on
+/// zero-mean charges, orders 3 to 12: 0.5 to 1.1 `tau`;
+/// `examples/error_model.rs`, `docs/tolerance.md`).
+pub(super) const SVD_POTENTIAL_FACTOR: f64 = 1.2;
+
+/// As [`SVD_POTENTIAL_FACTOR`] for the gradient (measured 1.9 to 2.4 `tau`).
+pub(super) const SVD_GRADIENT_FACTOR: f64 = 3.0;
+
+/// Loosest SVD tolerance the chooser uses.
+pub const MAX_SVD_TOLERANCE: f64 = 1e-2;
+
+/// A higher order than the smallest admissible one is chosen only when it
+/// is predicted at least this fraction cheaper.
+pub const HIGHER_ORDER_GAIN: f64 = 0.1;
+
+/// Highest order the error model knows (f64 errors stop falling beyond it).
+pub const MAX_TUNED_ORDER: usize = 12;
+
+/// Highest order used in `f32`: beyond it rounding dominates and the error
+/// no longer falls (measured: 3e-7..1e-6 at p = 7..8, 6e-7..1.4e-6 at
+/// p = 9..10).
+pub const MAX_F32_ORDER: usize = 8;
+
+/// Lowest order the error model knows.
+pub const MIN_TUNED_ORDER: usize = 2;
+
+/// The leaf-size scan stops after two trees in a row predicted this much
+/// slower than the best so far, for every order considered.
+pub(super) const STOP_FACTOR: f64 = 1.5;
+
+/// The search for a leaf size stops before it has spent this fraction of
+/// the best predicted time so far (estimated as [`SECONDS_PER_SIMULATED_BOX`]
+/// per box of the simulated trees), so that choosing stays cheap next to
+/// what it chooses for.
+pub const CHOICE_BUDGET: f64 = 0.05;
+
+/// The search may always spend this many seconds (estimated), whatever
+/// [`CHOICE_BUDGET`] allows: on small problems 5% of a 50 ms run is too
+/// little to reach the trees of small leaves, and a wrong leaf size there
+/// costs 2x (N = 1e5 cube at 1e-3, `docs/tolerance.md`).
+pub const MIN_CHOICE_SECONDS: f64 = 0.01;
+
+/// Seconds to simulate one box of a candidate tree (refine, balance, count
+/// the work; measured 0.2 to 0.8 us on the 2-core machine, Plummer the
+/// costliest).
+pub const SECONDS_PER_SIMULATED_BOX: f64 = 0.8e-6;
+
+/// Share of a box's simulation cost spent refining it (every candidate is
+/// refined; only distinct trees are simulated further).
+pub(super) const REFINE_SHARE: f64 = 0.25;
+
+/// Leaf sizes the chooser considers. Below 32 points per leaf the P2P
+/// blocks are too small to run at speed and the trees are large to
+/// simulate; no measured optimum lay there (`docs/tolerance.md`).
+pub const LEAF_SIZE_CANDIDATES: [usize; 13] = [
+    32, 48, 64, 96, 128, 192, 256, 384, 512, 768, 1024, 1536, 2048,
+];
+
+/// Worst relative L2 potential error measured at orders 2..=12 (f64, SVD
+/// M2L at the default tolerance, zero-mean and positive charges, seven
+/// geometries, leaf sizes 32..400, N = 2e4 and 1e5; `docs/tolerance.md`).
+pub(super) const F64_POTENTIAL_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 1] = [
+    5.0e-2,  // p = 2
+    3.6e-3,  // p = 3
+    4.4e-4,  // p = 4
+    4.3e-5,  // p = 5
+    5.3e-6,  // p = 6
+    6.3e-7,  // p = 7
+    1.1e-7,  // p = 8
+    1.5e-8,  // p = 9
+    2.3e-9,  // p = 10
+    3.9e-10, // p = 11
+    7.5e-11, // p = 12
+];
+
+/// As [`F64_POTENTIAL_ERRORS`] for the gradient (its worst cases are
+/// all-positive charges at low orders, whose mean field nearly cancels in
+/// the cloud, and zero-mean charges at high orders).
+pub(super) const F64_GRADIENT_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 1] = [
+    1.8e-1,  // p = 2
+    9.0e-3,  // p = 3
+    3.1e-3,  // p = 4
+    1.4e-4,  // p = 5
+    3.6e-5,  // p = 6
+    2.5e-6,  // p = 7
+    4.5e-7,  // p = 8
+    7.3e-8,  // p = 9
+    1.0e-8,  // p = 10
+    2.1e-9,  // p = 11
+    5.2e-10, // p = 12
+];
+
+/// Ranks of the SVD-compressed M2L stack at tolerances `10^-2 .. 10^-11`
+/// (measured, order 9; lower orders cap the rank at the number of surface
+/// points).
+pub(super) const SVD_RANKS: [f64; 10] = [
+    9.0, 22.0, 47.0, 81.0, 124.0, 176.0, 234.0, 304.0, 348.0, 371.0,
+];
+
+/// The error model: predicted relative L2 error from the order, the SVD
+/// tolerance, the float type and how finely the tree resolves the
+/// coordinates (see the [module docs](crate::tuning)), for the potential or, with
+/// [`ErrorModel::for_mode`], for everything an evaluation mode computes.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ErrorModel {
+    /// Float type the model is for.
+    pub precision: Precision,
+    /// `(order, E_p)`: worst measured error per order (f64, base SVD
+    /// tolerance), for the orders this precision may use.
+    pub order_errors: Vec<(usize, f64)>,
+    /// `e_svd(tau) = svd_factor tau`: error added by an SVD tolerance.
+    pub svd_factor: f64,
+    /// Rounding error per unit roundoff and unit of rounding ratio
+    /// ([`ROUNDING_FACTOR`]; three times that with gradients, which
+    /// difference nearby values).
+    pub rounding_factor: f64,
+    /// Error floor of the float type for well-centred points (0 in `f64`,
+    /// [`F32_ERROR_FLOOR`] in `f32`).
+    pub floor: f64,
+    /// Safety factor `S`.
+    pub safety: f64,
+}
+
+impl ErrorModel {
+    /// The measured model of the Laplace potential in `precision`.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::ErrorModel;
+    /// use ferrofmm_kernels::Precision;
+    /// let m = ErrorModel::laplace(Precision::F64);
+    /// assert!(m.order_error(8).unwrap() < m.order_error(6).unwrap());
+    /// assert_eq!(m.smallest_order(1e-2, 0.0), Some(3));
+    /// ```
+    pub fn laplace(precision: Precision) -> Self {
+        Self::from_table(precision, &F64_POTENTIAL_ERRORS, SVD_POTENTIAL_FACTOR)
+    }
+
+    /// The model for everything `mode` evaluates: with gradients, the
+    /// worse of the potential's and the gradient's error at each order
+    /// (and the gradient's larger SVD error), so that a tolerance holds
+    /// for both.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::ErrorModel;
+    /// use ferrofmm_kernels::{EvalMode, Precision};
+    /// let pot = ErrorModel::laplace(Precision::F64);
+    /// let both = pot.clone().for_mode(EvalMode::PotentialGradient);
+    /// assert!(both.order_error(6).unwrap() >= pot.order_error(6).unwrap());
+    /// ```
+    pub fn for_mode(self, mode: EvalMode) -> Self {
+        if mode.values_per_target() == 1 {
+            return self;
+        }
+        let worst: Vec<f64> = F64_POTENTIAL_ERRORS
+            .iter()
+            .zip(&F64_GRADIENT_ERRORS)
+            .map(|(p, g)| p.max(*g))
+            .collect();
+        let mut m = Self::from_table(
+            self.precision,
+            &worst,
+            SVD_POTENTIAL_FACTOR.max(SVD_GRADIENT_FACTOR),
+        );
+        m.safety = self.safety;
+        if self.precision == Precision::F32 {
+            m.floor = F32_GRADIENT_FLOOR;
+        }
+        m.rounding_factor = 3.0 * ROUNDING_FACTOR;
+        m
+    }
+
+    pub(super) fn from_table(precision: Precision, table: &[f64], svd_factor: f64) -> Self {
+        let (floor, max_order) = match precision {
+            Precision::F64 => (0.0, MAX_TUNED_ORDER),
+            Precision::F32 => (F32_ERROR_FLOOR, MAX_F32_ORDER),
+        };
+        ErrorModel {
+            precision,
+            order_errors: table
+                .iter()
+                .enumerate()
+                .map(|(i, &e)| (MIN_TUNED_ORDER + i, e))
+                .filter(|&(p, _)| p <= max_order)
+                .collect(),
+            svd_factor,
+            rounding_factor: ROUNDING_FACTOR,
+            floor,
+            safety: SAFETY_FACTOR,
+        }
+    }
+
+    /// `E_p`: the worst measured error at `order` with the base SVD
+    /// tolerance (`None` outside the orders of this precision).
+    pub fn order_error(&self, order: usize) -> Option<f64> {
+        self.order_errors
+            .iter()
+            .find(|&&(p, _)| p == order)
+            .map(|&(_, e)| e)
+    }
+
+    /// Unit roundoff of the float type (`2^-24` or `2^-53`).
+    pub fn unit_roundoff(&self) -> f64 {
+        match self.precision {
+            Precision::F32 => f64::powi(2.0, -24),
+            Precision::F64 => f64::powi(2.0, -53),
+        }
+    }
+
+    /// Error from rounding, for a tree whose leaves have
+    /// `max |center| / half-width = ratio`
+    /// ([`WorkCounts::rounding_ratio`]): the larger of the float type's
+    /// floor (measured on well-centred points, ratios up to a few hundred)
+    /// and `rounding_factor u ratio`. Equivalent and check surfaces are points
+    /// of the float type: around a box of half-width `h` centred at `c`
+    /// they are off by about `u |c|`, a relative `u |c| / h` of the
+    /// surface. Small boxes far from the origin (two clusters, one of size
+    /// `1e-4` at `(1, 1, 1)`) lose digits this way, in `f32` about `1e-3`.
+    pub fn rounding_floor(&self, ratio: f64) -> f64 {
+        self.floor
+            .max(self.rounding_factor * self.unit_roundoff() * ratio.max(0.0))
+    }
+
+    /// `e_svd(tau) = svd_factor tau`: error added by an SVD tolerance `tau`
+    /// looser than the base ([`ErrorModel::base_svd_tolerance`]).
+    pub fn svd_error(&self, tau: f64) -> f64 {
+        self.svd_factor * tau
+    }
+
+    /// Inverse of [`ErrorModel::svd_error`]: the `tau` adding `err`.
+    pub(super) fn svd_tolerance_adding(&self, err: f64) -> f64 {
+        err / self.svd_factor
+    }
+
+    /// The tightest SVD tolerance the chooser uses at `order`, the one
+    /// `E_p` was measured with: the library's default,
+    /// [`default_svd_tolerance`].
+    pub fn base_svd_tolerance(&self, order: usize) -> f64 {
+        default_svd_tolerance(self.precision, order)
+    }
+
+    /// Predicted error at `order` with SVD tolerance `svd_tolerance` on a
+    /// tree with rounding ratio `ratio` (`None` outside the orders of this
+    /// precision): `sqrt(E_p^2 + e_svd(tau)^2) + rounding_floor(ratio)`
+    /// (the truncation of the expansion and of the SVD are independent and
+    /// add in quadrature; measured: order 9, Plummer, `E_p` 3.9e-10,
+    /// `e_svd(1e-8)` 4.7e-10, error 5.7e-10).
+    pub fn predicted_error(&self, order: usize, svd_tolerance: f64, ratio: f64) -> Option<f64> {
+        let e = self.order_error(order)?;
+        let extra = if svd_tolerance > self.base_svd_tolerance(order) {
+            self.svd_error(svd_tolerance)
+        } else {
+            0.0
+        };
+        Some(e.hypot(extra) + self.rounding_floor(ratio))
+    }
+
+    /// Whether `order` reaches `eps` (with the safety factor) at the base
+    /// SVD tolerance on a tree with rounding ratio `ratio`.
+    pub fn admissible(&self, order: usize, eps: f64, ratio: f64) -> bool {
+        let d = self.base_svd_tolerance(order);
+        self.predicted_error(order, d, ratio)
+            .is_some_and(|e| self.safety * e <= eps * (1.0 + 1e-9))
+    }
+
+    /// The smallest order that reaches `eps`, if any.
+    pub fn smallest_order(&self, eps: f64, ratio: f64) -> Option<usize> {
+        self.order_errors
+            .iter()
+            .map(|&(p, _)| p)
+            .find(|&p| self.admissible(p, eps, ratio))
+    }
+
+    /// The loosest SVD tolerance with which `order` still reaches `eps`:
+    /// between [`ErrorModel::base_svd_tolerance`] and [`MAX_SVD_TOLERANCE`]
+    /// (the base when the order has no room to spare or is not
+    /// admissible).
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::ErrorModel;
+    /// use ferrofmm_kernels::Precision;
+    /// let m = ErrorModel::laplace(Precision::F64);
+    /// // Order 6 reaches 1e-5 with room to spare: compress harder.
+    /// let tau = m.svd_tolerance(6, 1e-5, 0.0);
+    /// assert!(tau > m.base_svd_tolerance(6));
+    /// assert!(m.safety * m.predicted_error(6, tau, 0.0).unwrap() <= 1e-5 * (1.0 + 1e-9));
+    /// ```
+    pub fn svd_tolerance(&self, order: usize, eps: f64, ratio: f64) -> f64 {
+        let default = self.base_svd_tolerance(order);
+        let Some(e) = self.order_error(order) else {
+            return default;
+        };
+        // sqrt(E_p^2 + e_svd^2) + floor <= eps / S
+        let budget = eps / self.safety - self.rounding_floor(ratio);
+        if budget <= e {
+            return default;
+        }
+        let room = (budget * budget - e * e).sqrt();
+        self.svd_tolerance_adding(room)
+            .clamp(default, MAX_SVD_TOLERANCE.max(default))
+    }
+
+    /// The smallest tolerance this model can promise (at any order) on a
+    /// tree with rounding ratio `ratio`.
+    pub fn smallest_reachable(&self, ratio: f64) -> f64 {
+        self.order_errors
+            .iter()
+            .map(|&(_, e)| self.safety * (e + self.rounding_floor(ratio)))
+            .fold(f64::INFINITY, f64::min)
+    }
+}
+
+/// Whether `f32` can reach the relative potential error `eps` on
+/// well-centred points: `eps >=` [`smallest_tolerance`]`(F32)`, about
+/// `5e-6`. Well-centred means that every leaf's `|center| / half-width`
+/// stays below about 400 (true of uniform, sphere-surface and Plummer
+/// points centred near the origin up to millions of points; not of a tiny
+/// cluster far from the origin). For a decision about given points use
+/// [`choose_precision`].
+///
+/// ```
+/// use ferrofmm_fmm::tuning::f32_reaches;
+/// assert!(f32_reaches(1e-3));
+/// assert!(f32_reaches(1e-5));
+/// assert!(!f32_reaches(1e-7));
+/// ```
+pub fn f32_reaches(eps: f64) -> bool {
+    eps.is_finite() && eps < 1.0 && eps >= smallest_tolerance(Precision::F32)
+}
+
+/// The smallest tolerance `precision` can promise on any points (the
+/// best case: well-centred points).
+pub fn smallest_tolerance(precision: Precision) -> f64 {
+    ErrorModel::laplace(precision).smallest_reachable(0.0)
+}
+
+/// Check a tolerance before looking at the points: `eps` in `(0, 1)`
+/// ([`FmmError::InvalidTolerance`]) and at least [`smallest_tolerance`]
+/// ([`FmmError::ToleranceBeyondPrecision`]). The chooser may still refuse
+/// it for points that need more digits than the float type has.
+pub fn validate_tolerance(eps: f64, precision: Precision) -> Result<(), FmmError> {
+    if !(eps.is_finite() && eps > 0.0 && eps < 1.0) {
+        return Err(FmmError::InvalidTolerance(eps));
+    }
+    let limit = smallest_tolerance(precision);
+    if eps < limit {
+        return Err(FmmError::ToleranceBeyondPrecision {
+            tolerance: eps,
+            precision: precision.name(),
+            limit,
+        });
+    }
+    Ok(())
+}
+
+/// The float type to use for `eps` on these points (`--precision auto`):
+/// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
+/// about twice as fast), else `f64` when that reaches it, else the `f64`
+/// error ([`FmmError::ToleranceBeyondPrecision`] or
+/// [`FmmError::InvalidTolerance`]).
+///
+/// ```
+/// use ferrofmm_fmm::Geometry;
+/// use ferrofmm_fmm::tuning::choose_precision;
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let pot = EvalMode::Potential;
+/// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
+/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
+/// // f32 gradients level off near 5e-6.
+/// let both = EvalMode::PotentialGradient;
+/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
+/// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
+/// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
+/// ```
+pub fn choose_precision(
+    eps: f64,
+    mode: EvalMode,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Precision, FmmError> {
+    validate_tolerance(eps, Precision::F64)?;
+    crate::builder::check_sources_and_targets(sources, targets)?;
+    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
+    if f32_reaches(eps)
+        && Tuner::new(Precision::F32)
+            .for_mode(mode)
+            .choose_with(eps, &occupancy)
+            .is_ok()
+    {
+        return Ok(Precision::F32);
+    }
+    Tuner::new(Precision::F64)
+        .for_mode(mode)
+        .choose_with(eps, &occupancy)
+        .map(|_| Precision::F64)
+}
+
+/// Estimated rank of the SVD-compressed M2L operators at `order` and
+/// tolerance `tau` (measured ranks, interpolated in `log10 tau`, capped at
+/// the number of surface points).
+pub fn estimated_svd_rank(order: usize, tau: f64) -> usize {
+    let n = n_surface_points(order);
+    let x = -tau.max(1e-300).log10(); // 2 .. 11 in the table
+    let pos = (x - 2.0).clamp(0.0, (SVD_RANKS.len() - 1) as f64);
+    let i = (pos.floor() as usize).min(SVD_RANKS.len() - 2);
+    let f = pos - i as f64;
+    let mut k = SVD_RANKS[i] + f * (SVD_RANKS[i + 1] - SVD_RANKS[i]);
+    if x > 11.0 {
+        k += (x - 11.0) * 25.0;
+    } else if x < 2.0 {
+        k *= (0.5f64).powf(2.0 - x);
+    }
+    (k.round() as usize).clamp(1, n)
+}
