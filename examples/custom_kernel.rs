@@ -40,7 +40,7 @@ use std::time::Instant;
 use ferrofmm::field::{FftConfig, FftM2l};
 use ferrofmm::fmm::{FmmBuilder, relative_errors, sample_indices};
 use ferrofmm::kernels::lanes::{self, LaneFloat, LaneKernel, Simd};
-use ferrofmm::kernels::{EvalMode, Kernel, Laplace3d, Real, reference};
+use ferrofmm::kernels::{EvalMode, INV_4PI, Kernel, Laplace3d, Real, reference};
 
 /// Plummer-softened Laplace kernel with softening length `a`.
 #[derive(Clone, Debug)]
@@ -48,8 +48,6 @@ pub struct SoftenedLaplace {
     /// Softening length.
     pub a: f64,
 }
-
-const INV_4PI: f64 = 0.25 * std::f64::consts::FRAC_1_PI;
 
 impl LaneKernel for SoftenedLaplace {
     /// With `rho^2 = r^2 + a^2`: `q / rho` into the potential and

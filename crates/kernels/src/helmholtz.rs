@@ -1,7 +1,7 @@
 //! The modified Helmholtz (Yukawa, screened Coulomb) kernel
 //! `K(x, y) = exp(-k |x - y|) / (4 pi |x - y|)`.
 
-use crate::{EvalMode, Kernel, KernelError, Real, SimdLevel, modified_helmholtz_p2p_with};
+use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, modified_helmholtz_p2p_with};
 
 /// The 3D modified Helmholtz Green's function
 /// `K(x, y) = exp(-k r) / (4 pi r)`, `r = |x - y|`, the solution of
@@ -70,7 +70,7 @@ impl Kernel for ModifiedHelmholtz3d {
     #[inline]
     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
         let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-        T::INV_4PI * (-(T::from_f64(self.k) * r)).exp() / r
+        T::from_f64(INV_4PI) * (-(T::from_f64(self.k) * r)).exp() / r
     }
 
     /// `-exp(-k r) (1 + k r) d / (4 pi r^3)`.
@@ -79,7 +79,7 @@ impl Kernel for ModifiedHelmholtz3d {
         let r = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
         let kr = T::from_f64(self.k) * r;
         let rinv = T::ONE / r;
-        let s = -(T::INV_4PI * (-kr).exp() * (T::ONE + kr) * rinv * rinv * rinv);
+        let s = -(T::from_f64(INV_4PI) * (-kr).exp() * (T::ONE + kr) * rinv * rinv * rinv);
         [s * d[0], s * d[1], s * d[2]]
     }
 

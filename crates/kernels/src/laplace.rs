@@ -3,6 +3,10 @@
 use crate::laplace_simd::{laplace_assemble_with, laplace_p2p_with};
 use crate::{EvalMode, Kernel, Real, SimdLevel};
 
+/// `1 / (4 pi)`: the factor of the 3D Laplace Green's function (and of the
+/// modified Helmholtz one), applied once per target by their P2P loops.
+pub const INV_4PI: f64 = 0.25 * std::f64::consts::FRAC_1_PI;
+
 /// The 3D Laplace Green's function `K(x, y) = 1 / (4 pi |x - y|)`, the
 /// solution of `-Delta u = delta`.
 ///
@@ -42,7 +46,7 @@ impl Kernel for Laplace3d {
     #[inline]
     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        T::INV_4PI / r2.sqrt()
+        T::from_f64(INV_4PI) / r2.sqrt()
     }
 
     /// `-d / (4 pi |d|^3)`.
@@ -50,7 +54,7 @@ impl Kernel for Laplace3d {
     fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
         let rinv = T::ONE / r2.sqrt();
-        let s = -(T::INV_4PI * rinv * rinv * rinv);
+        let s = -(T::from_f64(INV_4PI) * rinv * rinv * rinv);
         [s * d[0], s * d[1], s * d[2]]
     }
 

@@ -78,7 +78,7 @@ pub use error::KernelError;
 pub use helmholtz::ModifiedHelmholtz3d;
 pub use helmholtz_p2p::modified_helmholtz_p2p_with;
 pub use kernel::{EvalMode, Kernel};
-pub use laplace::Laplace3d;
+pub use laplace::{INV_4PI, Laplace3d};
 pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
 pub use real::{Precision, Real};
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};

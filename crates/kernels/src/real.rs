@@ -63,8 +63,6 @@ pub trait Real:
     const ZERO: Self;
     /// 1.
     const ONE: Self;
-    /// 1 / (4 pi), the Laplace kernel's constant.
-    const INV_4PI: Self;
 
     /// Conversion from `f64` (rounding for `f32`).
     fn from_f64(x: f64) -> Self;
@@ -101,7 +99,6 @@ macro_rules! impl_real {
             const MIN_POSITIVE: Self = <$t>::MIN_POSITIVE;
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
-            const INV_4PI: Self = (0.25 * std::f64::consts::FRAC_1_PI) as $t;
 
             #[inline(always)]
             fn from_f64(x: f64) -> Self {
@@ -186,6 +183,5 @@ mod tests {
         let b = [1.0f32];
         assert!(f32::as_f32_slice(&b).is_some());
         assert!(f32::as_f64_slice(&b).is_none());
-        assert!((f64::INV_4PI - 1.0 / (4.0 * std::f64::consts::PI)).abs() < 1e-17);
     }
 }

@@ -102,6 +102,7 @@ fn rows_avx2<T: Real>(soa: [&[T]; 3], targets: &[T], matrix: &mut [T]) {
 fn rows_portable<T: Real>(soa: [&[T]; 3], targets: &[T], matrix: &mut [T]) {
     let [sx, sy, sz] = soa;
     let ns = sx.len();
+    let inv_4pi = T::from_f64(crate::INV_4PI);
     for (t, row) in targets.chunks_exact(3).zip(matrix.chunks_exact_mut(ns)) {
         let (tx, ty, tz) = (t[0], t[1], t[2]);
         for (((a, &x), &y), &z) in row.iter_mut().zip(sx).zip(sy).zip(sz) {
@@ -110,7 +111,7 @@ fn rows_portable<T: Real>(soa: [&[T]; 3], targets: &[T], matrix: &mut [T]) {
             let dz = tz - z;
             let r2 = dx * dx + dy * dy + dz * dz;
             *a = if r2 != T::ZERO {
-                T::INV_4PI / r2.sqrt()
+                inv_4pi / r2.sqrt()
             } else {
                 T::ZERO
             };

@@ -142,6 +142,6 @@ impl LaneKernel for Laplace3d {
 
     /// `1 / (4 pi)`.
     fn lane_scale(&self) -> f64 {
-        0.25 * std::f64::consts::FRAC_1_PI
+        crate::INV_4PI
     }
 }
