@@ -372,7 +372,7 @@ fn p2p<T: LaneFloat, S: Simd<T>, K: LaneKernel, const C: usize, const GRAD: bool
     targets: &[T],
     out: &mut [T],
 ) {
-    let w = if GRAD { 4 } else { 1 };
+    let w = w_of::<GRAD>();
     let block = C * S::LANES;
     debug_assert!(block <= MAX_BLOCK);
     for (tb, ob) in targets.chunks(3 * block).zip(out.chunks_mut(w * block)) {
@@ -447,6 +447,7 @@ fn block_of<T: LaneFloat, S: Simd<T>, K: LaneKernel, const C: usize, const GRAD:
     }
 }
 
+/// Values per target: 4 with gradients, else 1.
 #[inline(always)]
 const fn w_of<const GRAD: bool>() -> usize {
     if GRAD { 4 } else { 1 }
