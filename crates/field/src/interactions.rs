@@ -1,10 +1,12 @@
 //! Transfer vectors and the grouped V-list interactions of one level.
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
 use crate::FieldError;
+use crate::siblings::SiblingBlocks;
 
 /// Number of distinct M2L transfer vectors: `7^3 - 3^3 = 316`.
 pub const N_TRANSFER_VECTORS: usize = 316;
@@ -104,6 +106,8 @@ pub struct M2lInteractions {
     sources: Vec<u32>,
     /// Target column relative to its chunk's first column.
     local_targets: Vec<u32>,
+    /// The pairs regrouped by parent, made on first use.
+    siblings: OnceLock<SiblingBlocks>,
 }
 
 impl M2lInteractions {
@@ -256,6 +260,7 @@ impl M2lInteractions {
             groups,
             sources,
             local_targets,
+            siblings: OnceLock::new(),
         })
     }
 
@@ -296,6 +301,14 @@ impl M2lInteractions {
     /// Number of target chunks (parallel tasks).
     pub fn n_chunks(&self) -> usize {
         self.chunks.len()
+    }
+
+    /// The pairs regrouped into `8 x 8` sibling blocks
+    /// ([`SiblingBlocks`](crate::plumbing::SiblingBlocks)), computed on the
+    /// first call and kept (later calls, e.g. every evaluation of an FMM,
+    /// cost nothing).
+    pub fn sibling_blocks(&self) -> &SiblingBlocks {
+        self.siblings.get_or_init(|| SiblingBlocks::new(self))
     }
 
     /// The chunks in target order: chunk `c` owns a contiguous range of

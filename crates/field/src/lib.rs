@@ -87,6 +87,7 @@ mod params;
 mod pinv;
 pub mod plumbing;
 mod precompute;
+pub(crate) mod siblings;
 mod surface;
 
 pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};

@@ -16,8 +16,12 @@
 //! scheme built by [`M2lScheme::precompute`] and by
 //! [`M2lScheme::precompute_for`] with the levels' usage, with the default
 //! chunking and with chunks of 7 target columns (so a chunk boundary falls
-//! inside many V lists), that `apply` accumulates (the initial `check0`
-//! is kept), and that an empty interaction set changes nothing.
+//! inside many V lists), with the boxes in lexicographic and in Morton
+//! column order (siblings in eight consecutive columns, as in a tree level:
+//! the layout [`SiblingBlocks`](super::SiblingBlocks) files into full
+//! `8 x 8` blocks) and with one Morton pair in five left out (partial
+//! blocks), that `apply` accumulates (the initial `check0` is kept), and
+//! that an empty interaction set changes nothing.
 //!
 //! ```
 //! use ferrofmm_field::plumbing::conformance::check_scheme;
@@ -90,48 +94,78 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
     let mut rng = Lcg(0x5eed);
     let mut worst = 0.0f64;
     let mut total_pairs = 0;
-    for (level, pairs) in &levels {
+    for (level, lex_pairs) in &levels {
         let cols = 1usize << (3 * level);
-        let multipoles: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
-        let check0: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
-        let reference = reference(kernel, params, &map, *level, pairs, &multipoles, &check0)?;
-        let contribution: f64 = reference
-            .iter()
-            .zip(&check0)
-            .map(|(r, c)| (r - c.to_f64()).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        if contribution == 0.0 {
-            return Err(format!("level {level}: the reference contribution is zero"));
-        }
-        let default_chunks =
-            M2lInteractions::try_new(cols, cols, pairs).map_err(|e| e.to_string())?;
-        let small_chunks =
-            M2lInteractions::with_chunk_size(cols, cols, pairs, 7).map_err(|e| e.to_string())?;
-        for (scheme, which) in [(&full, "precompute"), (&restricted, "precompute_for")] {
-            for (inter, chunks) in [
-                (&default_chunks, "default chunks"),
-                (&small_chunks, "chunks of 7"),
-            ] {
-                let mut check = check0.clone();
-                scheme.apply(*level, inter, &multipoles, &mut check);
-                let error = check
+        // Three layouts of the same level: lexicographic columns, Morton
+        // columns (siblings in consecutive columns, as in a tree), and
+        // Morton columns with one pair in five left out (partial sibling
+        // blocks).
+        let morton = morton_columns(*level);
+        let layouts: [(&str, Vec<Pair>); 3] = [
+            ("lexicographic columns", lex_pairs.clone()),
+            (
+                "Morton columns",
+                lex_pairs
                     .iter()
-                    .zip(&reference)
-                    .map(|(c, r)| (c.to_f64() - r).powi(2))
-                    .sum::<f64>()
-                    .sqrt()
-                    / contribution;
-                if error.is_nan() || error > tolerance {
-                    return Err(format!(
-                        "{} ({which}, {chunks}), level {level}: relative error {error:.3e} \
-                         above {tolerance:.1e}",
-                        scheme.name()
-                    ));
+                    .map(|&(t, s, v)| (morton[t], morton[s], v))
+                    .collect(),
+            ),
+            (
+                "Morton columns, 1 pair in 5 left out",
+                lex_pairs
+                    .iter()
+                    .enumerate()
+                    .filter(|(i, _)| i % 5 != 2)
+                    .map(|(_, &(t, s, v))| (morton[t], morton[s], v))
+                    .collect(),
+            ),
+        ];
+        for (layout, pairs) in &layouts {
+            let pairs = pairs.as_slice();
+            let multipoles: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
+            let check0: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
+            let reference = reference(kernel, params, &map, *level, pairs, &multipoles, &check0)?;
+            let contribution: f64 = reference
+                .iter()
+                .zip(&check0)
+                .map(|(r, c)| (r - c.to_f64()).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            if contribution == 0.0 {
+                return Err(format!("level {level}: the reference contribution is zero"));
+            }
+            let default_chunks =
+                M2lInteractions::try_new(cols, cols, pairs).map_err(|e| e.to_string())?;
+            let small_chunks = M2lInteractions::with_chunk_size(cols, cols, pairs, 7)
+                .map_err(|e| e.to_string())?;
+            for (scheme, which) in [(&full, "precompute"), (&restricted, "precompute_for")] {
+                for (inter, chunks) in [
+                    (&default_chunks, "default chunks"),
+                    (&small_chunks, "chunks of 7"),
+                ] {
+                    let mut check = check0.clone();
+                    scheme.apply(*level, inter, &multipoles, &mut check);
+                    let error = check
+                        .iter()
+                        .zip(&reference)
+                        .map(|(c, r)| (c.to_f64() - r).powi(2))
+                        .sum::<f64>()
+                        .sqrt()
+                        / contribution;
+                    if error.is_nan() || error > tolerance {
+                        return Err(format!(
+                            "{} ({which}, {chunks}, {layout}), level {level}: relative error \
+                         {error:.3e} above {tolerance:.1e}",
+                            scheme.name()
+                        ));
+                    }
+                    worst = worst.max(error);
                 }
-                worst = worst.max(error);
             }
         }
+        let pairs = lex_pairs;
+        let multipoles: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
+        let check0: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
         total_pairs += pairs.len();
         let mut check = check0.clone();
         full.apply(
@@ -176,6 +210,29 @@ pub fn full_level_pairs(level: u32) -> Vec<Pair> {
         }
     }
     pairs
+}
+
+/// The Morton column of each lexicographic column of the complete grid of
+/// `level`: bit `i` of `x`, `y`, `z` at bits `3 i`, `3 i + 1`, `3 i + 2`
+/// (so the children of a parent take eight consecutive columns, child `o`
+/// with [`octant_bits`](super::octant_bits)`(o)` at `8 g + o`).
+pub fn morton_columns(level: u32) -> Vec<usize> {
+    let side = 1usize << level;
+    let mut out = vec![0; side * side * side];
+    for x in 0..side {
+        for y in 0..side {
+            for z in 0..side {
+                let mut m = 0;
+                for i in 0..level as usize {
+                    m |= ((x >> i) & 1) << (3 * i)
+                        | ((y >> i) & 1) << (3 * i + 1)
+                        | ((z >> i) & 1) << (3 * i + 2);
+                }
+                out[(x * side + y) * side + z] = m;
+            }
+        }
+    }
+    out
 }
 
 /// `check0 + sum K_v(h) multipoles[:, s]` in `f64`, one product per vector.

@@ -30,6 +30,12 @@
 //!   [`crate::gemm_scaled`] multiplies, [`scatter_add`] adds the result to
 //!   the group's target columns.
 //! * [`check_lengths`] asserts the slice lengths `apply` promises.
+//! * [`SiblingBlocks`] (from
+//!   [`M2lInteractions::sibling_blocks`](crate::M2lInteractions::sibling_blocks))
+//!   regroups a level's pairs by parent: `8 x 8` blocks of children at 26
+//!   parent offsets, for schemes that treat siblings together (the FFT
+//!   scheme); the maths is in [`crate::siblings`]' docs, repeated on
+//!   [`SiblingBlocks`].
 //! * [`crate::planned_sets`] and [`crate::M2lUsage`] say which transfer
 //!   vectors a tree uses, for
 //!   [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for).
@@ -55,4 +61,8 @@ pub use crate::interactions::{ChunkView, GroupView};
 pub use crate::levels::{LevelMap, REFERENCE_HALF_WIDTH, half_width};
 pub use crate::m2l::{
     FIRST_M2L_LEVEL, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+};
+pub use crate::siblings::{
+    LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,
+    parent_offset,
 };

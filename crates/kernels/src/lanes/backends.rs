@@ -107,13 +107,13 @@ portable_impl!(f64, u64, 1023, 52);
 portable_impl!(f32, u32, 127, 23);
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use x86::{run_avx2, run_avx512};
+pub(super) use x86::{run_avx2, run_avx512, task_avx2, task_avx512};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::super::{LaneFloat, LaneKernel, SIMD_BLOCK, Simd, p2p};
+    use super::super::{LaneFloat, LaneKernel, SIMD_BLOCK, Simd, SimdTask, p2p};
     use super::{Avx2, Avx512};
 
     /// Run an intrinsic of the token's instruction set.
@@ -154,6 +154,24 @@ mod x86 {
         Avx2: Simd<T>,
     {
         p2p::<T, Avx2, K, SIMD_BLOCK, GRAD>(Avx2(()), kernel, s, q, t, o);
+    }
+
+    /// A [`SimdTask`] compiled for AVX-512F.
+    #[target_feature(enable = "avx512f")]
+    pub(in crate::lanes) fn task_avx512<T: LaneFloat, W: SimdTask<T>>(task: W) -> W::Output
+    where
+        Avx512: Simd<T>,
+    {
+        task.run(Avx512(()))
+    }
+
+    /// A [`SimdTask`] compiled for AVX2 + FMA.
+    #[target_feature(enable = "avx2,fma")]
+    pub(in crate::lanes) fn task_avx2<T: LaneFloat, W: SimdTask<T>>(task: W) -> W::Output
+    where
+        Avx2: Simd<T>,
+    {
+        task.run(Avx2(()))
     }
 
     impl Simd<f64> for Avx512 {

@@ -209,6 +209,85 @@ pub trait LaneKernel: Kernel {
     }
 }
 
+/// Vectorised work other than P2P (an FFT scheme's frequency products, a
+/// user's own loop) on the same instruction-set tokens: [`run_task`] picks
+/// the token for the CPU and calls [`SimdTask::run`] inside a function
+/// compiled for that instruction set.
+///
+/// Mark `run` `#[inline(always)]` (and everything it calls on registers):
+/// only code inlined into the `#[target_feature]` function is compiled with
+/// the wider instructions.
+///
+/// ```
+/// use ferrofmm_kernels::SimdLevel;
+/// use ferrofmm_kernels::lanes::{run_task, Simd, SimdTask};
+///
+/// /// `y += a x` on whole registers, the tail in scalars.
+/// struct Axpy<'a> { a: f64, x: &'a [f64], y: &'a mut [f64] }
+///
+/// impl SimdTask<f64> for Axpy<'_> {
+///     type Output = ();
+///     #[inline(always)]
+///     fn run<S: Simd<f64>>(self, s: S) {
+///         let l = S::LANES;
+///         let whole = self.x.len() / l * l;
+///         let a = s.splat(self.a);
+///         for i in (0..whole).step_by(l) {
+///             let v = s.mul_add(a, s.load(&self.x[i..]), s.load(&self.y[i..]));
+///             s.store(v, &mut self.y[i..]);
+///         }
+///         for i in whole..self.x.len() {
+///             self.y[i] += self.a * self.x[i];
+///         }
+///     }
+/// }
+///
+/// let x = vec![1.0; 19];
+/// let mut y = vec![2.0; 19];
+/// run_task(SimdLevel::active(), Axpy { a: 3.0, x: &x, y: &mut y });
+/// assert!(y.iter().all(|&v| v == 5.0));
+/// ```
+pub trait SimdTask<T: LaneFloat> {
+    /// What the task returns.
+    type Output;
+    /// The work, on registers of the token `s`.
+    fn run<S: Simd<T>>(self, s: S) -> Self::Output;
+}
+
+/// Run `task` with the token of `level`, lowered to what the CPU supports
+/// (so any `level` is safe): [`Avx512`], [`Avx2`] or [`Portable`].
+#[cfg(target_arch = "x86_64")]
+pub fn run_task<T: LaneFloat, W: SimdTask<T>>(level: SimdLevel, task: W) -> W::Output
+where
+    Avx512: Simd<T>,
+    Avx2: Simd<T>,
+    Portable: Simd<T>,
+{
+    match level.clamp_supported() {
+        SimdLevel::Avx512 => {
+            // SAFETY: clamped to `SimdLevel::detected()`, so the CPU
+            // supports avx512f, the only feature this function enables.
+            unsafe { backends::task_avx512(task) }
+        }
+        SimdLevel::Avx2 => {
+            // SAFETY: clamped to `SimdLevel::detected()`, so the CPU
+            // supports avx2 and fma, the features this function enables.
+            unsafe { backends::task_avx2(task) }
+        }
+        SimdLevel::Scalar => task.run(Portable),
+    }
+}
+
+/// Run `task` with the [`Portable`] token (no other backend on this
+/// architecture).
+#[cfg(not(target_arch = "x86_64"))]
+pub fn run_task<T: LaneFloat, W: SimdTask<T>>(_level: SimdLevel, task: W) -> W::Output
+where
+    Portable: Simd<T>,
+{
+    task.run(Portable)
+}
+
 /// Accumulate the kernel's potentials (and gradients) of `sources` with
 /// `charges` at `targets` into `out` (layout of [`Kernel::evaluate`]) with
 /// the vectorised loop at [`SimdLevel::active`].

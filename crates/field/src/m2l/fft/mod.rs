@@ -21,29 +21,40 @@
 //! ```
 //!
 //! one forward FFT per source box, one inverse per target box, and
-//! (in frequency blocks of 8, real and imaginary parts apart, so that one
-//! block of every source's spectrum stays in cache and the products
-//! vectorise)
-//! `N^2 (N/2 + 1)` complex multiply-adds per pair, against
+//! `N^2 (N/2 + 1)` complex multiply-adds per pair in between, against
 //! `n^2 = (6 (p-1)^2 + 2)^2` for [`DenseM2l`](crate::DenseM2l): fewer from
-//! `p ~ 4` on, and
-//! the precomputation is 316 kernel grids and FFTs (no SVD). The kernel
-//! spectra are kept in `f64` (`316 N^2 (N/2 + 1)` complex values per set:
-//! 5 MB at `p = 6`, 31 MB at `p = 10`), and the products run in `f64`
-//! whatever `T` is. It is exact up to rounding: the same operator as dense
-//! M2L.
+//! `p ~ 4` on. The precomputation is 316 kernel grids and FFTs (no SVD,
+//! milliseconds). The kernel spectra are kept in `f64` (`317 N^2 (N/2 + 1)`
+//! complex values per set: 5 MB at `p = 6`, 22 MB at `p = 10`), and the
+//! products run in `f64` whatever `T` is. It is exact up to rounding: the
+//! same operator as dense M2L.
 //!
-//! Not yet done (issue 13): grouping the eight children of a parent so
-//! that the Hadamard products become 8x8 blocks, SIMD for them, and the
-//! operator cache (an FFT scheme's precomputation takes milliseconds).
+//! # Siblings together
+//!
+//! The products are organised by parent (as in PVFMM, ExaFMM-T and kifmm):
+//! [`SiblingBlocks`](crate::plumbing::SiblingBlocks) files the pairs of the
+//! eight children of a target parent and a neighbouring source parent as
+//! one `8 x 8` block per frequency, so each source spectrum value loaded
+//! serves eight targets and each accumulator eight sources
+//! ([`hadamard`] has the layout and the register blocking). The spectra of
+//! all source boxes of the level are made first (in parallel over sibling
+//! groups, `16 N^2 (N/2 + 1)` bytes per box); then each task takes a run of
+//! target groups, forms their spectra frequency block by frequency block
+//! (the kernel slab of a block, `317 x 256` bytes, stays in cache while all
+//! the run's groups use it), inverts them and adds the lattice values to its
+//! own columns of the check potentials.
+
+mod hadamard;
 
 use std::marker::PhantomData;
 
-use ferrofmm_kernels::{Kernel, Real};
+use ferrofmm_kernels::lanes::run_task;
+use ferrofmm_kernels::{Kernel, Real, SimdLevel};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
-use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, planned_sets};
+use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W};
+use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::fft3d::Fft3d;
 use crate::levels::LevelMap;
 use crate::precompute::effective_threads;
@@ -53,10 +64,10 @@ use crate::{
     transfer_vectors,
 };
 
-/// Frequencies handled together in the pointwise products: one block of
-/// every source column's spectrum (`16 B` bytes each) stays in cache while
-/// all pairs use it.
-const FREQUENCY_BLOCK: usize = 8;
+/// Target sibling groups per task of [`FftM2l::apply`] at most (their
+/// spectra, `8 x 16 N^2 (N/2 + 1)` bytes per group, are the task's
+/// scratch).
+const GROUPS_PER_TASK: usize = 16;
 
 /// Configuration of [`FftM2l`] (nothing to configure).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -80,9 +91,14 @@ pub struct FftM2l<T: Real> {
     fft: Fft3d,
     /// Flat grid index of each surface point.
     lattice: Vec<usize>,
-    /// `spectra[set][vector]`: `That_v` in frequency blocks (see
-    /// [`to_blocks`]), `None` when not precomputed.
-    spectra: Vec<Vec<Option<Vec<f64>>>>,
+    /// Frequency blocks of a spectrum.
+    blocks: usize,
+    /// `slabs[set]`: the kernel spectra `That_v` of the set, frequency
+    /// block by frequency block (`[block][SLAB_VECTORS][W]`, see
+    /// [`hadamard`]).
+    slabs: Vec<Vec<f64>>,
+    /// `present[set][v]`: whether `That_v` was computed.
+    present: Vec<Vec<bool>>,
     _values: PhantomData<T>,
 }
 
@@ -124,42 +140,47 @@ impl<T: Real> FftM2l<T> {
         fft.forward(&mut real, &mut spectrum);
         Ok(spectrum)
     }
-}
 
-/// Block `b` of a spectrum as `B` real parts then `B` imaginary parts
-/// (zeros past the end), the layout of the pointwise products.
-fn write_block(spectrum: &[Complex<f64>], b: usize, out: &mut [f64]) {
-    let f0 = b * FREQUENCY_BLOCK;
-    for i in 0..FREQUENCY_BLOCK {
-        let c = spectrum.get(f0 + i).copied().unwrap_or_default();
-        out[i] = c.re;
-        out[FREQUENCY_BLOCK + i] = c.im;
+    /// The spectra of the source boxes `8 g .. 8 g + 8` (missing columns
+    /// zero) into `out` (`[block][8][W]`).
+    fn source_group(
+        &self,
+        multipoles: &[T],
+        g: usize,
+        grid: &mut [f64],
+        spectrum: &mut [Complex<f64>],
+        out: &mut [f64],
+    ) {
+        let n = self.n;
+        for cs in 0..8 {
+            let col = 8 * g + cs;
+            let Some(phi) = multipoles.get(col * n..(col + 1) * n) else {
+                break;
+            };
+            grid.fill(0.0);
+            for (&at, &x) in self.lattice.iter().zip(phi) {
+                grid[at] = x.to_f64();
+            }
+            self.fft.forward(grid, spectrum);
+            for (f, c) in spectrum.iter().enumerate() {
+                let at = ((f / FREQ_BLOCK) * 8 + cs) * W + f % FREQ_BLOCK;
+                out[at] = c.re;
+                out[at + FREQ_BLOCK] = c.im;
+            }
+        }
     }
-}
 
-/// A whole spectrum in frequency blocks ([`write_block`]).
-fn to_blocks(spectrum: &[Complex<f64>]) -> Vec<f64> {
-    let blocks = spectrum.len().div_ceil(FREQUENCY_BLOCK);
-    let mut out = vec![0.0; 2 * FREQUENCY_BLOCK * blocks];
-    for (b, block) in out.chunks_exact_mut(2 * FREQUENCY_BLOCK).enumerate() {
-        write_block(spectrum, b, block);
-    }
-    out
-}
-
-/// `acc += k * x` for one frequency block of complex values (real parts
-/// first, then imaginary parts; fixed length, so the loop vectorises).
-#[inline(always)]
-fn multiply_add(
-    acc: &mut [f64; 2 * FREQUENCY_BLOCK],
-    k: &[f64; 2 * FREQUENCY_BLOCK],
-    x: &[f64; 2 * FREQUENCY_BLOCK],
-) {
-    const B: usize = FREQUENCY_BLOCK;
-    for i in 0..B {
-        let (kr, ki, xr, xi) = (k[i], k[B + i], x[i], x[B + i]);
-        acc[i] += kr * xr - ki * xi;
-        acc[B + i] += kr * xi + ki * xr;
+    /// Panic unless every vector of `interactions` is in operator set
+    /// `set` (the contract of [`M2lScheme::apply`]).
+    fn assert_present(&self, set: usize, interactions: &M2lInteractions) {
+        for c in interactions.chunk_views() {
+            for g in c.groups() {
+                assert!(
+                    self.present[set][g.vector],
+                    "apply called with a transfer vector the scheme was not built for"
+                );
+            }
+        }
     }
 }
 
@@ -214,6 +235,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
         let grid = 2 * params.order;
         let fft = Fft3d::new(grid);
+        let blocks = fft.spectrum_len().div_ceil(FREQ_BLOCK);
         let lattice = unit_surface(params.order)
             .iter()
             .map(|u| {
@@ -228,29 +250,41 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let mut plain = params.clone();
         plain.cache_dir = None;
         let sets = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage);
-        let mut spectra = Vec::with_capacity(sets.len());
+        let mut slabs = Vec::with_capacity(sets.len());
+        let mut present = Vec::with_capacity(sets.len());
         for (set, wanted) in sets.into_iter().enumerate() {
             let h = levels.set_half_width(set);
-            let computed: Vec<(usize, Vec<f64>)> = wanted
+            let computed: Vec<(usize, Vec<Complex<f64>>)> = wanted
                 .par_iter()
                 .map(|&vi| {
                     params.monitor.check()?;
-                    let spectrum = Self::kernel_spectrum(kernel, params, &fft, h, vectors[vi])?;
-                    Ok((vi, to_blocks(&spectrum)))
+                    Ok((
+                        vi,
+                        Self::kernel_spectrum(kernel, params, &fft, h, vectors[vi])?,
+                    ))
                 })
                 .collect::<Result<_, FieldError>>()?;
-            let mut row: Vec<Option<Vec<f64>>> = vec![None; vectors.len()];
-            for (vi, s) in computed {
-                row[vi] = Some(s);
+            let mut slab = vec![0.0f64; blocks * SLAB_VECTORS * W];
+            let mut has = vec![false; vectors.len()];
+            for (vi, spectrum) in computed {
+                has[vi] = true;
+                for (f, c) in spectrum.iter().enumerate() {
+                    let at = ((f / FREQ_BLOCK) * SLAB_VECTORS + vi) * W + f % FREQ_BLOCK;
+                    slab[at] = c.re;
+                    slab[at + FREQ_BLOCK] = c.im;
+                }
             }
-            spectra.push(row);
+            slabs.push(slab);
+            present.push(has);
         }
         Ok(FftM2l {
             n: n_surface_points(params.order),
             levels,
             fft,
             lattice,
-            spectra,
+            blocks,
+            slabs,
+            present,
             _values: PhantomData,
         })
     }
@@ -264,18 +298,19 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     ) -> PrecomputeEstimate {
         let mut plain = params.clone();
         plain.cache_dir = None;
-        let m: usize = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage)
-            .iter()
-            .map(Vec::len)
-            .sum();
+        let sets = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage);
+        let m: usize = sets.iter().map(Vec::len).sum();
         let grid = (2 * params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
         let threads = effective_threads() as f64;
         // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
         let flops = m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
+        // The slabs hold every vector of a used set; each computed spectrum
+        // is held once more until it is filed.
+        let used_sets = sets.iter().filter(|w| !w.is_empty()).count() as f64;
         PrecomputeEstimate {
             matrices: m,
-            peak_bytes: (m as f64 * spectrum * 16.0) as u64,
+            peak_bytes: ((used_sets * SLAB_VECTORS as f64 + m as f64) * spectrum * 16.0) as u64,
             flops,
             seconds: flops / (crate::precompute::FLOPS_PER_THREAD * threads),
         }
@@ -288,85 +323,75 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             return;
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
-        let len = self.fft.spectrum_len();
-        let blocks = len.div_ceil(FREQUENCY_BLOCK);
-        let cols = interactions.n_source_cols();
-        // Spectra of every source column's density on the lattice, then
-        // frequency-blocked: block b of column s at (b cols + s) B, so that
-        // one block of all columns (cols B values) stays in cache while
-        // every pair of a chunk uses it.
-        let mut by_column = vec![Complex::new(0.0, 0.0); cols * len];
-        by_column
-            .par_chunks_mut(len)
-            .zip(multipoles.par_chunks(n))
+        self.assert_present(set, interactions);
+        let siblings = interactions.sibling_blocks();
+        let group_len = self.blocks * 8 * W;
+        let (real_len, spectrum_len) = (self.fft.real_len(), self.fft.spectrum_len());
+        let scratch = || {
+            (
+                vec![0.0f64; real_len],
+                vec![Complex::new(0.0, 0.0); spectrum_len],
+            )
+        };
+        // Spectra of every source box, by sibling group.
+        let mut sources = vec![0.0f64; siblings.n_source_groups() * group_len];
+        sources
+            .par_chunks_mut(group_len)
+            .enumerate()
+            .for_each_init(scratch, |(grid, spectrum), (g, out)| {
+                self.source_group(multipoles, g, grid, spectrum, out)
+            });
+        // Runs of target groups: products, inverse FFTs, lattice values
+        // into the run's own check columns.
+        let n_groups = siblings.n_target_groups();
+        let threads = rayon::current_num_threads().max(1);
+        let per_task = n_groups.div_ceil(4 * threads).clamp(1, GROUPS_PER_TASK);
+        let kernels = &self.slabs[set];
+        let level_simd = SimdLevel::active();
+        check
+            .par_chunks_mut(8 * n * per_task)
+            .enumerate()
             .for_each_init(
-                || vec![0.0f64; self.fft.real_len()],
-                |grid, (spectrum, phi)| {
-                    grid.fill(0.0);
-                    for (&at, &x) in self.lattice.iter().zip(phi) {
-                        grid[at] = x.to_f64();
+                || (scratch(), Vec::new()),
+                |((grid, spectrum), targets), (task, out)| {
+                    let first = task * per_task;
+                    let groups = (n_groups - first).min(per_task);
+                    targets.clear();
+                    targets.resize(groups * group_len, 0.0);
+                    run_task(
+                        level_simd,
+                        Products {
+                            kernels,
+                            sources: &sources,
+                            siblings,
+                            first,
+                            targets,
+                            blocks: self.blocks,
+                        },
+                    );
+                    for g in 0..groups {
+                        let hit = siblings.targets_hit(first + g);
+                        for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
+                            let y = &targets[g * group_len..(g + 1) * group_len];
+                            for (f, c) in spectrum.iter_mut().enumerate() {
+                                let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
+                                *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
+                            }
+                            self.fft.inverse(spectrum, grid);
+                            let col = 8 * g + ct;
+                            for (o, &at) in
+                                out[col * n..(col + 1) * n].iter_mut().zip(&self.lattice)
+                            {
+                                *o += T::from_f64(scale * grid[at]);
+                            }
+                        }
                     }
-                    self.fft.forward(grid, spectrum);
                 },
             );
-        const W: usize = 2 * FREQUENCY_BLOCK;
-        let mut sources = vec![0.0f64; blocks * cols * W];
-        sources
-            .par_chunks_mut(cols * W)
-            .enumerate()
-            .for_each(|(b, block)| {
-                for (s, out) in block.chunks_exact_mut(W).enumerate() {
-                    write_block(&by_column[s * len..(s + 1) * len], b, out);
-                }
-            });
-        drop(by_column);
-        let kernels = &self.spectra[set];
-        for_each_chunk(interactions, n, check, |chunk, out| {
-            let targets = chunk.n_targets();
-            let mut sums = vec![0.0f64; blocks * targets * W];
-            let mut touched = vec![false; targets];
-            for g in chunk.groups() {
-                for &t in g.targets {
-                    touched[t as usize] = true;
-                }
-            }
-            for (b, sum_block) in sums.chunks_exact_mut(targets * W).enumerate() {
-                let source_block = &sources[b * cols * W..(b + 1) * cols * W];
-                for g in chunk.groups() {
-                    let kernel = kernels[g.vector]
-                        .as_deref()
-                        .expect("apply called with a transfer vector the scheme was not built for");
-                    let k: &[f64; W] = kernel[b * W..(b + 1) * W].try_into().expect("W values");
-                    for (&s, &t) in g.sources.iter().zip(g.targets) {
-                        let x: &[f64; W] = source_block[s as usize * W..][..W]
-                            .try_into()
-                            .expect("W values");
-                        let acc: &mut [f64; W] = (&mut sum_block[t as usize * W..][..W])
-                            .try_into()
-                            .expect("W values");
-                        multiply_add(acc, k, x);
-                    }
-                }
-            }
-            let mut spectrum = vec![Complex::new(0.0, 0.0); len];
-            let mut grid = vec![0.0f64; self.fft.real_len()];
-            for t in (0..targets).filter(|&t| touched[t]) {
-                for (b, part) in spectrum.chunks_mut(FREQUENCY_BLOCK).enumerate() {
-                    let at = (b * targets + t) * W;
-                    for (i, c) in part.iter_mut().enumerate() {
-                        *c = Complex::new(sums[at + i], sums[at + FREQUENCY_BLOCK + i]);
-                    }
-                }
-                self.fft.inverse(&mut spectrum, &mut grid);
-                for (o, &at) in out[t * n..(t + 1) * n].iter_mut().zip(&self.lattice) {
-                    *o += T::from_f64(scale * grid[at]);
-                }
-            }
-        });
     }
 
     fn memory_bytes(&self) -> usize {
-        let values: usize = self.spectra.iter().flatten().flatten().map(Vec::len).sum();
+        let values: usize = self.slabs.iter().map(Vec::len).sum();
         values * std::mem::size_of::<f64>()
     }
 

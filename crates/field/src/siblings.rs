@@ -1,0 +1,368 @@
+//! Sibling blocks: a level's V-list pairs regrouped by parent, for schemes
+//! that apply M2L to the eight children of a parent at once (the FFT
+//! scheme's `8 x 8` products).
+//!
+//! # The regrouping
+//!
+//! In a level of an octree every box has its seven siblings, and a level's
+//! boxes in Morton order put the children of one parent in eight
+//! consecutive columns, child `o` at column `8 g + o` of sibling group `g`.
+//! Child `o` sits at offset [`octant_bits`]`(o) = (o & 1, o >> 1 & 1,
+//! o >> 2 & 1)` (in child widths, `x`, `y`, `z`) from its parent's first
+//! child. The transfer vector of target child `ct` of group `T` and source
+//! child `cs` of group `S` is therefore
+//!
+//! ```text
+//! v = 2 d + octant_bits(cs) - octant_bits(ct),    d = parent(S) - parent(T),
+//! ```
+//!
+//! and for V-list pairs (whose parents are neighbours) the **parent
+//! offset** `d` lies in `[-1, 1]^3` without `0` (siblings are adjacent,
+//! never in each other's V list): 26 offsets. So all pairs between the
+//! children of two neighbouring parents form one `8 x 8` block, whose entry
+//! `(ct, cs)` uses the operator of `v(d, ct, cs)`
+//! ([`block_vector`]); the entries where `v` is not a V-list vector
+//! (adjacent children) are never pairs.
+//!
+//! [`SiblingBlocks::new`] reads the pairs `(t, s, v)` of an
+//! [`M2lInteractions`] and files each under target group `t / 8`, source
+//! group `s / 8`, parent offset `d = (v - octant_bits(s % 8) +
+//! octant_bits(t % 8)) / 2` and bit `8 (t % 8) + s % 8` of the block's
+//! mask. This uses only the pair itself, so the regrouping is exact for any
+//! interactions: a pair whose `d` is not an integer offset in `[-1, 1]^3`,
+//! or whose `(target group, d)` already holds another source group, or
+//! that repeats a filed pair, is kept as a [`LoosePair`] to be applied on
+//! its own. Columns laid out as in a tree level leave no loose pairs.
+//!
+//! [`M2lInteractions::sibling_blocks`] builds this once per set of
+//! interactions and keeps it.
+
+use std::sync::atomic::{AtomicU32, AtomicU64, Ordering};
+
+use rayon::prelude::*;
+
+use crate::interactions::ChunkView;
+use crate::{M2lInteractions, transfer_vector_index, transfer_vectors};
+
+/// Number of parent offsets in `[-1, 1]^3` (the centre, `0`, included so
+/// that offsets index a flat table; it never holds pairs).
+pub const N_PARENT_OFFSETS: usize = 27;
+
+/// Offset of child `o` (`0..8`) from its parent's first child, in child
+/// widths: bit 0 of `o` is `x`, bit 1 `y`, bit 2 `z` (the order of
+/// `ferrofmm_tree::MortonKey::octant`).
+pub const fn octant_bits(o: usize) -> [i32; 3] {
+    [(o & 1) as i32, ((o >> 1) & 1) as i32, ((o >> 2) & 1) as i32]
+}
+
+/// Parent offset `d` (in `[-1, 1]^3`) of flat index `(d_x + 1) 9 + (d_y
+/// + 1) 3 + (d_z + 1)`.
+pub const fn parent_offset(index: usize) -> [i32; 3] {
+    [
+        (index / 9) as i32 - 1,
+        ((index / 3) % 3) as i32 - 1,
+        (index % 3) as i32 - 1,
+    ]
+}
+
+/// Index (into [`transfer_vectors`]) of the transfer vector of target
+/// child `ct` and source child `cs` of parents at offset index `offset`,
+/// `None` where the two children are adjacent (no V-list pair).
+pub fn block_vector(offset: usize, ct: usize, cs: usize) -> Option<usize> {
+    let d = parent_offset(offset);
+    let (a, b) = (octant_bits(ct), octant_bits(cs));
+    transfer_vector_index(std::array::from_fn(|i| 2 * d[i] + b[i] - a[i]))
+}
+
+/// The mask of every V-list entry of the block at offset index `offset`
+/// (bit `8 ct + cs`).
+pub fn full_mask(offset: usize) -> u64 {
+    (0..64)
+        .filter(|&bit| block_vector(offset, bit / 8, bit % 8).is_some())
+        .fold(0u64, |m, bit| m | 1 << bit)
+}
+
+/// The offset index of pair `(t, s)` with transfer vector `v`, `None` when
+/// the pair fits no block.
+fn offset_of(t: usize, s: usize, v: [i32; 3]) -> Option<usize> {
+    let (a, b) = (octant_bits(t % 8), octant_bits(s % 8));
+    let mut index = 0;
+    for i in 0..3 {
+        let twice = v[i] - b[i] + a[i];
+        if twice % 2 != 0 || !(-2..=2).contains(&twice) {
+            return None;
+        }
+        index = 3 * index + (twice / 2 + 1) as usize;
+    }
+    Some(index)
+}
+
+/// The pairs `(target column, source column, vector index)` of a chunk.
+fn pairs_of(c: ChunkView<'_>) -> impl Iterator<Item = (usize, usize, usize)> + '_ {
+    let first = c.first_target();
+    c.groups().flat_map(move |g| {
+        g.sources
+            .iter()
+            .zip(g.targets)
+            .map(move |(&s, &t)| (first + t as usize, s as usize, g.vector))
+    })
+}
+
+/// The pairs between the children of one target group and one source
+/// group at one parent offset.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct SiblingBlock {
+    /// The source group (source columns `8 g .. 8 g + 8`).
+    pub source_group: u32,
+    /// Parent offset index ([`parent_offset`]).
+    pub offset: u8,
+    /// Bit `8 ct + cs` set for each pair of target child `ct` and source
+    /// child `cs`.
+    pub mask: u64,
+}
+
+impl SiblingBlock {
+    /// True when the block holds every V-list pair of its offset
+    /// ([`full_mask`]).
+    pub fn is_full(&self) -> bool {
+        self.mask == FULL_MASKS[self.offset as usize]
+    }
+}
+
+/// [`full_mask`] of every offset.
+static FULL_MASKS: std::sync::LazyLock<[u64; N_PARENT_OFFSETS]> =
+    std::sync::LazyLock::new(|| std::array::from_fn(full_mask));
+
+/// A pair that fits no block, applied on its own.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub struct LoosePair {
+    /// Target column.
+    pub target: u32,
+    /// Source column.
+    pub source: u32,
+    /// Index of the transfer vector in [`transfer_vectors`].
+    pub vector: u16,
+}
+
+/// A level's pairs as [`SiblingBlock`]s and [`LoosePair`]s per target
+/// group (see the [module docs](self)).
+#[derive(Clone, Debug, Default)]
+pub struct SiblingBlocks {
+    n_target_groups: usize,
+    n_source_groups: usize,
+    block_starts: Vec<u32>,
+    blocks: Vec<SiblingBlock>,
+    loose_starts: Vec<u32>,
+    loose: Vec<LoosePair>,
+}
+
+const UNCLAIMED: u32 = u32::MAX;
+
+impl SiblingBlocks {
+    /// Regroup the pairs of `inter` (in parallel; deterministic).
+    pub fn new(inter: &M2lInteractions) -> Self {
+        let n_target_groups = inter.n_target_cols().div_ceil(8);
+        let n_source_groups = inter.n_source_cols().div_ceil(8);
+        let slots = n_target_groups * N_PARENT_OFFSETS;
+        let source: Vec<AtomicU32> = (0..slots).map(|_| AtomicU32::new(UNCLAIMED)).collect();
+        let mask: Vec<AtomicU64> = (0..slots).map(|_| AtomicU64::new(0)).collect();
+        let vectors = transfer_vectors();
+        let chunks: Vec<_> = inter.chunk_views().collect();
+        // Pass 1: each (target group, offset) slot goes to its smallest
+        // source group (deterministic whatever the thread timing).
+        chunks.par_iter().for_each(|c| {
+            for (t, s, vi) in pairs_of(*c) {
+                if let Some(d) = offset_of(t, s, vectors[vi]) {
+                    source[(t / 8) * N_PARENT_OFFSETS + d]
+                        .fetch_min((s / 8) as u32, Ordering::Relaxed);
+                }
+            }
+        });
+        // Pass 2: file the pairs of the slot's source group; the rest (and
+        // repeats of a filed pair) stay loose.
+        let mut loose: Vec<LoosePair> = chunks
+            .par_iter()
+            .flat_map_iter(|c| {
+                let mut out = Vec::new();
+                for (t, s, vi) in pairs_of(*c) {
+                    if let Some(d) = offset_of(t, s, vectors[vi]) {
+                        let slot = (t / 8) * N_PARENT_OFFSETS + d;
+                        if source[slot].load(Ordering::Relaxed) == (s / 8) as u32 {
+                            let bit = 1u64 << (8 * (t % 8) + s % 8);
+                            if mask[slot].fetch_or(bit, Ordering::Relaxed) & bit == 0 {
+                                continue;
+                            }
+                        }
+                    }
+                    out.push(LoosePair {
+                        target: t as u32,
+                        source: s as u32,
+                        vector: vi as u16,
+                    });
+                }
+                out
+            })
+            .collect();
+        loose.par_sort_unstable();
+        let mut block_starts = Vec::with_capacity(n_target_groups + 1);
+        let mut blocks = Vec::new();
+        block_starts.push(0);
+        for g in 0..n_target_groups {
+            for d in 0..N_PARENT_OFFSETS {
+                let slot = g * N_PARENT_OFFSETS + d;
+                let m = mask[slot].load(Ordering::Relaxed);
+                if m != 0 {
+                    blocks.push(SiblingBlock {
+                        source_group: source[slot].load(Ordering::Relaxed),
+                        offset: d as u8,
+                        mask: m,
+                    });
+                }
+            }
+            block_starts.push(blocks.len() as u32);
+        }
+        let mut loose_starts = vec![0u32; n_target_groups + 1];
+        for p in &loose {
+            loose_starts[p.target as usize / 8 + 1] += 1;
+        }
+        for g in 0..n_target_groups {
+            loose_starts[g + 1] += loose_starts[g];
+        }
+        SiblingBlocks {
+            n_target_groups,
+            n_source_groups,
+            block_starts,
+            blocks,
+            loose_starts,
+            loose,
+        }
+    }
+
+    /// Number of target groups, `ceil(n_target_cols / 8)`.
+    pub fn n_target_groups(&self) -> usize {
+        self.n_target_groups
+    }
+
+    /// Number of source groups, `ceil(n_source_cols / 8)`.
+    pub fn n_source_groups(&self) -> usize {
+        self.n_source_groups
+    }
+
+    /// The blocks of target group `g`, in ascending offset.
+    pub fn blocks(&self, g: usize) -> &[SiblingBlock] {
+        &self.blocks[self.block_starts[g] as usize..self.block_starts[g + 1] as usize]
+    }
+
+    /// The loose pairs of target group `g` (target columns `8 g .. 8 g +
+    /// 8`), sorted.
+    pub fn loose(&self, g: usize) -> &[LoosePair] {
+        &self.loose[self.loose_starts[g] as usize..self.loose_starts[g + 1] as usize]
+    }
+
+    /// Total number of blocks.
+    pub fn n_blocks(&self) -> usize {
+        self.blocks.len()
+    }
+
+    /// Total number of loose pairs.
+    pub fn n_loose(&self) -> usize {
+        self.loose.len()
+    }
+
+    /// Bit `ct` set for each child of target group `g` that receives a pair.
+    pub fn targets_hit(&self, g: usize) -> u8 {
+        let from_blocks = self.blocks(g).iter().fold(0u64, |m, b| m | b.mask);
+        let mut hit = 0u8;
+        for ct in 0..8 {
+            if from_blocks >> (8 * ct) & 0xff != 0 {
+                hit |= 1 << ct;
+            }
+        }
+        self.loose(g)
+            .iter()
+            .fold(hit, |h, p| h | 1 << (p.target % 8))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offsets_round_trip_and_full_masks() {
+        for d in 0..N_PARENT_OFFSETS {
+            let o = parent_offset(d);
+            assert_eq!(((o[0] + 1) * 9 + (o[1] + 1) * 3 + (o[2] + 1)) as usize, d);
+        }
+        // The centre holds no pair; a face neighbour has 64 - 16 = 48
+        // (children touching the shared face are adjacent in pairs of
+        // rows), a corner neighbour 63.
+        assert_eq!(full_mask(13), 0);
+        assert_eq!(full_mask(22).count_ones(), 48); // d = (1, 0, 0)
+        assert_eq!(full_mask(26).count_ones(), 63); // d = (1, 1, 1)
+        // Over the 26 offsets each target child has 189 V-list sources.
+        for ct in 0..8 {
+            let n: u32 = (0..N_PARENT_OFFSETS)
+                .map(|d| (full_mask(d) >> (8 * ct) & 0xff).count_ones())
+                .sum();
+            assert_eq!(n, 189);
+        }
+    }
+
+    #[test]
+    fn regrouping_keeps_every_pair_once() {
+        let vs = transfer_vectors();
+        // A 6 x 6 x 6 grid of children (3^3 parents) in Morton-like column
+        // order, plus a misaligned pair and a repeated pair.
+        let col = |x: i32, y: i32, z: i32| {
+            let g = ((x / 2) * 9 + (y / 2) * 3 + z / 2) as usize;
+            8 * g + ((x % 2) + 2 * (y % 2) + 4 * (z % 2)) as usize
+        };
+        let mut pairs = Vec::new();
+        for (x, y, z) in itertools(6) {
+            for (a, b, c) in itertools(6) {
+                let v = [a - x, b - y, c - z];
+                let near = (x / 2 - a / 2).abs() <= 1
+                    && (y / 2 - b / 2).abs() <= 1
+                    && (z / 2 - c / 2).abs() <= 1;
+                if near && transfer_vector_index(v).is_some() {
+                    pairs.push((col(x, y, z), col(a, b, c), v));
+                }
+            }
+        }
+        let aligned = pairs.len();
+        pairs.push((3, 200, [3, 3, 3])); // columns unrelated to v
+        pairs.push(pairs[0]);
+        let inter = M2lInteractions::with_chunk_size(216, 216, &pairs, 12).unwrap();
+        let sib = SiblingBlocks::new(&inter);
+        assert_eq!(sib.n_loose(), 2);
+        let mut got = Vec::new();
+        for g in 0..sib.n_target_groups() {
+            for b in sib.blocks(g) {
+                for bit in 0..64 {
+                    if b.mask >> bit & 1 == 1 {
+                        let (ct, cs) = (bit / 8, bit % 8);
+                        let vi = block_vector(b.offset as usize, ct, cs).expect("a V pair");
+                        got.push((8 * g + ct, 8 * b.source_group as usize + cs, vs[vi]));
+                    }
+                }
+            }
+            for p in sib.loose(g) {
+                assert_eq!(p.target as usize / 8, g);
+                got.push((p.target as usize, p.source as usize, vs[p.vector as usize]));
+            }
+        }
+        got.sort();
+        pairs.sort();
+        assert_eq!(got, pairs);
+        let full = (0..sib.n_target_groups())
+            .flat_map(|g| sib.blocks(g))
+            .filter(|b| b.is_full())
+            .count();
+        assert!(full > 0 && aligned > 0);
+    }
+
+    fn itertools(n: i32) -> impl Iterator<Item = (i32, i32, i32)> {
+        (0..n).flat_map(move |x| (0..n).flat_map(move |y| (0..n).map(move |z| (x, y, z))))
+    }
+}
