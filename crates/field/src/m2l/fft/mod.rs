@@ -13,19 +13,25 @@
 //! ```
 //!
 //! a 3D convolution (with `phi = 0` at the lattice's interior nodes). On a
-//! grid of `N = 2p` points per axis the circular convolution equals it at
-//! the target nodes, so with hats for 3D real FFTs ([`crate::fft3d`])
+//! grid of `N >= 2p - 1` points per axis the circular convolution equals it
+//! at the target nodes (the differences `j - i` take `2p - 1` values per
+//! axis, so none wraps onto another). `N` is the smallest such size with
+//! prime factors 2, 3, 5, 7 (`grid_size`: 11 -> 12 at `p = 6`, 15 at
+//! `p = 8`, where ExaFMM-T and PVFMM use `2p = 16`), so with hats for 3D
+//! real FFTs ([`crate::fft3d`]; `floor(N/2) + 1` values along the last
+//! axis; the transforms skip the lines that are zero or not needed, as the
+//! lattice fills only `[0, p)^3`)
 //!
 //! ```text
 //! check_t = IFFT( sum_{(t, s, v)} That_v * phihat_s )   (pointwise products),
 //! ```
 //!
 //! one forward FFT per source box, one inverse per target box, and
-//! `N^2 (N/2 + 1)` complex multiply-adds per pair in between, against
+//! `N^2 (floor(N/2) + 1)` complex multiply-adds per pair in between, against
 //! `n^2 = (6 (p-1)^2 + 2)^2` for [`DenseM2l`](crate::DenseM2l): fewer from
 //! `p ~ 4` on. The precomputation is 316 kernel grids and FFTs (no SVD,
-//! milliseconds). The kernel spectra are kept in `f64` (`317 N^2 (N/2 + 1)`
-//! complex values per set: 5 MB at `p = 6`, 22 MB at `p = 10`), and the
+//! milliseconds). The kernel spectra are kept in `f64` (`317 N^2 (floor(N/2) + 1)`
+//! complex values per set: 3.7 MB at `p = 6`, 18 MB at `p = 10`), and the
 //! products run in `f64` whatever `T` is. It is exact up to rounding: the
 //! same operator as dense M2L.
 //!
@@ -38,7 +44,7 @@
 //! serves eight targets and each accumulator eight sources
 //! ([`hadamard`] has the layout and the register blocking). The spectra of
 //! all source boxes of the level are made first (in parallel over sibling
-//! groups, `16 N^2 (N/2 + 1)` bytes per box); then each task takes a run of
+//! groups, `16 N^2 (floor(N/2) + 1)` bytes per box); then each task takes a run of
 //! target groups, forms their spectra frequency block by frequency block
 //! (the kernel slab of a block, `317 x 256` bytes, stays in cache while all
 //! the run's groups use it), inverts them and adds the lattice values to its
@@ -65,7 +71,7 @@ use crate::{
 };
 
 /// Target sibling groups per task of [`FftM2l::apply`] at most (their
-/// spectra, `8 x 16 N^2 (N/2 + 1)` bytes per group, are the task's
+/// spectra, `8 x 16 N^2 (floor(N/2) + 1)` bytes per group, are the task's
 /// scratch).
 const GROUPS_PER_TASK: usize = 16;
 
@@ -87,6 +93,8 @@ pub struct FftConfig;
 /// ```
 pub struct FftM2l<T: Real> {
     n: usize,
+    /// Expansion order `p`: lattice points per axis.
+    order: usize,
     levels: LevelMap,
     fft: Fft3d,
     /// Flat grid index of each surface point.
@@ -112,7 +120,7 @@ impl<T: Real> FftM2l<T> {
         v: [i32; 3],
     ) -> Result<Vec<Complex<f64>>, FieldError> {
         let p = params.order as i32;
-        let grid = 2 * params.order;
+        let grid = grid_size(params.order);
         let r = params.radii.upward_equivalent;
         let delta = 2.0 * r * h / (p - 1) as f64;
         let source: [f64; 3] = std::array::from_fn(|d| 2.0 * h * v[d] as f64 - r * h);
@@ -137,7 +145,7 @@ impl<T: Real> FftM2l<T> {
             real[(wrap(m[0]) * grid + wrap(m[1])) * grid + wrap(m[2])] = value;
         }
         let mut spectrum = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
-        fft.forward(&mut real, &mut spectrum);
+        fft.forward(&real, &mut spectrum, grid);
         Ok(spectrum)
     }
 
@@ -161,7 +169,7 @@ impl<T: Real> FftM2l<T> {
             for (&at, &x) in self.lattice.iter().zip(phi) {
                 grid[at] = x.to_f64();
             }
-            self.fft.forward(grid, spectrum);
+            self.fft.forward(grid, spectrum, self.order);
             for (f, c) in spectrum.iter().enumerate() {
                 let at = ((f / FREQ_BLOCK) * 8 + cs) * W + f % FREQ_BLOCK;
                 out[at] = c.re;
@@ -182,6 +190,23 @@ impl<T: Real> FftM2l<T> {
             }
         }
     }
+}
+
+/// The convolution grid size for order `p`: the smallest `N >= 2p - 1`
+/// whose prime factors are 2, 3, 5 and 7 (prime sizes such as 19 run
+/// several times slower in the FFT library than the 20 next to them).
+pub(crate) fn grid_size(p: usize) -> usize {
+    let smooth = |mut m: usize| {
+        for f in [2, 3, 5, 7] {
+            while m.is_multiple_of(f) {
+                m /= f;
+            }
+        }
+        m == 1
+    };
+    (2 * p - 1..)
+        .find(|&m| smooth(m))
+        .expect("smooth numbers are unbounded")
 }
 
 /// Check that the surfaces lie on one lattice.
@@ -233,7 +258,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         check_radii(params)?;
         params.monitor.check()?;
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let grid = 2 * params.order;
+        let grid = grid_size(params.order);
         let fft = Fft3d::new(grid);
         let blocks = fft.spectrum_len().div_ceil(FREQ_BLOCK);
         let lattice = unit_surface(params.order)
@@ -279,6 +304,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         }
         Ok(FftM2l {
             n: n_surface_points(params.order),
+            order: params.order,
             levels,
             fft,
             lattice,
@@ -300,7 +326,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         plain.cache_dir = None;
         let sets = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage);
         let m: usize = sets.iter().map(Vec::len).sum();
-        let grid = (2 * params.order) as f64;
+        let grid = grid_size(params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
         let threads = effective_threads() as f64;
         // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
@@ -377,7 +403,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                                 let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
                                 *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
                             }
-                            self.fft.inverse(spectrum, grid);
+                            self.fft.inverse(spectrum, grid, self.order);
                             let col = 8 * g + ct;
                             for (o, &at) in
                                 out[col * n..(col + 1) * n].iter_mut().zip(&self.lattice)
