@@ -97,8 +97,8 @@ pub use interactions::{
     M2lInteractions, N_TRANSFER_VECTORS, transfer_vector_index, transfer_vectors,
 };
 pub use m2l::{
-    DenseConfig, DenseM2l, FftConfig, FftM2l, M2lScheme, SvdConfig, SvdM2l, default_svd_tolerance,
-    planned_sets,
+    DenseConfig, DenseM2l, FftConfig, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l,
+    default_svd_tolerance, fft_frequencies, planned_sets,
 };
 pub use operators::{AMPLIFICATION_WARNING, OperatorDiagnostics, Operators, octant_offset};
 pub use params::{MAX_ORDER, MIN_ORDER, OperatorParams, default_pinv_rcond};

@@ -140,17 +140,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     ),
                     (_, None) => (Some(gather(&src64, &main.sources)), None),
                 };
-                let c = Tuner::new(T::PRECISION).for_mode(b.mode).choose(
-                    eps,
-                    s.as_deref().unwrap_or(&src64),
-                    if clusters.len() == 1 {
-                        tgt64.as_deref()
-                    } else {
-                        tg.as_deref()
-                    },
-                    b.domain,
-                    b.max_level,
-                )?;
+                let c = Tuner::new(T::PRECISION)
+                    .for_mode(b.mode)
+                    .for_scheme(S::COST_SHAPE)
+                    .choose(
+                        eps,
+                        s.as_deref().unwrap_or(&src64),
+                        if clusters.len() == 1 {
+                            tgt64.as_deref()
+                        } else {
+                            tg.as_deref()
+                        },
+                        b.domain,
+                        b.max_level,
+                    )?;
                 b.order = c.order;
                 b.leaf_size = c.leaf_size;
                 setup.tuning = t.elapsed();

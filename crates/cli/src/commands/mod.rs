@@ -43,6 +43,11 @@ pub enum SchemeArg {
     /// Convolution on the surface lattice with FFTs: the dense operator
     /// (no compression), precomputed in milliseconds.
     Fft,
+    /// With --tolerance: svd or fft, whichever the cost model predicts
+    /// faster for these points (tree, one evaluation and the SVD
+    /// precomputation, which counts unless --cache-dir is given); without a
+    /// tolerance: svd.
+    Auto,
 }
 
 impl SchemeArg {
@@ -52,6 +57,7 @@ impl SchemeArg {
             SchemeArg::Svd => "svd",
             SchemeArg::Dense => "dense",
             SchemeArg::Fft => "fft",
+            SchemeArg::Auto => "auto",
         }
     }
 }
@@ -148,7 +154,7 @@ pub struct FmmArgs {
     #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
     pub leaf_size: usize,
     /// M2L translation scheme.
-    #[arg(long, value_enum, default_value_t = SchemeArg::Svd)]
+    #[arg(long, value_enum, default_value_t = SchemeArg::Auto)]
     pub scheme: SchemeArg,
     /// Float type of the whole computation.
     #[arg(long, value_enum, default_value_t = PrecisionArg::F64)]

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
-use ferrofmm_fmm::tuning::choose_precision;
+use ferrofmm_fmm::tuning::{M2lCostShape, choose_precision, choose_scheme};
 use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors, sample_indices,
 };
@@ -88,8 +88,14 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         (Auto, None) => F64,
         (p, _) => p,
     };
+    let scheme = match (settings.scheme, settings.tolerance) {
+        (SchemeArg::Auto, Some(eps)) => auto_scheme(&input, eps, precision, settings)?,
+        (SchemeArg::Auto, None) => Svd,
+        (s, _) => s,
+    };
     let settings = &Settings {
         precision,
+        scheme,
         ..settings.clone()
     };
     match (settings.precision, settings.scheme) {
@@ -99,8 +105,48 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         (F32, Dense) => run_typed::<f32, DenseM2l<f32>>(input, settings, output),
         (F64, Fft) => run_typed::<f64, FftM2l<f64>>(input, settings, output),
         (F32, Fft) => run_typed::<f32, FftM2l<f32>>(input, settings, output),
-        (Auto, _) => unreachable!("auto precision is resolved above"),
+        (Auto, _) | (_, SchemeArg::Auto) => {
+            unreachable!("auto precision and scheme are resolved above")
+        }
     }
+}
+
+/// The built-in points of `input`, or its given sources and targets.
+fn points_of(input: &Input) -> (std::borrow::Cow<'_, [f64]>, Option<&[f64]>) {
+    match input {
+        Input::Generated {
+            geometry, n, seed, ..
+        } => (geometry.points::<f64>(*n, *seed).into(), None),
+        Input::Given {
+            sources, targets, ..
+        } => (sources.as_slice().into(), targets.as_deref()),
+    }
+}
+
+/// svd or fft, whichever `choose_scheme` predicts faster for `eps` on
+/// these points in float type `precision`.
+fn auto_scheme(
+    input: &Input,
+    eps: f64,
+    precision: PrecisionArg,
+    settings: &Settings,
+) -> Result<SchemeArg> {
+    let (sources, targets) = points_of(input);
+    let mode = if settings.gradients {
+        EvalMode::PotentialGradient
+    } else {
+        EvalMode::Potential
+    };
+    let precision = match precision {
+        PrecisionArg::F32 => Precision::F32,
+        _ => Precision::F64,
+    };
+    let cached = settings.cache_dir.is_some();
+    let (shape, _) = choose_scheme(eps, mode, precision, &sources, targets, cached)?;
+    Ok(match shape {
+        M2lCostShape::Fft => SchemeArg::Fft,
+        _ => SchemeArg::Svd,
+    })
 }
 
 /// f32 where it still reaches `eps` on these points, else f64.

@@ -38,6 +38,48 @@ use crate::{
     PrecomputeEstimate, SurfaceRadii, surface_points,
 };
 
+/// How a scheme's M2L time grows with the order and the tree, for the
+/// parameter chooser of ferrofmm-fmm (`tuning`), which predicts the cost of
+/// each candidate order and leaf size from it. With `n` surface points,
+/// `v` V-list pairs and `b` boxes on levels `>= 2`:
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[non_exhaustive]
+pub enum M2lCostShape {
+    /// One `n x n` product per pair: `n^2 v` (the default of
+    /// [`M2lScheme::COST_SHAPE`], an upper bound for any scheme).
+    Dense,
+    /// Products at rank `k` plus compression per box: `k^2 v + n k b`
+    /// ([`SvdM2l`]).
+    Compressed,
+    /// Pointwise products on `F` frequencies plus two FFTs per box: `F v +
+    /// F log2(F) b`, `F = N^2 (floor(N/2) + 1)` for the grid size `N` of
+    /// [`FftM2l`] ([`fft_frequencies`]).
+    Fft,
+}
+
+impl M2lCostShape {
+    /// Short name: `"dense"`, `"compressed"`, `"fft"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            M2lCostShape::Dense => "dense",
+            M2lCostShape::Compressed => "compressed",
+            M2lCostShape::Fft => "fft",
+        }
+    }
+}
+
+/// Frequencies `F = N^2 (floor(N/2) + 1)` of [`FftM2l`]'s convolution grid
+/// at `order` (`N` is the smallest 2, 3, 5, 7-smooth size `>= 2p - 1`).
+///
+/// ```
+/// assert_eq!(ferrofmm_field::fft_frequencies(6), 12 * 12 * 7);
+/// assert_eq!(ferrofmm_field::fft_frequencies(8), 15 * 15 * 8);
+/// ```
+pub fn fft_frequencies(order: usize) -> usize {
+    let n = fft::grid_size(order.max(2));
+    n * n * (n / 2 + 1)
+}
+
 /// A swappable M2L translation scheme. The FMM driver is generic over it.
 ///
 /// Contract of [`M2lScheme::apply`]: `multipoles` is column-major `n x
@@ -53,6 +95,10 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
 
     /// Short name, e.g. `"dense"`, `"svd"`.
     fn name(&self) -> &'static str;
+
+    /// How the scheme's apply time grows (for the parameter chooser);
+    /// [`M2lCostShape::Dense`] unless a scheme says otherwise.
+    const COST_SHAPE: M2lCostShape = M2lCostShape::Dense;
 
     /// Precompute the operators of `kernel` for a domain of width
     /// `domain_width` and levels up to `depth` (per level for a

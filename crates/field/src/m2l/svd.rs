@@ -418,6 +418,7 @@ impl<T: Real> SvdM2l<T> {
 
 impl<T: Real> M2lScheme<T> for SvdM2l<T> {
     type Config = SvdConfig;
+    const COST_SHAPE: super::M2lCostShape = super::M2lCostShape::Compressed;
 
     fn name(&self) -> &'static str {
         "svd"

@@ -34,6 +34,9 @@ pub struct ChosenParameters {
     pub predicted_error: f64,
     /// Predicted seconds for the tree and one evaluation.
     pub predicted_seconds: f64,
+    /// The M2L cost shape the prediction assumed (`"compressed"` for the
+    /// SVD scheme, `"fft"`, `"dense"`).
+    pub m2l_cost: String,
     /// Estimated work of the chosen tree.
     pub estimated_work: WorkCounts,
 }
@@ -70,6 +73,9 @@ pub struct Tuner {
     pub leaf_sizes: Vec<usize>,
     /// How many admissible orders to consider, from the smallest up.
     pub orders: usize,
+    /// How the M2L scheme to be built scales (the SVD scheme's by
+    /// default).
+    pub scheme: M2lCostShape,
 }
 
 impl Tuner {
@@ -80,7 +86,20 @@ impl Tuner {
             cost: CostModel::default(),
             leaf_sizes: LEAF_SIZE_CANDIDATES.to_vec(),
             orders: 3,
+            scheme: M2lCostShape::Compressed,
         }
+    }
+
+    /// The same tuner for an M2L scheme that scales as `shape`
+    /// ([`M2lScheme::COST_SHAPE`](ferrofmm_field::M2lScheme::COST_SHAPE)).
+    pub fn for_scheme(mut self, shape: M2lCostShape) -> Self {
+        self.scheme = shape;
+        self
+    }
+
+    /// Predicted cost of `(order, rank)` on `work` with this tuner's scheme.
+    fn predict(&self, work: &WorkCounts, order: usize, rank: usize) -> CostPrediction {
+        self.cost.predict_for(self.scheme, work, order, rank)
     }
 
     /// The same tuner for evaluation mode `mode` (the cost model of
@@ -134,7 +153,7 @@ impl Tuner {
         let cost_of = |w: &WorkCounts| {
             self.orders_for(eps, w.rounding_ratio)
                 .iter()
-                .map(|&(p, _, k, _)| self.cost.predict(w, p, k).total)
+                .map(|&(p, _, k, _)| self.predict(w, p, k).total)
                 .fold(f64::INFINITY, f64::min)
         };
         // (leaf size, work, boxes per level of the refinement, cost)
@@ -178,7 +197,7 @@ impl Tuner {
                 };
                 let lower = permissive
                     .iter()
-                    .map(|&(p, _, k, _)| self.cost.predict(&bound, p, k).total)
+                    .map(|&(p, _, k, _)| self.predict(&bound, p, k).total)
                     .fold(f64::INFINITY, f64::min);
                 if lower > *best {
                     return None;
@@ -235,7 +254,7 @@ impl Tuner {
                     svd_tolerance: tau,
                     estimated_rank: k,
                     predicted_error: err,
-                    predicted: self.cost.predict(w, p, k),
+                    predicted: self.predict(w, p, k),
                     work: *w,
                 });
             }
@@ -292,7 +311,46 @@ impl Tuner {
             estimated_svd_rank: best.estimated_rank,
             predicted_error: best.predicted_error,
             predicted_seconds: best.predicted.total,
+            m2l_cost: self.scheme.name().to_string(),
             estimated_work: best.work,
+        })
+    }
+
+    /// Pick the M2L scheme too: the chooser runs for the SVD scheme and for
+    /// the FFT scheme, and the smaller predicted time of the tree, one
+    /// evaluation and the M2L precomputation wins. The SVD scheme's
+    /// precomputation (its truncated SVDs: 0.3 s at `p = 6`, 1.4 s at `p =
+    /// 8`, 5 s at `p = 10` on 2 cores, from [`SvdM2l`]'s
+    /// [`estimate`](ferrofmm_field::M2lScheme::estimate)) counts unless
+    /// `svd_cached` (its operators come from the cache); the FFT scheme's
+    /// (316 kernel FFTs, milliseconds) is left out.
+    ///
+    /// # Errors
+    /// As [`Tuner::choose_with`].
+    pub fn choose_scheme_with(
+        &self,
+        eps: f64,
+        occupancy: &Occupancy,
+        svd_cached: bool,
+    ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
+        let svd = self
+            .clone()
+            .for_scheme(M2lCostShape::Compressed)
+            .choose_with(eps, occupancy)?;
+        let fft = self
+            .clone()
+            .for_scheme(M2lCostShape::Fft)
+            .choose_with(eps, occupancy)?;
+        let svd_total = svd.predicted_seconds
+            + if svd_cached {
+                0.0
+            } else {
+                svd_precompute_seconds(&svd)
+            };
+        Ok(if fft.predicted_seconds <= svd_total {
+            (M2lCostShape::Fft, fft)
+        } else {
+            (M2lCostShape::Compressed, svd)
         })
     }
 
@@ -338,4 +396,57 @@ pub fn choose_parameters<T: Real>(
     let src = up(sources);
     let tgt = targets.map(up);
     Tuner::new(T::PRECISION).choose(eps, &src, tgt.as_deref(), None, DEEPEST_LEVEL)
+}
+
+/// Predicted seconds of the SVD scheme's precomputation for `chosen`
+/// (Laplace, every transfer vector of the chosen tree's depth).
+pub fn svd_precompute_seconds(chosen: &ChosenParameters) -> f64 {
+    use ferrofmm_field::{M2lScheme, M2lUsage, OperatorParams, SvdConfig, SvdM2l};
+    let depth = chosen.estimated_work.depth;
+    let config = SvdConfig {
+        rank: None,
+        tolerance: chosen.svd_tolerance,
+    };
+    SvdM2l::<f64>::estimate(
+        &ferrofmm_kernels::Laplace3d,
+        &OperatorParams::new(chosen.order),
+        &config,
+        depth,
+        &M2lUsage::all(depth),
+    )
+    .seconds
+}
+
+/// [`Tuner::choose_scheme_with`] for these points (interleaved `x, y, z`;
+/// `targets` `None` when they are the sources) in the bounding cube:
+/// the M2L scheme, and the order and leaf size for it, that reach `eps`
+/// fastest in float type `precision` and evaluation mode `mode`.
+///
+/// ```
+/// use ferrofmm_fmm::{Geometry, tuning::{choose_scheme, M2lCostShape}};
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let points: Vec<f64> = Geometry::Cube.points(20_000, 3);
+/// let (shape, c) =
+///     choose_scheme(1e-8, EvalMode::Potential, Precision::F64, &points, None, false).unwrap();
+/// // At high order the SVD precomputation costs seconds; FFT's milliseconds.
+/// assert_eq!(shape, M2lCostShape::Fft);
+/// assert!(c.order >= 8);
+/// ```
+///
+/// # Errors
+/// As [`Tuner::choose`].
+pub fn choose_scheme(
+    eps: f64,
+    mode: EvalMode,
+    precision: Precision,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    svd_cached: bool,
+) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
+    validate_tolerance(eps, precision)?;
+    crate::builder::check_sources_and_targets(sources, targets)?;
+    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
+    Tuner::new(precision)
+        .for_mode(mode)
+        .choose_scheme_with(eps, &occupancy, svd_cached)
 }

@@ -21,6 +21,9 @@ use super::*;
 /// far    surface_point n (N_s + N_t) + far_point n far_points
 ///        + dense n^2 boxes + box_surface n boxes
 /// M2L    m2l_flop k^2 v_pairs + m2l_pair k v_pairs + m2l_box n k m2l_boxes
+///          (SVD, `M2lCostShape::Compressed`; dense: `k = n`)
+///        fft_pair F v_pairs + fft_box F log2(F) m2l_boxes
+///          (FFT, `M2lCostShape::Fft`; `F` = `fft_frequencies(p)`)
 /// tree   tree_point (N_s + N_t) + tree_box boxes + tree_pair v_pairs
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
@@ -46,6 +49,11 @@ pub struct CostModel {
     /// Per `n k` per box on levels `>= 2` (compressing multipoles,
     /// expanding check potentials).
     pub m2l_box: f64,
+    /// FFT M2L: per frequency per V-list pair (the pointwise products).
+    pub fft_pair: f64,
+    /// FFT M2L: per `F log2 F` per box on levels `>= 2` (one forward and
+    /// one inverse transform).
+    pub fft_box: f64,
     /// Tree: per point (Morton codes, sort, permutations).
     pub tree_point: f64,
     /// Tree: per box (refinement, balance).
@@ -58,8 +66,11 @@ impl Default for CostModel {
     /// The model fitted on this machine (`docs/tolerance.md`).
     fn default() -> Self {
         CostModel {
-            p2p_pair: 2.45e-10,
-            p2p_entry: 3.06e-8,
+            // Refitted after the generic lane loop (issue 13) on the 1e6
+            // uniform cube, zero-mean charges, leaf 400 and 150
+            // (docs/tolerance.md).
+            p2p_pair: P2P_PAIR_WITH_GRADIENT / GRADIENT_COST_FACTOR,
+            p2p_entry: 7.5e-8,
             surface_point: 3.18e-10,
             far_point: 2.63e-10,
             dense: 9.67e-11,
@@ -67,6 +78,8 @@ impl Default for CostModel {
             m2l_flop: 5.32e-12,
             m2l_pair: 9.48e-10,
             m2l_box: 2.32e-10,
+            fft_pair: FFT_PAIR,
+            fft_box: FFT_BOX,
             tree_point: 2.43e-8,
             tree_box: 1.00e-6,
             tree_pair: 1.51e-8,
@@ -74,11 +87,22 @@ impl Default for CostModel {
     }
 }
 
+/// [`CostModel::fft_pair`] as fitted (`docs/tolerance.md`).
+const FFT_PAIR: f64 = 1.55e-10;
+/// [`CostModel::fft_box`] as fitted.
+const FFT_BOX: f64 = 0.0;
+
+/// Seconds per P2P pair with the gradient, 2 threads: 1.0 s for the
+/// `5.8e9` pairs of the 1e6 uniform cube at leaf 400 (depth 4) together
+/// with 0.195 s for the `7.7e8` pairs in `830,584` leaf blocks at leaf
+/// 150 (depth 5).
+const P2P_PAIR_WITH_GRADIENT: f64 = 1.71e-10;
+
 /// Cost of a target-side kernel evaluation with the gradient relative to
-/// the potential alone: the measured P2P rates on one core, 2.32e9
-/// (potential) against 1.55e9 (potential and gradient) interactions per
-/// second.
-pub const GRADIENT_COST_FACTOR: f64 = 1.5;
+/// the potential alone: the measured P2P rates on one core, 4.88e9
+/// (potential) against 3.05e9 (potential and gradient) interactions per
+/// second (AVX-512, `cargo bench --bench p2p`).
+pub const GRADIENT_COST_FACTOR: f64 = 1.6;
 
 impl CostModel {
     /// The model for evaluation mode `mode`. The coefficients are fitted on
@@ -132,8 +156,10 @@ pub struct CostSample {
     pub work: WorkCounts,
     /// Expansion order.
     pub order: usize,
-    /// M2L rank (`n` for the dense scheme).
+    /// M2L rank (`n` for the dense scheme; ignored for FFT).
     pub rank: usize,
+    /// How the run's M2L scheme scales.
+    pub shape: M2lCostShape,
     /// Measured evaluation.
     pub eval: EvalTimings,
     /// Measured tree construction, seconds.
@@ -145,22 +171,49 @@ pub(super) struct Features {
     pub(super) p2p: [f64; 2],
     pub(super) far: [f64; 4],
     pub(super) m2l: [f64; 3],
+    pub(super) fft: [f64; 2],
     pub(super) tree: [f64; 3],
 }
 
+/// The features of a run with the SVD (compressed) M2L.
+#[cfg(test)]
 pub(super) fn features(w: &WorkCounts, order: usize, rank: usize) -> Features {
+    features_for(M2lCostShape::Compressed, w, order, rank)
+}
+
+/// The features of a run whose M2L scales as `shape`.
+pub(super) fn features_for(
+    shape: M2lCostShape,
+    w: &WorkCounts,
+    order: usize,
+    rank: usize,
+) -> Features {
     let n = n_surface_points(order) as f64;
-    let k = rank as f64;
+    let k = match shape {
+        M2lCostShape::Dense => n,
+        _ => rank as f64,
+    };
+    let fft = shape == M2lCostShape::Fft;
+    let f = fft_frequencies(order) as f64;
     let points = (w.n_sources + w.n_targets) as f64;
     let boxes = w.n_boxes as f64;
     Features {
         p2p: [w.p2p_pairs, w.u_entries],
         far: [n * points, n * w.far_points, n * n * boxes, n * boxes],
-        m2l: [
-            k * k * w.m2l_pairs,
-            k * w.m2l_pairs,
-            n * k * w.m2l_boxes as f64,
-        ],
+        m2l: if fft {
+            [0.0; 3]
+        } else {
+            [
+                k * k * w.m2l_pairs,
+                k * w.m2l_pairs,
+                n * k * w.m2l_boxes as f64,
+            ]
+        },
+        fft: if fft {
+            [f * w.m2l_pairs, f * f.log2() * w.m2l_boxes as f64]
+        } else {
+            [0.0; 2]
+        },
         tree: [points, boxes, w.m2l_pairs],
     }
 }
@@ -184,14 +237,28 @@ impl CostModel {
         )
     }
 
-    /// Predicted time of building the tree and one evaluation.
+    /// Predicted time of building the tree and one evaluation with the SVD
+    /// M2L at rank `rank`.
     pub fn predict(&self, work: &WorkCounts, order: usize, rank: usize) -> CostPrediction {
-        let f = features(work, order, rank);
+        self.predict_for(M2lCostShape::Compressed, work, order, rank)
+    }
+
+    /// Predicted time of building the tree and one evaluation with an M2L
+    /// scheme that scales as `shape` (`rank` is used by
+    /// [`M2lCostShape::Compressed`] only).
+    pub fn predict_for(
+        &self,
+        shape: M2lCostShape,
+        work: &WorkCounts,
+        order: usize,
+        rank: usize,
+    ) -> CostPrediction {
+        let f = features_for(shape, work, order, rank);
         let (p2p, far, m2l, tree) = self.groups();
         let p = CostPrediction {
             p2p: dot(&p2p, &f.p2p),
             far: dot(&far, &f.far),
-            m2l: dot(&m2l, &f.m2l),
+            m2l: dot(&m2l, &f.m2l) + dot(&[self.fft_pair, self.fft_box], &f.fft),
             tree: dot(&tree, &f.tree),
             total: 0.0,
         };
@@ -208,7 +275,7 @@ impl CostModel {
         let mut m = CostModel::default();
         let fs: Vec<Features> = samples
             .iter()
-            .map(|s| features(&s.work, s.order, s.rank))
+            .map(|s| features_for(s.shape, &s.work, s.order, s.rank))
             .collect();
         let secs = |d: std::time::Duration| d.as_secs_f64();
         let rows = |x: &dyn Fn(&Features) -> Vec<f64>, y: &dyn Fn(&CostSample) -> f64| {
@@ -227,8 +294,22 @@ impl CostModel {
         if let Some(c) = fit_nonnegative(&far) {
             [m.surface_point, m.far_point, m.dense, m.box_surface] = [c[0], c[1], c[2], c[3]];
         }
-        if let Some(c) = fit_nonnegative(&rows(&|f| f.m2l.to_vec(), &|s| secs(s.eval.m2l))) {
+        // M2L: the SVD (and dense) runs and the FFT runs apart.
+        let m2l_rows = |fft: bool| {
+            fs.iter()
+                .zip(samples)
+                .filter(|(_, s)| (s.shape == M2lCostShape::Fft) == fft)
+                .map(|(f, s)| {
+                    let x = if fft { f.fft.to_vec() } else { f.m2l.to_vec() };
+                    (x, secs(s.eval.m2l))
+                })
+                .collect::<Vec<_>>()
+        };
+        if let Some(c) = fit_nonnegative(&m2l_rows(false)) {
             [m.m2l_flop, m.m2l_pair, m.m2l_box] = [c[0], c[1], c[2]];
+        }
+        if let Some(c) = fit_nonnegative(&m2l_rows(true)) {
+            [m.fft_pair, m.fft_box] = [c[0], c[1]];
         }
         if let Some(c) = fit_nonnegative(&rows(&|f| f.tree.to_vec(), &|s| s.tree_seconds)) {
             [m.tree_point, m.tree_box, m.tree_pair] = [c[0], c[1], c[2]];

@@ -85,7 +85,8 @@
 use std::collections::HashMap;
 use std::hash::{BuildHasherDefault, Hasher};
 
-use ferrofmm_field::{default_svd_tolerance, n_surface_points};
+pub use ferrofmm_field::M2lCostShape;
+use ferrofmm_field::{default_svd_tolerance, fft_frequencies, n_surface_points};
 use ferrofmm_kernels::{EvalMode, Precision, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain, MortonKey, Octree};
 use rayon::prelude::*;
@@ -237,6 +238,7 @@ mod tests {
                     work: w,
                     order: p,
                     rank: k,
+                    shape: M2lCostShape::Compressed,
                     eval,
                     tree_seconds: dot(&gt, &f.tree),
                 });

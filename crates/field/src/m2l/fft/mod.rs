@@ -224,6 +224,7 @@ fn check_radii(params: &OperatorParams) -> Result<(), FieldError> {
 
 impl<T: Real> M2lScheme<T> for FftM2l<T> {
     type Config = FftConfig;
+    const COST_SHAPE: super::M2lCostShape = super::M2lCostShape::Fft;
 
     fn name(&self) -> &'static str {
         "fft"
