@@ -164,6 +164,7 @@ fn measure(p: &Problem, (fmm, tree_s, choice_s): &Built, repeats: usize, model: 
             work,
             order: s.order,
             rank,
+            shape: ferrofmm::fmm::tuning::M2lCostShape::Compressed,
             eval: best,
             tree_seconds: tree_s,
         },

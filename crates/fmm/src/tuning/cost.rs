@@ -175,12 +175,6 @@ pub(super) struct Features {
     pub(super) tree: [f64; 3],
 }
 
-/// The features of a run with the SVD (compressed) M2L.
-#[cfg(test)]
-pub(super) fn features(w: &WorkCounts, order: usize, rank: usize) -> Features {
-    features_for(M2lCostShape::Compressed, w, order, rank)
-}
-
 /// The features of a run whose M2L scales as `shape`.
 pub(super) fn features_for(
     shape: M2lCostShape,

@@ -205,6 +205,8 @@ mod tests {
             tree_point: 1e-7,
             tree_box: 2e-6,
             tree_pair: 5e-8,
+            fft_pair: 2e-10,
+            fft_box: 3e-9,
         };
         let mut samples = Vec::new();
         for (g, n) in [(Geometry::Cube, 6000), (Geometry::Plummer, 9000)] {
@@ -221,27 +223,30 @@ mod tests {
             ] {
                 let w = occ.work(leaf);
                 let k = estimated_svd_rank(p, tau);
-                let f = features(&w, p, k);
-                let (gp, gf, gm, gt) = truth.groups();
-                let d = std::time::Duration::from_secs_f64;
-                let far = dot(&gf, &f.far);
-                let eval = EvalTimings {
-                    p2p: d(dot(&gp, &f.p2p)),
-                    p2m: d(0.3 * far),
-                    l2p: d(0.3 * far),
-                    m2m: d(0.1 * far),
-                    l2l: d(0.3 * far),
-                    m2l: d(dot(&gm, &f.m2l)),
-                    ..Default::default()
-                };
-                samples.push(CostSample {
-                    work: w,
-                    order: p,
-                    rank: k,
-                    shape: M2lCostShape::Compressed,
-                    eval,
-                    tree_seconds: dot(&gt, &f.tree),
-                });
+                for shape in [M2lCostShape::Compressed, M2lCostShape::Fft] {
+                    let f = features_for(shape, &w, p, k);
+                    let (gp, gf, gm, gt) = truth.groups();
+                    let d = std::time::Duration::from_secs_f64;
+                    let far = dot(&gf, &f.far);
+                    let m2l = dot(&gm, &f.m2l) + dot(&[truth.fft_pair, truth.fft_box], &f.fft);
+                    let eval = EvalTimings {
+                        p2p: d(dot(&gp, &f.p2p)),
+                        p2m: d(0.3 * far),
+                        l2p: d(0.3 * far),
+                        m2m: d(0.1 * far),
+                        l2l: d(0.3 * far),
+                        m2l: d(m2l),
+                        ..Default::default()
+                    };
+                    samples.push(CostSample {
+                        work: w,
+                        order: p,
+                        rank: k,
+                        shape,
+                        eval,
+                        tree_seconds: dot(&gt, &f.tree),
+                    });
+                }
             }
         }
         let fit = CostModel::fit(&samples);
@@ -251,9 +256,16 @@ mod tests {
         assert!(close(&a.1, &b.1), "{fit:?}");
         assert!(close(&a.2, &b.2), "{fit:?}");
         assert!(close(&a.3, &b.3), "{fit:?}");
+        assert!(
+            close(
+                &[fit.fft_pair, fit.fft_box],
+                &[truth.fft_pair, truth.fft_box]
+            ),
+            "{fit:?}"
+        );
         // Predictions of the fitted model reproduce the samples.
         for s in &samples {
-            let t = fit.predict(&s.work, s.order, s.rank);
+            let t = fit.predict_for(s.shape, &s.work, s.order, s.rank);
             let measured =
                 s.eval.p2p + s.eval.p2m + s.eval.l2p + s.eval.m2m + s.eval.l2l + s.eval.m2l;
             let measured = measured.as_secs_f64() + s.tree_seconds;
