@@ -253,6 +253,12 @@ impl SiblingBlocks {
         &self.blocks[self.block_starts[g] as usize..self.block_starts[g + 1] as usize]
     }
 
+    /// The indices of the blocks of target group `g` among all blocks (in
+    /// target-group order).
+    pub fn block_range(&self, g: usize) -> std::ops::Range<usize> {
+        self.block_starts[g] as usize..self.block_starts[g + 1] as usize
+    }
+
     /// The loose pairs of target group `g` (target columns `8 g .. 8 g +
     /// 8`), sorted.
     pub fn loose(&self, g: usize) -> &[LoosePair] {

@@ -21,14 +21,18 @@
 //!            + sum_{loose pairs (t, s, v) of T}   That_v(f) x_{s/8}[s%8](f),
 //! ```
 //!
-//! with `That_v = 0` for adjacent children. A full block (every V-list entry
-//! of its offset present) runs as a dense `8 x 8` product: for each source
-//! child its two registers are loaded once and multiplied into the eight
-//! target children's accumulators, which stay in registers over all of
-//! `T`'s full blocks (`16` registers with AVX-512; with narrower registers
-//! the targets go four at a time). Partial blocks and loose pairs add pair
-//! by pair into memory. Each complex multiply-add is four fused
-//! multiply-adds: `re += kr xr - ki xi`, `im += kr xi + ki xr`.
+//! with `That_v = 0` for adjacent children. A block runs as a dense `8 x 8`
+//! product through its own table of slab entries ([`BlockTable`]: the zero
+//! entry where the block has no pair; source children without pairs are
+//! skipped): for each source child its two registers are loaded once and
+//! multiplied into the eight target children's accumulators, which stay in
+//! registers over all of `T`'s blocks (`16` registers with AVX-512; with
+//! narrower registers the targets go four at a time). A sparse block (as
+//! in adaptive trees, whose lists leave out empty boxes: on a sphere
+//! surface about half the children) whose pairs are fewer than two thirds
+//! of the register products it would take goes pair by pair into memory
+//! instead, as do loose pairs. Each complex multiply-add is four fused multiply-adds: `re += kr
+//! xr - ki xi`, `im += kr xi + ki xr`.
 
 use ferrofmm_kernels::lanes::{Simd, SimdTask};
 
@@ -65,6 +69,8 @@ pub(super) struct Products<'a> {
     pub sources: &'a [f64],
     /// The level's pairs.
     pub siblings: &'a SiblingBlocks,
+    /// Slab entries of every block of the level ([`block_tables`]).
+    pub tables: &'a [BlockTable],
     /// First target group.
     pub first: usize,
     /// Target spectra of the groups `first..`, `[group][block][8][W]`.
@@ -78,27 +84,28 @@ impl SimdTask<f64> for Products<'_> {
 
     #[inline(always)]
     fn run<S: Simd<f64>>(self, s: S) {
-        let entries = &*BLOCK_ENTRIES;
         let group_len = self.blocks * 8 * W;
         let n = self.targets.len() / group_len;
         for b in 0..self.blocks {
             let slab = &self.kernels[b * SLAB_VECTORS * W..(b + 1) * SLAB_VECTORS * W];
             for g in 0..n {
-                let blocks = self.siblings.blocks(self.first + g);
+                let group = self.first + g;
+                let blocks = self.siblings.blocks(group);
+                let tables = &self.tables[self.siblings.block_range(group)];
                 let out = &mut self.targets[g * group_len + b * 8 * W..][..8 * W];
-                dense_blocks(s, slab, self.sources, group_len, b, blocks, entries, out);
-                for blk in blocks.iter().filter(|blk| !blk.is_full()) {
+                dense_blocks(s, slab, self.sources, group_len, b, blocks, tables, out);
+                for (blk, table) in blocks.iter().zip(tables).filter(|(_, t)| !t.dense) {
                     let x = &self.sources[blk.source_group as usize * group_len + b * 8 * W..];
                     let mut m = blk.mask;
                     while m != 0 {
                         let bit = m.trailing_zeros() as usize;
                         m &= m - 1;
                         let (ct, cs) = (bit / 8, bit % 8);
-                        let k = entries[blk.offset as usize][cs][ct] as usize;
+                        let k = table.entries[cs][ct] as usize;
                         multiply_add(s, &slab[k * W..], &x[cs * W..], &mut out[ct * W..]);
                     }
                 }
-                for p in self.siblings.loose(self.first + g) {
+                for p in self.siblings.loose(group) {
                     let (ct, cs) = (p.target as usize % 8, p.source as usize % 8);
                     let x = &self.sources[(p.source as usize / 8) * group_len + b * 8 * W..];
                     let k = p.vector as usize;
@@ -109,8 +116,45 @@ impl SimdTask<f64> for Products<'_> {
     }
 }
 
-/// The full blocks of one target group at one frequency block, written
-/// (not added) to `out` (`8 W` values; zeros when there are none).
+/// Slab entries of one block, `[cs][ct]` (the zero entry where the block
+/// has no pair), the mask of source children with at least one pair, and
+/// how the block is applied.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct BlockTable {
+    entries: [[u16; 8]; 8],
+    sources: u8,
+    /// In registers (`8` products per source child with a pair, zeros
+    /// included) rather than pair by pair in memory (about 1.5x the
+    /// cost of a register product each): whichever is cheaper.
+    dense: bool,
+}
+
+/// The [`BlockTable`] of every block of `siblings`, in block order.
+pub(super) fn block_tables(siblings: &SiblingBlocks) -> Vec<BlockTable> {
+    let full = &*BLOCK_ENTRIES;
+    (0..siblings.n_target_groups())
+        .flat_map(|g| siblings.blocks(g))
+        .map(|blk| {
+            let mut t = BlockTable {
+                entries: [[ZERO_VECTOR; 8]; 8],
+                sources: 0,
+                dense: false,
+            };
+            for bit in (0..64).filter(|bit| blk.mask >> bit & 1 == 1) {
+                let (ct, cs) = (bit / 8, bit % 8);
+                t.entries[cs][ct] = full[blk.offset as usize][cs][ct];
+                t.sources |= 1 << cs;
+            }
+            t.dense = 8 * t.sources.count_ones() * 2 <= 3 * blk.mask.count_ones();
+            t
+        })
+        .collect()
+}
+
+/// The register-applied blocks of one target group at one frequency
+/// block, written (not added) to `out` (`8 W` values; zeros when there are
+/// none). Source children without pairs are skipped; a missing pair
+/// multiplies by the zero entry.
 #[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn dense_blocks<S: Simd<f64>>(
@@ -120,7 +164,7 @@ fn dense_blocks<S: Simd<f64>>(
     group_len: usize,
     b: usize,
     blocks: &[crate::plumbing::SiblingBlock],
-    entries: &[[[u16; 8]; 8]; N_PARENT_OFFSETS],
+    tables: &[BlockTable],
     out: &mut [f64],
 ) {
     let l = S::LANES;
@@ -131,15 +175,14 @@ fn dense_blocks<S: Simd<f64>>(
     for lane0 in (0..FREQ_BLOCK).step_by(l) {
         for t0 in (0..8).step_by(per_pass) {
             let mut acc = [[zero; 2]; 8];
-            for blk in blocks.iter().filter(|blk| blk.is_full()) {
+            for (blk, table) in blocks.iter().zip(tables).filter(|(_, t)| t.dense) {
                 let x = &sources[blk.source_group as usize * group_len + b * 8 * W..][..8 * W];
-                let table = &entries[blk.offset as usize];
-                for cs in 0..8 {
+                for cs in (0..8).filter(|cs| table.sources >> cs & 1 == 1) {
                     let xr = s.load(&x[cs * W + lane0..]);
                     let xi = s.load(&x[cs * W + FREQ_BLOCK + lane0..]);
                     let nxi = s.sub(zero, xi);
                     for (ct, a) in acc.iter_mut().enumerate().skip(t0).take(per_pass) {
-                        let k = &slab[table[cs][ct] as usize * W..][..W];
+                        let k = &slab[table.entries[cs][ct] as usize * W..][..W];
                         let kr = s.load(&k[lane0..]);
                         let ki = s.load(&k[FREQ_BLOCK + lane0..]);
                         a[0] = s.mul_add(ki, nxi, s.mul_add(kr, xr, a[0]));

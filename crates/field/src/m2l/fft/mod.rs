@@ -59,7 +59,7 @@ use ferrofmm_kernels::{Kernel, Real, SimdLevel};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
-use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W};
+use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W, block_tables};
 use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::fft3d::Fft3d;
 use crate::levels::LevelMap;
@@ -352,6 +352,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let (set, scale) = self.levels.lookup(level, 1.0);
         self.assert_present(set, interactions);
         let siblings = interactions.sibling_blocks();
+        let tables = block_tables(siblings);
         let group_len = self.blocks * 8 * W;
         let (real_len, spectrum_len) = (self.fft.real_len(), self.fft.spectrum_len());
         let scratch = || {
@@ -391,6 +392,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                             kernels,
                             sources: &sources,
                             siblings,
+                            tables: &tables,
                             first,
                             targets,
                             blocks: self.blocks,
