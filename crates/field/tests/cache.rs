@@ -266,3 +266,46 @@ fn unwritable_cache_does_not_fail_the_computation() {
     assert_eq!(fingerprint(&a), fingerprint(&plain));
     let _ = fs::remove_dir_all(&dir);
 }
+
+/// The FFT scheme's kernel spectra: one `f64` file whatever `T`, per level
+/// for a non-homogeneous kernel, bit-identical on reload, and a corrupt or
+/// truncated file is detected and rebuilt.
+#[test]
+fn fft_spectra_round_trip_and_damaged_files_are_rebuilt() {
+    use ferrofmm_field::{FftConfig, FftM2l};
+    let dir = temp_dir("fft");
+    let p = params(5, &dir);
+    let n = ferrofmm_field::n_surface_points(5);
+    let a = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    let path = assert_computed(&a.cache_status(), false);
+    let b = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    assert_eq!(b.cache_status(), CacheStatus::Hit { path: path.clone() });
+    assert_eq!(scheme_fingerprint(&a, n), scheme_fingerprint(&b, n));
+    // The spectra are f64 for both float types: the f32 scheme reads the
+    // same file.
+    let c = FftM2l::<f32>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    assert_eq!(c.cache_status(), CacheStatus::Hit { path: path.clone() });
+    // A non-homogeneous kernel has a file per domain and depth.
+    let k = ModifiedHelmholtz3d::new(2.0).unwrap();
+    let h1 = FftM2l::<f64>::precompute(&k, &p, &FftConfig, 1.0, 3).unwrap();
+    assert_ne!(assert_computed(&h1.cache_status(), false), path);
+    let h2 = FftM2l::<f64>::precompute(&k, &p, &FftConfig, 1.0, 3).unwrap();
+    assert!(h2.cache_status().is_hit());
+    assert_eq!(scheme_fingerprint(&h1, n), scheme_fingerprint(&h2, n));
+    // Damage: one flipped payload bit, then a truncation.
+    let mut bytes = fs::read(&path).unwrap();
+    let i = bytes.len() - 777;
+    bytes[i] ^= 0x04;
+    fs::write(&path, &bytes).unwrap();
+    let d = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    assert!(rejection(&d.cache_status()).contains("checksum"));
+    assert_eq!(scheme_fingerprint(&a, n), scheme_fingerprint(&d, n));
+    let bytes = fs::read(&path).unwrap();
+    fs::write(&path, &bytes[..bytes.len() / 2]).unwrap();
+    let e = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    assert!(rejection(&e.cache_status()).contains("truncated"));
+    assert_eq!(scheme_fingerprint(&a, n), scheme_fingerprint(&e, n));
+    let f = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
+    assert!(f.cache_status().is_hit(), "file was not rewritten");
+    let _ = fs::remove_dir_all(&dir);
+}

@@ -33,7 +33,10 @@
 //! milliseconds). The kernel spectra are kept in `f64` (`317 N^2 (floor(N/2) + 1)`
 //! complex values per set: 3.7 MB at `p = 6`, 18 MB at `p = 10`), and the
 //! products run in `f64` whatever `T` is. It is exact up to rounding: the
-//! same operator as dense M2L.
+//! same operator as dense M2L. With a cache directory
+//! ([`OperatorParams::cache_dir`]) all 316 spectra of every set are
+//! computed and kept in one checksummed `f64` file (kind `m2l-fft`, shared
+//! by `f32` and `f64`); a damaged file is rebuilt.
 //!
 //! # Siblings together
 //!
@@ -61,6 +64,7 @@ use rustfft::num_complex::Complex;
 
 use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W, block_tables};
 use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
+use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
 use crate::fft3d::Fft3d;
 use crate::levels::LevelMap;
 use crate::precompute::effective_threads;
@@ -107,7 +111,41 @@ pub struct FftM2l<T: Real> {
     slabs: Vec<Vec<f64>>,
     /// `present[set][v]`: whether `That_v` was computed.
     present: Vec<Vec<bool>>,
+    cache_status: CacheStatus,
     _values: PhantomData<T>,
+}
+
+/// The kernel slabs of every set, as stored in the operator cache (always
+/// `f64`, whatever `T`; every vector of every set).
+struct FftStore {
+    blocks: usize,
+    n_sets: usize,
+    data: Vec<f64>,
+}
+
+impl CachePayload<f64> for FftStore {
+    fn meta(&self) -> Vec<u64> {
+        vec![self.blocks as u64, self.n_sets as u64]
+    }
+
+    fn data(&self) -> &[f64] {
+        &self.data
+    }
+
+    fn from_parts(meta: Vec<u64>, data: Vec<f64>) -> Result<Self, String> {
+        let [blocks, n_sets] = meta[..] else {
+            return Err("metadata length".into());
+        };
+        let (blocks, n_sets) = (blocks as usize, n_sets as usize);
+        if data.len() != n_sets * blocks * SLAB_VECTORS * W {
+            return Err("payload length disagrees with layout".into());
+        }
+        Ok(FftStore {
+            blocks,
+            n_sets,
+            data,
+        })
+    }
 }
 
 impl<T: Real> FftM2l<T> {
@@ -272,13 +310,11 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             .collect();
         let vectors = transfer_vectors();
         // Without a cache file there is nothing to keep complete: compute
-        // only the used vectors.
-        let mut plain = params.clone();
-        plain.cache_dir = None;
-        let sets = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage);
-        let mut slabs = Vec::with_capacity(sets.len());
-        let mut present = Vec::with_capacity(sets.len());
-        for (set, wanted) in sets.into_iter().enumerate() {
+        // only the used vectors (with one, `planned_sets` gives all 316).
+        let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
+        let n_sets = sets.len();
+        let slab_len = blocks * SLAB_VECTORS * W;
+        let compute_set = |set: usize, wanted: &[usize]| -> Result<Vec<f64>, FieldError> {
             let h = levels.set_half_width(set);
             let computed: Vec<(usize, Vec<Complex<f64>>)> = wanted
                 .par_iter()
@@ -290,19 +326,72 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                     ))
                 })
                 .collect::<Result<_, FieldError>>()?;
-            let mut slab = vec![0.0f64; blocks * SLAB_VECTORS * W];
-            let mut has = vec![false; vectors.len()];
+            let mut slab = vec![0.0f64; slab_len];
             for (vi, spectrum) in computed {
-                has[vi] = true;
                 for (f, c) in spectrum.iter().enumerate() {
                     let at = ((f / FREQ_BLOCK) * SLAB_VECTORS + vi) * W + f % FREQ_BLOCK;
                     slab[at] = c.re;
                     slab[at + FREQ_BLOCK] = c.im;
                 }
             }
-            slabs.push(slab);
-            present.push(has);
-        }
+            Ok(slab)
+        };
+        let complete = sets.iter().all(|w| w.len() == vectors.len());
+        let (slabs, cache_status) = if complete && params.cache_dir.is_some() {
+            let mut key =
+                CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array());
+            key.scheme_config = format!("grid {grid}");
+            if kernel.homogeneity().is_none() {
+                key.geometry = Some((domain_width, depth));
+            }
+            let compute = || -> Result<FftStore, FieldError> {
+                let mut data = Vec::with_capacity(n_sets * slab_len);
+                for (set, wanted) in sets.iter().enumerate() {
+                    data.extend(compute_set(set, wanted)?);
+                }
+                Ok(FftStore {
+                    blocks,
+                    n_sets,
+                    data,
+                })
+            };
+            let accept = |s: &FftStore| {
+                if s.blocks == blocks && s.n_sets == n_sets {
+                    Ok(())
+                } else {
+                    Err("layout disagrees with the parameters".to_string())
+                }
+            };
+            let (store, status) = load_or_compute::<f64, FftStore>(
+                params.cache_dir.as_deref(),
+                &key,
+                accept,
+                compute,
+            )?;
+            let slabs = store
+                .data
+                .chunks_exact(slab_len)
+                .map(<[f64]>::to_vec)
+                .collect();
+            (slabs, status)
+        } else {
+            let slabs = sets
+                .iter()
+                .enumerate()
+                .map(|(set, wanted)| compute_set(set, wanted))
+                .collect::<Result<Vec<_>, _>>()?;
+            (slabs, CacheStatus::Disabled)
+        };
+        let present = sets
+            .iter()
+            .map(|wanted| {
+                let mut has = vec![false; vectors.len()];
+                for &vi in wanted {
+                    has[vi] = true;
+                }
+                has
+            })
+            .collect();
         Ok(FftM2l {
             n: n_surface_points(params.order),
             order: params.order,
@@ -312,6 +401,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             blocks,
             slabs,
             present,
+            cache_status,
             _values: PhantomData,
         })
     }
@@ -323,9 +413,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         depth: u32,
         usage: &M2lUsage,
     ) -> PrecomputeEstimate {
-        let mut plain = params.clone();
-        plain.cache_dir = None;
-        let sets = planned_sets(kernel.homogeneity().is_some(), &plain, depth, usage);
+        let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
         let m: usize = sets.iter().map(Vec::len).sum();
         let grid = grid_size(params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
@@ -417,6 +505,10 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                     }
                 },
             );
+    }
+
+    fn cache_status(&self) -> CacheStatus {
+        self.cache_status.clone()
     }
 
     fn memory_bytes(&self) -> usize {
