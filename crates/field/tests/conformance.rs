@@ -101,6 +101,23 @@ fn fft_conforms_exactly() {
         .unwrap();
 }
 
+/// Orders 8, 11 and 12 (grids 15, 21 and 24: smooth sizes at or above
+/// `2p - 1`, odd and even), every transfer vector, every column layout.
+#[test]
+fn fft_conforms_exactly_at_high_orders() {
+    use ferrofmm_field::{FftConfig, FftM2l};
+    for p in [8, 11, 12] {
+        let r = check_scheme::<f64, FftM2l<f64>, _>(
+            &Laplace3d,
+            &OperatorParams::new(p),
+            &FftConfig,
+            1e-12,
+        )
+        .unwrap();
+        println!("fft p = {p}: {:.2e}", r.relative_error);
+    }
+}
+
 #[test]
 fn fft_needs_one_lattice() {
     use ferrofmm_field::{FftConfig, FftM2l, FieldError, M2lScheme};

@@ -10,6 +10,7 @@ use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
+use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -190,6 +191,9 @@ enum SchemeChoice {
     Svd,
     Dense,
     Fft,
+    /// With `eps`: svd or fft, whichever `tuning::choose_scheme` predicts
+    /// faster; without: svd.
+    Auto,
 }
 
 /// Everything a build needs besides the points.
@@ -246,8 +250,21 @@ fn build_with<T: Float, K: Kernel>(
     if let Some(dir) = &o.cache_dir {
         b = b.cache_dir(dir);
     }
-    Ok(match o.scheme {
-        SchemeChoice::Svd => Box::new(b.build_svd()?),
+    let scheme = match (o.scheme, o.eps) {
+        (SchemeChoice::Auto, Some(eps)) => {
+            let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
+            let (src, tgt) = (up(sources), targets.map(up));
+            let cached = o.cache_dir.is_some();
+            match choose_scheme(eps, o.mode, T::PRECISION, &src, tgt.as_deref(), cached)?.0 {
+                M2lCostShape::Fft => SchemeChoice::Fft,
+                _ => SchemeChoice::Svd,
+            }
+        }
+        (SchemeChoice::Auto, None) => SchemeChoice::Svd,
+        (s, _) => s,
+    };
+    Ok(match scheme {
+        SchemeChoice::Svd | SchemeChoice::Auto => Box::new(b.build_svd()?),
         SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
         SchemeChoice::Fft => Box::new(b.build_with::<FftM2l<T>>(FftConfig)?),
     })
@@ -313,9 +330,10 @@ impl NativeFmm {
             "svd" => SchemeChoice::Svd,
             "dense" => SchemeChoice::Dense,
             "fft" => SchemeChoice::Fft,
+            "auto" => SchemeChoice::Auto,
             other => {
                 return Err(PyValueError::new_err(format!(
-                    "unknown M2L scheme {other:?}: use \"svd\", \"dense\" or \"fft\""
+                    "unknown M2L scheme {other:?}: use \"auto\", \"svd\", \"dense\" or \"fft\""
                 )));
             }
         };

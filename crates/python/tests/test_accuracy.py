@@ -61,6 +61,21 @@ def test_fixed_order_each_scheme(rng, scheme):
     check(r, x, q, x, 1e-4)
 
 
+def test_auto_scheme(rng):
+    """The default scheme: with eps the cost model picks svd or fft (at
+    1e-9 the SVD precomputation costs seconds, the FFT's milliseconds), with
+    an order it is svd; the answer meets eps either way."""
+    x = cube(rng, N)
+    q = zero_mean(rng, N)
+    r = ferrofmm.laplace(x, q, eps=1e-9)
+    assert r.info["scheme"] == "fft"
+    check(r, x, q, x, 3e-9)
+    assert ferrofmm.laplace(x, q, order=4).info["scheme"] == "svd"
+    s = ferrofmm.laplace(x, q, eps=1e-9, scheme="svd")
+    assert s.info["scheme"] == "svd"
+    check(s, x, q, x, 3e-9)
+
+
 def test_separate_targets(rng):
     x = cube(rng, N)
     y = sphere(rng, 4000) * 0.7 + 0.5

@@ -61,7 +61,7 @@ __all__ = [
 DEFAULT_EPS = {np.dtype(np.float64): 1e-6, np.dtype(np.float32): 1e-4}
 
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
-_SCHEMES = ("svd", "dense", "fft")
+_SCHEMES = ("auto", "svd", "dense", "fft")
 
 
 def _float_dtype(dtype: Any) -> Optional[np.dtype]:
@@ -203,8 +203,11 @@ class Fmm:
     threads : int, optional
         Threads (lowered to the number of cores); ``None``: one per core
         (or ``RAYON_NUM_THREADS``).
-    scheme : {"svd", "dense", "fft"}
-        M2L translation scheme.
+    scheme : {"auto", "svd", "dense", "fft"}
+        M2L translation scheme. ``"auto"`` (default): with ``eps``, the
+        SVD or the FFT scheme, whichever the cost model predicts faster for
+        these points (the SVD precomputation counts unless ``cache_dir`` is
+        given); with ``order``, ``"svd"``.
     verify : bool
         Check ``eps`` on the first evaluation (a few percent of its time).
     cache_dir : str or os.PathLike, optional
@@ -224,7 +227,7 @@ class Fmm:
         gradient: bool = False,
         dtype: Any = None,
         threads: Optional[int] = None,
-        scheme: str = "svd",
+        scheme: str = "auto",
         verify: bool = True,
         cache_dir: Any = None,
     ) -> None:
@@ -237,7 +240,7 @@ class Fmm:
         if not isinstance(kernel, str):
             raise TypeError(f"kernel must be a string, got {type(kernel).__name__}")
         if not isinstance(scheme, str) or scheme not in _SCHEMES:
-            raise ValueError(f'unknown M2L scheme {scheme!r}: use "svd", "dense" or "fft"')
+            raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
         if k is not None:
             k = float(k)
         self._native = _ferrofmm.NativeFmm(
@@ -338,7 +341,7 @@ def laplace(
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
-    scheme: str = "svd",
+    scheme: str = "auto",
     verify: bool = True,
 ) -> FmmResult:
     """Laplace potentials ``phi(y) = sum_i q_i / (4 pi |y - x_i|)`` by the FMM.
@@ -364,8 +367,11 @@ def laplace(
         Number of threads (default: one per core).
     leaf_size : int, optional
         Points per leaf (only with ``order``).
-    scheme : {"svd", "dense", "fft"}
-        M2L translation scheme.
+    scheme : {"auto", "svd", "dense", "fft"}
+        M2L translation scheme. ``"auto"`` (default): with ``eps``, the
+        SVD or the FFT scheme, whichever the cost model predicts faster for
+        these points (the SVD precomputation counts unless ``cache_dir`` is
+        given); with ``order``, ``"svd"``.
     verify : bool
         Estimate the achieved error against direct summation on a sample.
 
@@ -402,7 +408,7 @@ def yukawa(
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
-    scheme: str = "svd",
+    scheme: str = "auto",
     verify: bool = True,
 ) -> FmmResult:
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
