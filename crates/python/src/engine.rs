@@ -6,11 +6,11 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use ferrofmm_field::{DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
+use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
-use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
