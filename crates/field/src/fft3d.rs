@@ -30,7 +30,40 @@ pub(crate) struct Fft3d {
     inverse: Arc<dyn Fft<f64>>,
 }
 
+/// Scratch space of [`Fft3d::forward`] and [`Fft3d::inverse`], made once
+/// per thread ([`Fft3d::workspace`]) and reused for every transform, so
+/// that no transform allocates or zero-fills.
+pub(crate) struct FftWorkspace {
+    /// Lines gathered for one batched complex transform (`N^2 H`).
+    lines: Vec<Complex<f64>>,
+    /// The complex plans' scratch.
+    complex: Vec<Complex<f64>>,
+    /// The real plans' scratch.
+    real: Vec<Complex<f64>>,
+    /// One real line.
+    real_line: Vec<f64>,
+    /// One half-spectrum line.
+    half_line: Vec<Complex<f64>>,
+}
+
 impl Fft3d {
+    /// Scratch space for this size's transforms.
+    pub(crate) fn workspace(&self) -> FftWorkspace {
+        let (n, h) = (self.n, self.n / 2 + 1);
+        let complex = self
+            .forward
+            .get_inplace_scratch_len()
+            .max(self.inverse.get_inplace_scratch_len());
+        let real = self.r2c.get_scratch_len().max(self.c2r.get_scratch_len());
+        FftWorkspace {
+            lines: vec![Complex::new(0.0, 0.0); n * n * h],
+            complex: vec![Complex::new(0.0, 0.0); complex],
+            real: vec![Complex::new(0.0, 0.0); real],
+            real_line: vec![0.0; n],
+            half_line: vec![Complex::new(0.0, 0.0); h],
+        }
+    }
+
     /// Plans for an `n x n x n` grid.
     ///
     /// # Panics
@@ -62,81 +95,59 @@ impl Fft3d {
     /// `[0, support)^3` (`support = N`: any grid). Lines that are all zero
     /// are skipped (with `support = p`, about `N/2` of the grid, the
     /// transform costs ~60% of a full one); `grid` is not changed.
-    pub(crate) fn forward(&self, grid: &[f64], spectrum: &mut [Complex<f64>], support: usize) {
+    pub(crate) fn forward(
+        &self,
+        grid: &[f64],
+        spectrum: &mut [Complex<f64>],
+        support: usize,
+        work: &mut FftWorkspace,
+    ) {
         let (n, h) = (self.n, self.n / 2 + 1);
         let support = support.min(n);
         assert_eq!(grid.len(), self.real_len());
         assert_eq!(spectrum.len(), self.spectrum_len());
         spectrum.fill(Complex::new(0.0, 0.0));
-        let mut scratch = self.r2c.make_scratch_vec();
-        let mut line = vec![0.0f64; n];
         for x in 0..support {
             for y in 0..support {
+                let line = &mut work.real_line;
                 line.copy_from_slice(&grid[(x * n + y) * n..(x * n + y + 1) * n]);
                 self.r2c
                     .process_with_scratch(
-                        &mut line,
+                        line,
                         &mut spectrum[(x * n + y) * h..][..h],
-                        &mut scratch,
+                        &mut work.real,
                     )
                     .expect("lengths match the plan");
             }
         }
-        let mut buffer = vec![Complex::new(0.0, 0.0); n * n * h];
-        let mut complex_scratch =
-            vec![Complex::new(0.0, 0.0); self.forward.get_inplace_scratch_len()];
         for x in 0..support {
-            self.along_y(
-                spectrum,
-                x,
-                &self.forward,
-                &mut buffer,
-                &mut complex_scratch,
-                n,
-            );
+            self.along_y(spectrum, x, &self.forward, work, n);
         }
-        self.along_x(
-            spectrum,
-            &self.forward,
-            &mut buffer,
-            &mut complex_scratch,
-            n,
-        );
+        self.along_x(spectrum, &self.forward, work, n);
     }
 
     /// `grid = inverse(spectrum)` (divided by `N^3`) at the points of
     /// `[0, support)^3`; the rest of `grid` is left as it was (`support =
     /// N`: all of it). `spectrum` is used as scratch.
-    pub(crate) fn inverse(&self, spectrum: &mut [Complex<f64>], grid: &mut [f64], support: usize) {
+    pub(crate) fn inverse(
+        &self,
+        spectrum: &mut [Complex<f64>],
+        grid: &mut [f64],
+        support: usize,
+        work: &mut FftWorkspace,
+    ) {
         let (n, h) = (self.n, self.n / 2 + 1);
         let support = support.min(n);
         assert_eq!(grid.len(), self.real_len());
         assert_eq!(spectrum.len(), self.spectrum_len());
-        let mut buffer = vec![Complex::new(0.0, 0.0); n * n * h];
-        let mut complex_scratch =
-            vec![Complex::new(0.0, 0.0); self.inverse.get_inplace_scratch_len()];
-        self.along_x(
-            spectrum,
-            &self.inverse,
-            &mut buffer,
-            &mut complex_scratch,
-            support,
-        );
+        self.along_x(spectrum, &self.inverse, work, support);
         for x in 0..support {
-            self.along_y(
-                spectrum,
-                x,
-                &self.inverse,
-                &mut buffer,
-                &mut complex_scratch,
-                support,
-            );
+            self.along_y(spectrum, x, &self.inverse, work, support);
         }
-        let mut scratch = self.c2r.make_scratch_vec();
         let norm = 1.0 / (n * n * n) as f64;
-        let mut line = vec![Complex::new(0.0, 0.0); h];
         for x in 0..support {
             for y in 0..support {
+                let line = &mut work.half_line;
                 line.copy_from_slice(&spectrum[(x * n + y) * h..][..h]);
                 // A real signal's z-spectrum has a real DC term (and a real
                 // Nyquist term for even `N`); drop the rounding left in
@@ -147,7 +158,7 @@ impl Fft3d {
                 }
                 let out = &mut grid[(x * n + y) * n..][..n];
                 self.c2r
-                    .process_with_scratch(&mut line, out, &mut scratch)
+                    .process_with_scratch(line, out, &mut work.real)
                     .expect("lengths match the plan and the end terms are real");
                 for v in out.iter_mut() {
                     *v *= norm;
@@ -163,19 +174,18 @@ impl Fft3d {
         spectrum: &mut [Complex<f64>],
         x: usize,
         fft: &Arc<dyn Fft<f64>>,
-        buffer: &mut [Complex<f64>],
-        scratch: &mut [Complex<f64>],
+        work: &mut FftWorkspace,
         keep: usize,
     ) {
         let (n, h) = (self.n, self.n / 2 + 1);
         let plane = &mut spectrum[x * n * h..(x + 1) * n * h];
-        let lines = &mut buffer[..n * h];
+        let lines = &mut work.lines[..n * h];
         for y in 0..n {
             for c in 0..h {
                 lines[c * n + y] = plane[y * h + c];
             }
         }
-        fft.process_with_scratch(lines, scratch);
+        fft.process_with_scratch(lines, &mut work.complex);
         for y in 0..keep {
             for c in 0..h {
                 plane[y * h + c] = lines[c * n + y];
@@ -189,18 +199,18 @@ impl Fft3d {
         &self,
         spectrum: &mut [Complex<f64>],
         fft: &Arc<dyn Fft<f64>>,
-        buffer: &mut [Complex<f64>],
-        scratch: &mut [Complex<f64>],
+        work: &mut FftWorkspace,
         keep: usize,
     ) {
         let (n, h) = (self.n, self.n / 2 + 1);
         let m = n * h;
+        let buffer = &mut work.lines;
         for x in 0..n {
             for yc in 0..m {
                 buffer[yc * n + x] = spectrum[x * m + yc];
             }
         }
-        fft.process_with_scratch(buffer, scratch);
+        fft.process_with_scratch(buffer, &mut work.complex);
         for x in 0..keep {
             for yc in 0..m {
                 spectrum[x * m + yc] = buffer[yc * n + x];
@@ -234,16 +244,17 @@ mod tests {
         let b: Vec<f64> = (0..n * n * n).map(|_| next()).collect();
         let mut sa = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
         let mut sb = sa.clone();
-        fft.forward(&a, &mut sa, n);
-        fft.forward(&b, &mut sb, n);
+        let mut work = fft.workspace();
+        fft.forward(&a, &mut sa, n, &mut work);
+        fft.forward(&b, &mut sb, n, &mut work);
         let mut back = vec![0.0; n * n * n];
-        fft.inverse(&mut sa.clone(), &mut back, n);
+        fft.inverse(&mut sa.clone(), &mut back, n, &mut work);
         for (x, y) in a.iter().zip(&back) {
             assert!((x - y).abs() < 1e-14);
         }
         let mut prod: Vec<Complex<f64>> = sa.iter().zip(&sb).map(|(x, y)| x * y).collect();
         let mut conv = vec![0.0; n * n * n];
-        fft.inverse(&mut prod, &mut conv, n);
+        fft.inverse(&mut prod, &mut conv, n, &mut work);
         let idx = |x: usize, y: usize, z: usize| (x * n + y) * n + z;
         for (x, y, z) in [(0, 0, 0), (1, 4, 5), (5, 5, 5), (2, 0, 3)] {
             let mut want = 0.0;

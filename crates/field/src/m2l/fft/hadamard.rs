@@ -31,10 +31,11 @@
 //! in adaptive trees, whose lists leave out empty boxes: on a sphere
 //! surface about half the children) whose pairs are fewer than two thirds
 //! of the register products it would take goes pair by pair into memory
-//! instead, as do loose pairs. Each complex multiply-add is four fused multiply-adds: `re += kr
-//! xr - ki xi`, `im += kr xi + ki xr`.
+//! instead, as do loose pairs. Each complex multiply-add is four fused
+//! multiply-adds: `re += kr xr - ki xi`, `im += kr xi + ki xr`.
 
 use ferrofmm_kernels::lanes::{Simd, SimdTask};
+use rayon::prelude::*;
 
 use crate::N_TRANSFER_VECTORS;
 use crate::plumbing::{N_PARENT_OFFSETS, SiblingBlocks, block_vector};
@@ -129,11 +130,13 @@ pub(super) struct BlockTable {
     dense: bool,
 }
 
-/// The [`BlockTable`] of every block of `siblings`, in block order.
+/// The [`BlockTable`] of every block of `siblings`, in block order (in
+/// parallel over target groups).
 pub(super) fn block_tables(siblings: &SiblingBlocks) -> Vec<BlockTable> {
     let full = &*BLOCK_ENTRIES;
     (0..siblings.n_target_groups())
-        .flat_map(|g| siblings.blocks(g))
+        .into_par_iter()
+        .flat_map_iter(|g| siblings.blocks(g))
         .map(|blk| {
             let mut t = BlockTable {
                 entries: [[ZERO_VECTOR; 8]; 8],

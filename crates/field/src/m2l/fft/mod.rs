@@ -65,7 +65,7 @@ use rustfft::num_complex::Complex;
 use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W, block_tables};
 use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
-use crate::fft3d::Fft3d;
+use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
 use crate::precompute::effective_threads;
 use crate::surface::unit_surface;
@@ -183,31 +183,27 @@ impl<T: Real> FftM2l<T> {
             real[(wrap(m[0]) * grid + wrap(m[1])) * grid + wrap(m[2])] = value;
         }
         let mut spectrum = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
-        fft.forward(&real, &mut spectrum, grid);
+        fft.forward(&real, &mut spectrum, grid, &mut fft.workspace());
         Ok(spectrum)
     }
 
     /// The spectra of the source boxes `8 g .. 8 g + 8` (missing columns
-    /// zero) into `out` (`[block][8][W]`).
-    fn source_group(
-        &self,
-        multipoles: &[T],
-        g: usize,
-        grid: &mut [f64],
-        spectrum: &mut [Complex<f64>],
-        out: &mut [f64],
-    ) {
+    /// zero) into `out` (`[block][8][W]`). `scratch.grid` must be zero off
+    /// the lattice: a scratch used only here is (only lattice points are
+    /// ever written to it; the inverse transforms use their own).
+    fn source_group(&self, multipoles: &[T], g: usize, scratch: &mut Scratch, out: &mut [f64]) {
         let n = self.n;
         for cs in 0..8 {
             let col = 8 * g + cs;
             let Some(phi) = multipoles.get(col * n..(col + 1) * n) else {
                 break;
             };
-            grid.fill(0.0);
             for (&at, &x) in self.lattice.iter().zip(phi) {
-                grid[at] = x.to_f64();
+                scratch.grid[at] = x.to_f64();
             }
-            self.fft.forward(grid, spectrum, self.order);
+            let spectrum = &mut scratch.spectrum;
+            self.fft
+                .forward(&scratch.grid, spectrum, self.order, &mut scratch.work);
             for (f, c) in spectrum.iter().enumerate() {
                 let at = ((f / FREQ_BLOCK) * 8 + cs) * W + f % FREQ_BLOCK;
                 out[at] = c.re;
@@ -245,6 +241,16 @@ pub(crate) fn grid_size(p: usize) -> usize {
     (2 * p - 1..)
         .find(|&m| smooth(m))
         .expect("smooth numbers are unbounded")
+}
+
+/// One thread's buffers in [`FftM2l::apply`].
+struct Scratch {
+    /// A real grid (`N^3`).
+    grid: Vec<f64>,
+    /// A spectrum.
+    spectrum: Vec<Complex<f64>>,
+    /// The transforms' scratch.
+    work: FftWorkspace,
 }
 
 /// Check that the surfaces lie on one lattice.
@@ -442,20 +448,18 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let siblings = interactions.sibling_blocks();
         let tables = block_tables(siblings);
         let group_len = self.blocks * 8 * W;
-        let (real_len, spectrum_len) = (self.fft.real_len(), self.fft.spectrum_len());
-        let scratch = || {
-            (
-                vec![0.0f64; real_len],
-                vec![Complex::new(0.0, 0.0); spectrum_len],
-            )
+        let scratch = || Scratch {
+            grid: vec![0.0f64; self.fft.real_len()],
+            spectrum: vec![Complex::new(0.0, 0.0); self.fft.spectrum_len()],
+            work: self.fft.workspace(),
         };
         // Spectra of every source box, by sibling group.
         let mut sources = vec![0.0f64; siblings.n_source_groups() * group_len];
         sources
             .par_chunks_mut(group_len)
             .enumerate()
-            .for_each_init(scratch, |(grid, spectrum), (g, out)| {
-                self.source_group(multipoles, g, grid, spectrum, out)
+            .for_each_init(scratch, |scratch, (g, out)| {
+                self.source_group(multipoles, g, scratch, out)
             });
         // Runs of target groups: products, inverse FFTs, lattice values
         // into the run's own check columns.
@@ -469,7 +473,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             .enumerate()
             .for_each_init(
                 || (scratch(), Vec::new()),
-                |((grid, spectrum), targets), (task, out)| {
+                |(scratch, targets), (task, out)| {
                     let first = task * per_task;
                     let groups = (n_groups - first).min(per_task);
                     targets.clear();
@@ -490,11 +494,16 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                         let hit = siblings.targets_hit(first + g);
                         for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
                             let y = &targets[g * group_len..(g + 1) * group_len];
-                            for (f, c) in spectrum.iter_mut().enumerate() {
+                            for (f, c) in scratch.spectrum.iter_mut().enumerate() {
                                 let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
                                 *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
                             }
-                            self.fft.inverse(spectrum, grid, self.order);
+                            let Scratch {
+                                grid,
+                                spectrum,
+                                work,
+                            } = scratch;
+                            self.fft.inverse(spectrum, grid, self.order, work);
                             let col = 8 * g + ct;
                             for (o, &at) in
                                 out[col * n..(col + 1) * n].iter_mut().zip(&self.lattice)
