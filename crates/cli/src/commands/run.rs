@@ -83,16 +83,31 @@ pub struct Settings {
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
     use PrecisionArg::{Auto, F32, F64};
     use SchemeArg::{Dense, Fft, Svd};
-    let precision = match (settings.precision, settings.tolerance) {
-        (Auto, Some(eps)) => auto_precision(&input, eps, settings.gradients)?,
-        (Auto, None) => F64,
-        (p, _) => p,
+    let mode = if settings.gradients {
+        EvalMode::PotentialGradient
+    } else {
+        EvalMode::Potential
     };
-    let scheme = match (settings.scheme, settings.tolerance) {
-        (SchemeArg::Auto, Some(eps)) => auto_scheme(&input, eps, precision, settings)?,
-        (SchemeArg::Auto, None) => Svd,
-        (s, _) => s,
+    // The points, made once, for the automatic choices (only with a
+    // tolerance and an `auto` setting).
+    let auto = settings.precision == Auto || settings.scheme == SchemeArg::Auto;
+    let points = settings
+        .tolerance
+        .filter(|_| auto)
+        .map(|_| points_of(&input));
+    let precision = match (settings.precision, settings.tolerance, &points) {
+        (Auto, Some(eps), Some((s, t))) => auto_precision(s, *t, eps, mode)?,
+        (Auto, _, _) => F64,
+        (p, _, _) => p,
     };
+    let scheme = match (settings.scheme, settings.tolerance, &points) {
+        (SchemeArg::Auto, Some(eps), Some((s, t))) => {
+            auto_scheme(s, *t, eps, mode, precision, settings.cache_dir.is_some())?
+        }
+        (SchemeArg::Auto, _, _) => Svd,
+        (s, _, _) => s,
+    };
+    drop(points);
     let settings = &Settings {
         precision,
         scheme,
@@ -124,25 +139,21 @@ fn points_of(input: &Input) -> (std::borrow::Cow<'_, [f64]>, Option<&[f64]>) {
 }
 
 /// svd or fft, whichever `choose_scheme` predicts faster for `eps` on
-/// these points in float type `precision`.
+/// these points in float type `precision` (the SVD precomputation counted
+/// unless `cached`).
 fn auto_scheme(
-    input: &Input,
+    sources: &[f64],
+    targets: Option<&[f64]>,
     eps: f64,
+    mode: EvalMode,
     precision: PrecisionArg,
-    settings: &Settings,
+    cached: bool,
 ) -> Result<SchemeArg> {
-    let (sources, targets) = points_of(input);
-    let mode = if settings.gradients {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
     let precision = match precision {
         PrecisionArg::F32 => Precision::F32,
         _ => Precision::F64,
     };
-    let cached = settings.cache_dir.is_some();
-    let (shape, _) = choose_scheme(eps, mode, precision, &sources, targets, cached)?;
+    let (shape, _) = choose_scheme(eps, mode, precision, sources, targets, cached)?;
     Ok(match shape {
         M2lCostShape::Fft => SchemeArg::Fft,
         _ => SchemeArg::Svd,
@@ -150,24 +161,12 @@ fn auto_scheme(
 }
 
 /// f32 where it still reaches `eps` on these points, else f64.
-fn auto_precision(input: &Input, eps: f64, gradients: bool) -> Result<PrecisionArg> {
-    let mode = if gradients {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
-    let generated;
-    let (sources, targets): (&[f64], Option<&[f64]>) = match input {
-        Input::Generated {
-            geometry, n, seed, ..
-        } => {
-            generated = geometry.points::<f64>(*n, *seed);
-            (&generated, None)
-        }
-        Input::Given {
-            sources, targets, ..
-        } => (sources, targets.as_deref()),
-    };
+fn auto_precision(
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    eps: f64,
+    mode: EvalMode,
+) -> Result<PrecisionArg> {
     Ok(match choose_precision(eps, mode, sources, targets)? {
         Precision::F32 => PrecisionArg::F32,
         Precision::F64 => PrecisionArg::F64,
