@@ -108,6 +108,9 @@ pub struct M2lInteractions {
     local_targets: Vec<u32>,
     /// The pairs regrouped by parent, made on first use.
     siblings: OnceLock<SiblingBlocks>,
+    /// Sibling slot (`8 group + octant`) of each target and source column,
+    /// when given ([`M2lInteractions::with_sibling_slots`]).
+    slots: Option<(Vec<u32>, Vec<u32>)>,
 }
 
 impl M2lInteractions {
@@ -261,6 +264,7 @@ impl M2lInteractions {
             sources,
             local_targets,
             siblings: OnceLock::new(),
+            slots: None,
         })
     }
 
@@ -301,6 +305,61 @@ impl M2lInteractions {
     /// Number of target chunks (parallel tasks).
     pub fn n_chunks(&self) -> usize {
         self.chunks.len()
+    }
+
+    /// Say which columns are siblings: column `c` is child `slot[c] % 8` of
+    /// sibling group `slot[c] / 8` (octant order of
+    /// [`octant_bits`](crate::plumbing::octant_bits)). Slots must increase
+    /// strictly with the column, as the boxes of a tree level in Morton
+    /// order do with `slot = 8 (index of the parent on its level) +
+    /// octant`. Without slots, column `c` is taken as slot `c`, which is
+    /// right only for a level where every box has all seven siblings; an
+    /// adaptive tree that leaves out empty boxes needs the slots for
+    /// [`M2lInteractions::sibling_blocks`] to find its full blocks (the
+    /// result of a scheme is exact either way).
+    ///
+    /// # Errors
+    /// [`FieldError::InvalidInteractions`] when a slot list has the wrong
+    /// length or does not increase strictly.
+    pub fn with_sibling_slots(
+        mut self,
+        target_slots: Vec<u32>,
+        source_slots: Vec<u32>,
+    ) -> Result<Self, FieldError> {
+        for (what, slots, cols) in [
+            ("target", &target_slots, self.n_target_cols),
+            ("source", &source_slots, self.n_source_cols),
+        ] {
+            if slots.len() != cols {
+                return Err(FieldError::InvalidInteractions(format!(
+                    "{} {what} slots for {cols} {what} columns",
+                    slots.len()
+                )));
+            }
+            if let Some(i) = slots.windows(2).position(|w| w[0] >= w[1]) {
+                return Err(FieldError::InvalidInteractions(format!(
+                    "{what} slots must increase: column {} has slot {}, column {} slot {}",
+                    i,
+                    slots[i],
+                    i + 1,
+                    slots[i + 1]
+                )));
+            }
+        }
+        self.slots = Some((target_slots, source_slots));
+        self.siblings = OnceLock::new();
+        Ok(self)
+    }
+
+    /// Sibling slot of target column `t` (`t` itself without
+    /// [`M2lInteractions::with_sibling_slots`]).
+    pub fn target_slot(&self, t: usize) -> usize {
+        self.slots.as_ref().map_or(t, |(ts, _)| ts[t] as usize)
+    }
+
+    /// Sibling slot of source column `s`.
+    pub fn source_slot(&self, s: usize) -> usize {
+        self.slots.as_ref().map_or(s, |(_, ss)| ss[s] as usize)
     }
 
     /// The pairs regrouped into `8 x 8` sibling blocks

@@ -4,9 +4,12 @@
 //!
 //! # The regrouping
 //!
-//! In a level of an octree every box has its seven siblings, and a level's
-//! boxes in Morton order put the children of one parent in eight
-//! consecutive columns, child `o` at column `8 g + o` of sibling group `g`.
+//! A level's boxes in Morton order put the children of one parent in
+//! consecutive columns. Each column has a **slot** `8 g + o`: child `o` of
+//! sibling group `g` (the parent). The slots come from
+//! [`M2lInteractions::with_sibling_slots`] (the FMM driver gives them: a
+//! tree that leaves out empty boxes has fewer than eight children per
+//! parent); without them column `c` is slot `c`, right for complete levels.
 //! Child `o` sits at offset [`octant_bits`]`(o) = (o & 1, o >> 1 & 1,
 //! o >> 2 & 1)` (in child widths, `x`, `y`, `z`) from its parent's first
 //! child. The transfer vector of target child `ct` of group `T` and source
@@ -25,14 +28,15 @@
 //! (adjacent children) are never pairs.
 //!
 //! [`SiblingBlocks::new`] reads the pairs `(t, s, v)` of an
-//! [`M2lInteractions`] and files each under target group `t / 8`, source
-//! group `s / 8`, parent offset `d = (v - octant_bits(s % 8) +
-//! octant_bits(t % 8)) / 2` and bit `8 (t % 8) + s % 8` of the block's
-//! mask. This uses only the pair itself, so the regrouping is exact for any
-//! interactions: a pair whose `d` is not an integer offset in `[-1, 1]^3`,
-//! or whose `(target group, d)` already holds another source group, or
-//! that repeats a filed pair, is kept as a [`LoosePair`] to be applied on
-//! its own. Columns laid out as in a tree level leave no loose pairs.
+//! [`M2lInteractions`], takes the slots `T` of `t` and `S` of `s`, and files
+//! each pair under target group `T / 8`, source group `S / 8`, parent
+//! offset `d = (v - octant_bits(S % 8) + octant_bits(T % 8)) / 2` and bit
+//! `8 (T % 8) + S % 8` of the block's mask. This uses only the pair itself,
+//! so the regrouping is exact for any interactions and slots: a pair whose
+//! `d` is not an integer offset in `[-1, 1]^3`, or whose `(target group,
+//! d)` already holds another source group, or that repeats a filed pair, is
+//! kept as a [`LoosePair`] to be applied on its own. A tree level with its
+//! slots leaves no loose pairs.
 //!
 //! [`M2lInteractions::sibling_blocks`] builds this once per set of
 //! interactions and keeps it.
@@ -136,9 +140,9 @@ static FULL_MASKS: std::sync::LazyLock<[u64; N_PARENT_OFFSETS]> =
 /// A pair that fits no block, applied on its own.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub struct LoosePair {
-    /// Target column.
+    /// Target slot.
     pub target: u32,
-    /// Source column.
+    /// Source slot.
     pub source: u32,
     /// Index of the transfer vector in [`transfer_vectors`].
     pub vector: u16,
@@ -150,6 +154,12 @@ pub struct LoosePair {
 pub struct SiblingBlocks {
     n_target_groups: usize,
     n_source_groups: usize,
+    /// Column of each target slot (`NO_COLUMN` when absent).
+    target_columns: Vec<u32>,
+    /// Column of each source slot.
+    source_columns: Vec<u32>,
+    /// First target column of each target group (`n_target_groups + 1`).
+    group_starts: Vec<u32>,
     block_starts: Vec<u32>,
     blocks: Vec<SiblingBlock>,
     loose_starts: Vec<u32>,
@@ -157,12 +167,33 @@ pub struct SiblingBlocks {
 }
 
 const UNCLAIMED: u32 = u32::MAX;
+const NO_COLUMN: u32 = u32::MAX;
+
+/// Column of each slot `0..8 groups` (`NO_COLUMN` for a missing child),
+/// and the number of groups.
+fn columns_of_slots(cols: usize, slot: impl Fn(usize) -> usize) -> (Vec<u32>, usize) {
+    let groups = if cols == 0 { 0 } else { slot(cols - 1) / 8 + 1 };
+    let mut out = vec![NO_COLUMN; 8 * groups];
+    for c in 0..cols {
+        out[slot(c)] = c as u32;
+    }
+    (out, groups)
+}
 
 impl SiblingBlocks {
     /// Regroup the pairs of `inter` (in parallel; deterministic).
     pub fn new(inter: &M2lInteractions) -> Self {
-        let n_target_groups = inter.n_target_cols().div_ceil(8);
-        let n_source_groups = inter.n_source_cols().div_ceil(8);
+        let (target_columns, n_target_groups) =
+            columns_of_slots(inter.n_target_cols(), |t| inter.target_slot(t));
+        let (source_columns, n_source_groups) =
+            columns_of_slots(inter.n_source_cols(), |s| inter.source_slot(s));
+        let mut group_starts = vec![0u32; n_target_groups + 1];
+        for t in 0..inter.n_target_cols() {
+            group_starts[inter.target_slot(t) / 8 + 1] += 1;
+        }
+        for g in 0..n_target_groups {
+            group_starts[g + 1] += group_starts[g];
+        }
         let slots = n_target_groups * N_PARENT_OFFSETS;
         let source: Vec<AtomicU32> = (0..slots).map(|_| AtomicU32::new(UNCLAIMED)).collect();
         let mask: Vec<AtomicU64> = (0..slots).map(|_| AtomicU64::new(0)).collect();
@@ -170,8 +201,10 @@ impl SiblingBlocks {
         let chunks: Vec<_> = inter.chunk_views().collect();
         // Pass 1: each (target group, offset) slot goes to its smallest
         // source group (deterministic whatever the thread timing).
+        let slots =
+            |(t, s, vi): (usize, usize, usize)| (inter.target_slot(t), inter.source_slot(s), vi);
         chunks.par_iter().for_each(|c| {
-            for (t, s, vi) in pairs_of(*c) {
+            for (t, s, vi) in pairs_of(*c).map(slots) {
                 if let Some(d) = offset_of(t, s, vectors[vi]) {
                     source[(t / 8) * N_PARENT_OFFSETS + d]
                         .fetch_min((s / 8) as u32, Ordering::Relaxed);
@@ -184,7 +217,7 @@ impl SiblingBlocks {
             .par_iter()
             .flat_map_iter(|c| {
                 let mut out = Vec::new();
-                for (t, s, vi) in pairs_of(*c) {
+                for (t, s, vi) in pairs_of(*c).map(slots) {
                     if let Some(d) = offset_of(t, s, vectors[vi]) {
                         let slot = (t / 8) * N_PARENT_OFFSETS + d;
                         if source[slot].load(Ordering::Relaxed) == (s / 8) as u32 {
@@ -231,6 +264,9 @@ impl SiblingBlocks {
         SiblingBlocks {
             n_target_groups,
             n_source_groups,
+            target_columns,
+            source_columns,
+            group_starts,
             block_starts,
             blocks,
             loose_starts,
@@ -238,14 +274,32 @@ impl SiblingBlocks {
         }
     }
 
-    /// Number of target groups, `ceil(n_target_cols / 8)`.
+    /// Number of target groups (the last target slot's group, plus one).
     pub fn n_target_groups(&self) -> usize {
         self.n_target_groups
     }
 
-    /// Number of source groups, `ceil(n_source_cols / 8)`.
+    /// Number of source groups.
     pub fn n_source_groups(&self) -> usize {
         self.n_source_groups
+    }
+
+    /// The target column of target slot `slot`, `None` for a missing child.
+    pub fn target_column(&self, slot: usize) -> Option<usize> {
+        let c = self.target_columns[slot];
+        (c != NO_COLUMN).then_some(c as usize)
+    }
+
+    /// The source column of source slot `slot`, `None` for a missing child.
+    pub fn source_column(&self, slot: usize) -> Option<usize> {
+        let c = self.source_columns[slot];
+        (c != NO_COLUMN).then_some(c as usize)
+    }
+
+    /// The target columns of target groups `groups` (consecutive: slots
+    /// increase with the column).
+    pub fn group_columns(&self, groups: std::ops::Range<usize>) -> std::ops::Range<usize> {
+        self.group_starts[groups.start] as usize..self.group_starts[groups.end] as usize
     }
 
     /// The blocks of target group `g`, in ascending offset.
@@ -259,7 +313,7 @@ impl SiblingBlocks {
         self.block_starts[g] as usize..self.block_starts[g + 1] as usize
     }
 
-    /// The loose pairs of target group `g` (target columns `8 g .. 8 g +
+    /// The loose pairs of target group `g` (target slots `8 g .. 8 g +
     /// 8`), sorted.
     pub fn loose(&self, g: usize) -> &[LoosePair] {
         &self.loose[self.loose_starts[g] as usize..self.loose_starts[g + 1] as usize]
@@ -366,6 +420,57 @@ mod tests {
             .filter(|b| b.is_full())
             .count();
         assert!(full > 0 && aligned > 0);
+    }
+
+    /// Boxes left out (as a tree leaves out empty ones): with the sibling
+    /// slots every pair still lands in a block; without them most go loose.
+    #[test]
+    fn slots_find_the_blocks_of_a_sparse_level() {
+        let slot = |x: i32, y: i32, z: i32| {
+            let g = ((x / 2) * 9 + (y / 2) * 3 + z / 2) as u32;
+            8 * g + ((x % 2) + 2 * (y % 2) + 4 * (z % 2)) as u32
+        };
+        let kept: Vec<u32> = (0..216u32).filter(|m| m % 3 != 1).collect();
+        let column = |m: u32| kept.iter().position(|&k| k == m);
+        let mut pairs = Vec::new();
+        for (x, y, z) in itertools(6) {
+            for (a, b, c) in itertools(6) {
+                let v = [a - x, b - y, c - z];
+                let near = (x / 2 - a / 2).abs() <= 1
+                    && (y / 2 - b / 2).abs() <= 1
+                    && (z / 2 - c / 2).abs() <= 1;
+                if let (true, Some(_), Some(t), Some(s)) = (
+                    near,
+                    transfer_vector_index(v),
+                    column(slot(x, y, z)),
+                    column(slot(a, b, c)),
+                ) {
+                    pairs.push((t, s, v));
+                }
+            }
+        }
+        let n = kept.len();
+        let plain = M2lInteractions::with_chunk_size(n, n, &pairs, 16).unwrap();
+        assert!(SiblingBlocks::new(&plain).n_loose() > pairs.len() / 2);
+        let slotted = plain
+            .with_sibling_slots(kept.clone(), kept.clone())
+            .unwrap();
+        let sib = slotted.sibling_blocks();
+        assert_eq!(sib.n_loose(), 0);
+        let filed: u32 = (0..sib.n_target_groups())
+            .flat_map(|g| sib.blocks(g))
+            .map(|b| b.mask.count_ones())
+            .sum();
+        assert_eq!(filed as usize, pairs.len());
+        assert_eq!(sib.group_columns(0..sib.n_target_groups()), 0..n);
+        for (c, &m) in kept.iter().enumerate() {
+            assert_eq!(sib.target_column(m as usize), Some(c));
+            assert_eq!(sib.source_column(m as usize), Some(c));
+        }
+        assert_eq!(sib.target_column(1), None);
+        // Slots that do not increase are refused.
+        let bad = M2lInteractions::with_chunk_size(2, 2, &[], 16).unwrap();
+        assert!(bad.with_sibling_slots(vec![3, 3], vec![0, 1]).is_err());
     }
 
     fn itertools(n: i32) -> impl Iterator<Item = (i32, i32, i32)> {

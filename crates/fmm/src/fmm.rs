@@ -503,12 +503,26 @@ fn level_interactions(
     let range = tree.level_range(level);
     let start = range.start;
     let chunk = M2lInteractions::default_chunk_size(range.len());
-    M2lInteractions::from_targets(range.len(), range.len(), chunk, |t| {
+    let inter = M2lInteractions::from_targets(range.len(), range.len(), chunk, |t| {
         let key = tree.key(start + t);
         tree.v_list(start + t)
             .iter()
             .map(move |&a| (a - start, key.transfer_vector(tree.key(a))))
-    })
+    })?;
+    if level == 0 {
+        return Ok(inter);
+    }
+    // Sibling slot of each box: 8 (parent's index on its level) + octant
+    // (increasing with the Morton order), so that schemes that treat
+    // siblings together find them although empty boxes are left out.
+    let parents = tree.level_range(level - 1).start;
+    let slots: Vec<u32> = range
+        .map(|b| {
+            let parent = tree.parent(b).expect("a box below the root has a parent");
+            (8 * (parent - parents) + tree.key(b).octant()) as u32
+        })
+        .collect();
+    inter.with_sibling_slots(slots.clone(), slots)
 }
 
 /// The point the stored coordinates are relative to: the domain's centre

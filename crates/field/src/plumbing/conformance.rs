@@ -19,8 +19,10 @@
 //! inside many V lists), with the boxes in lexicographic and in Morton
 //! column order (siblings in eight consecutive columns, as in a tree level:
 //! the layout [`SiblingBlocks`](super::SiblingBlocks) files into full
-//! `8 x 8` blocks) and with one Morton pair in five left out (partial
-//! blocks), that `apply` accumulates (the initial `check0` is kept), and
+//! `8 x 8` blocks), with one Morton pair in five left out (partial
+//! blocks) and without every third box (compacted columns with their
+//! sibling slots, as a tree that leaves out empty boxes), that `apply`
+//! accumulates (the initial `check0` is kept), and
 //! that an empty interaction set changes nothing.
 //!
 //! ```
@@ -95,33 +97,49 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
     let mut worst = 0.0f64;
     let mut total_pairs = 0;
     for (level, lex_pairs) in &levels {
-        let cols = 1usize << (3 * level);
-        // Three layouts of the same level: lexicographic columns, Morton
-        // columns (siblings in consecutive columns, as in a tree), and
-        // Morton columns with one pair in five left out (partial sibling
-        // blocks).
+        let all = 1usize << (3 * level);
+        // Four layouts of the same level: lexicographic columns, Morton
+        // columns (siblings in consecutive columns, as in a tree), Morton
+        // columns with one pair in five left out (partial sibling blocks),
+        // and Morton columns without every third box, compacted, with
+        // their sibling slots (a tree that leaves out empty boxes).
         let morton = morton_columns(*level);
-        let layouts: [(&str, Vec<Pair>); 3] = [
-            ("lexicographic columns", lex_pairs.clone()),
-            (
-                "Morton columns",
-                lex_pairs
-                    .iter()
-                    .map(|&(t, s, v)| (morton[t], morton[s], v))
-                    .collect(),
-            ),
+        let morton_pairs = |keep: &dyn Fn(usize) -> bool| -> Vec<Pair> {
+            lex_pairs
+                .iter()
+                .enumerate()
+                .filter(|&(i, _)| keep(i))
+                .map(|(_, &(t, s, v))| (morton[t], morton[s], v))
+                .collect()
+        };
+        let kept_slots: Vec<u32> = (0..all as u32).filter(|m| m % 3 != 1).collect();
+        let mut compact = vec![usize::MAX; all];
+        for (c, &m) in kept_slots.iter().enumerate() {
+            compact[m as usize] = c;
+        }
+        let sparse_pairs: Vec<Pair> = morton_pairs(&|_| true)
+            .into_iter()
+            .filter(|&(t, s, _)| compact[t] != usize::MAX && compact[s] != usize::MAX)
+            .map(|(t, s, v)| (compact[t], compact[s], v))
+            .collect();
+        let layouts: [(&str, Vec<Pair>, usize, Option<Vec<u32>>); 4] = [
+            ("lexicographic columns", lex_pairs.clone(), all, None),
+            ("Morton columns", morton_pairs(&|_| true), all, None),
             (
                 "Morton columns, 1 pair in 5 left out",
-                lex_pairs
-                    .iter()
-                    .enumerate()
-                    .filter(|(i, _)| i % 5 != 2)
-                    .map(|(_, &(t, s, v))| (morton[t], morton[s], v))
-                    .collect(),
+                morton_pairs(&|i| i % 5 != 2),
+                all,
+                None,
+            ),
+            (
+                "Morton columns without every third box, with sibling slots",
+                sparse_pairs,
+                kept_slots.len(),
+                Some(kept_slots.clone()),
             ),
         ];
-        for (layout, pairs) in &layouts {
-            let pairs = pairs.as_slice();
+        for (layout, pairs, cols, slots) in &layouts {
+            let (pairs, cols) = (pairs.as_slice(), *cols);
             let multipoles: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
             let check0: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
             let reference = reference(kernel, params, &map, *level, pairs, &multipoles, &check0)?;
@@ -134,9 +152,15 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
             if contribution == 0.0 {
                 return Err(format!("level {level}: the reference contribution is zero"));
             }
-            let default_chunks =
-                M2lInteractions::try_new(cols, cols, pairs).map_err(|e| e.to_string())?;
+            let with_slots = |inter: M2lInteractions| match slots {
+                Some(sl) => inter.with_sibling_slots(sl.clone(), sl.clone()),
+                None => Ok(inter),
+            };
+            let default_chunks = M2lInteractions::try_new(cols, cols, pairs)
+                .and_then(with_slots)
+                .map_err(|e| e.to_string())?;
             let small_chunks = M2lInteractions::with_chunk_size(cols, cols, pairs, 7)
+                .and_then(with_slots)
                 .map_err(|e| e.to_string())?;
             for (scheme, which) in [(&full, "precompute"), (&restricted, "precompute_for")] {
                 for (inter, chunks) in [
@@ -163,7 +187,7 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
                 }
             }
         }
-        let pairs = lex_pairs;
+        let (pairs, cols) = (lex_pairs, all);
         let multipoles: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
         let check0: Vec<T> = (0..n * cols).map(|_| T::from_f64(rng.next())).collect();
         total_pairs += pairs.len();

@@ -67,6 +67,7 @@ use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
 use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
+use crate::plumbing::SiblingBlocks;
 use crate::precompute::effective_threads;
 use crate::surface::unit_surface;
 use crate::{
@@ -187,17 +188,24 @@ impl<T: Real> FftM2l<T> {
         Ok(spectrum)
     }
 
-    /// The spectra of the source boxes `8 g .. 8 g + 8` (missing columns
-    /// zero) into `out` (`[block][8][W]`). `scratch.grid` must be zero off
-    /// the lattice: a scratch used only here is (only lattice points are
-    /// ever written to it; the inverse transforms use their own).
-    fn source_group(&self, multipoles: &[T], g: usize, scratch: &mut Scratch, out: &mut [f64]) {
+    /// The spectra of the source boxes of sibling group `g` (missing
+    /// children zero) into `out` (`[block][8][W]`). `scratch.grid` must be
+    /// zero off the lattice: a scratch used only here is (only lattice
+    /// points are ever written to it; the inverse transforms use their own).
+    fn source_group(
+        &self,
+        multipoles: &[T],
+        siblings: &SiblingBlocks,
+        g: usize,
+        scratch: &mut Scratch,
+        out: &mut [f64],
+    ) {
         let n = self.n;
         for cs in 0..8 {
-            let col = 8 * g + cs;
-            let Some(phi) = multipoles.get(col * n..(col + 1) * n) else {
-                break;
+            let Some(col) = siblings.source_column(8 * g + cs) else {
+                continue;
             };
+            let phi = &multipoles[col * n..(col + 1) * n];
             for (&at, &x) in self.lattice.iter().zip(phi) {
                 scratch.grid[at] = x.to_f64();
             }
@@ -459,7 +467,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             .par_chunks_mut(group_len)
             .enumerate()
             .for_each_init(scratch, |scratch, (g, out)| {
-                self.source_group(multipoles, g, scratch, out)
+                self.source_group(multipoles, siblings, g, scratch, out)
             });
         // Runs of target groups: products, inverse FFTs, lattice values
         // into the run's own check columns.
@@ -468,52 +476,59 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let per_task = n_groups.div_ceil(4 * threads).clamp(1, GROUPS_PER_TASK);
         let kernels = &self.slabs[set];
         let level_simd = SimdLevel::active();
-        check
-            .par_chunks_mut(8 * n * per_task)
-            .enumerate()
-            .for_each_init(
-                || (scratch(), Vec::new()),
-                |(scratch, targets), (task, out)| {
-                    let first = task * per_task;
-                    let groups = (n_groups - first).min(per_task);
-                    targets.clear();
-                    targets.resize(groups * group_len, 0.0);
-                    run_task(
-                        level_simd,
-                        Products {
-                            kernels,
-                            sources: &sources,
-                            siblings,
-                            tables: &tables,
-                            first,
-                            targets,
-                            blocks: self.blocks,
-                        },
-                    );
-                    for g in 0..groups {
-                        let hit = siblings.targets_hit(first + g);
-                        for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
-                            let y = &targets[g * group_len..(g + 1) * group_len];
-                            for (f, c) in scratch.spectrum.iter_mut().enumerate() {
-                                let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
-                                *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
-                            }
-                            let Scratch {
-                                grid,
-                                spectrum,
-                                work,
-                            } = scratch;
-                            self.fft.inverse(spectrum, grid, self.order, work);
-                            let col = 8 * g + ct;
-                            for (o, &at) in
-                                out[col * n..(col + 1) * n].iter_mut().zip(&self.lattice)
-                            {
-                                *o += T::from_f64(scale * grid[at]);
-                            }
+        // Each task's groups and its own columns of `check` (consecutive:
+        // the slots increase with the column).
+        let mut tasks = Vec::with_capacity(n_groups.div_ceil(per_task));
+        let mut rest = check;
+        for first in (0..n_groups).step_by(per_task) {
+            let groups = first..(first + per_task).min(n_groups);
+            let columns = siblings.group_columns(groups.clone());
+            let (mine, next) = rest.split_at_mut(columns.len() * n);
+            tasks.push((groups, columns.start, mine));
+            rest = next;
+        }
+        tasks.into_par_iter().for_each_init(
+            || (scratch(), Vec::new()),
+            |(scratch, targets), (groups, col0, out)| {
+                targets.clear();
+                targets.resize(groups.len() * group_len, 0.0);
+                run_task(
+                    level_simd,
+                    Products {
+                        kernels,
+                        sources: &sources,
+                        siblings,
+                        tables: &tables,
+                        first: groups.start,
+                        targets,
+                        blocks: self.blocks,
+                    },
+                );
+                for (i, g) in groups.enumerate() {
+                    let hit = siblings.targets_hit(g);
+                    for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
+                        let col = siblings
+                            .target_column(8 * g + ct)
+                            .expect("a target slot with pairs has a column");
+                        let y = &targets[i * group_len..(i + 1) * group_len];
+                        for (f, c) in scratch.spectrum.iter_mut().enumerate() {
+                            let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
+                            *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
+                        }
+                        let Scratch {
+                            grid,
+                            spectrum,
+                            work,
+                        } = scratch;
+                        self.fft.inverse(spectrum, grid, self.order, work);
+                        let column = &mut out[(col - col0) * n..(col - col0 + 1) * n];
+                        for (o, &at) in column.iter_mut().zip(&self.lattice) {
+                            *o += T::from_f64(scale * grid[at]);
                         }
                     }
-                },
-            );
+                }
+            },
+        );
     }
 
     fn cache_status(&self) -> CacheStatus {
