@@ -46,6 +46,9 @@ use crate::{
 /// One V-list pair: (target column, source column, transfer vector).
 pub type Pair = (usize, usize, [i32; 3]);
 
+/// A column layout of a level: name, pairs, columns and sibling slots.
+type Layout = (&'static str, Vec<Pair>, usize, Option<Vec<u32>>);
+
 /// Levels [`check_scheme`] exercises (both complete grids).
 pub const LEVELS: [u32; 2] = [2, 3];
 
@@ -122,7 +125,7 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
             .filter(|&(t, s, _)| compact[t] != usize::MAX && compact[s] != usize::MAX)
             .map(|(t, s, v)| (compact[t], compact[s], v))
             .collect();
-        let layouts: [(&str, Vec<Pair>, usize, Option<Vec<u32>>); 4] = [
+        let layouts: [Layout; 4] = [
             ("lexicographic columns", lex_pairs.clone(), all, None),
             ("Morton columns", morton_pairs(&|_| true), all, None),
             (

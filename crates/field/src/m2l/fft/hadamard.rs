@@ -28,10 +28,10 @@
 //! multiplied into the eight target children's accumulators, which stay in
 //! registers over all of `T`'s blocks (`16` registers with AVX-512; with
 //! narrower registers the targets go four at a time). A sparse block (as
-//! in adaptive trees, whose lists leave out empty boxes: on a sphere
-//! surface about half the children) whose pairs are fewer than two thirds
-//! of the register products it would take goes pair by pair into memory
-//! instead, as do loose pairs. Each complex multiply-add is four fused
+//! in adaptive trees, where a parent may have fewer than eight children
+//! with points) whose pairs are fewer than two thirds of the register
+//! products it would take goes pair by pair into memory instead, as do
+//! loose pairs. Each complex multiply-add is four fused
 //! multiply-adds: `re += kr xr - ki xi`, `im += kr xi + ki xr`.
 
 use ferrofmm_kernels::lanes::{Simd, SimdTask};
