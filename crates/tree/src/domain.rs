@@ -211,3 +211,18 @@ fn bounds(p: &[f64]) -> ([f64; 3], [f64; 3]) {
             )
         })
 }
+
+/// Checks that every point of `p` lies in the closed cube of `d`.
+pub(crate) fn check_inside(set: PointSet, p: &[f64], d: &Domain) -> Result<(), TreeError> {
+    let bad = p
+        .par_chunks_exact(3)
+        .position_first(|c| !d.contains([c[0], c[1], c[2]]));
+    match bad {
+        Some(index) => Err(TreeError::OutsideDomain {
+            set,
+            index,
+            point: [p[3 * index], p[3 * index + 1], p[3 * index + 2]],
+        }),
+        None => Ok(()),
+    }
+}

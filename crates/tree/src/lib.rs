@@ -16,6 +16,10 @@
 //!   2:1 balanced ([`balance`]). Only boxes holding points exist.
 //! * Interaction lists U, V, W, X ([`lists`]) in CSR form, each pruned to
 //!   boxes that actually exchange something.
+//! * [`MortonCodes`] and [`TreeShape`] ([`shape`]): the boxes and point
+//!   counts of the adaptive, balanced tree for any leaf size, from sorted
+//!   Morton codes alone, with the builder's own refinement and balance
+//!   (what a parameter chooser needs, at a fraction of a build).
 //! * [`separated_clusters`] ([`clusters`]): far-apart groups of points (a
 //!   distant outlier, two clouds far apart) that are better served by one
 //!   tree each than by one tree whose levels are spent on empty space.
@@ -49,6 +53,7 @@ pub mod morton;
 mod neighbours;
 pub mod octree;
 pub mod options;
+pub mod shape;
 
 pub use clusters::{Cluster, DEFAULT_SEPARATION, separated_clusters};
 pub use csr::Csr;
@@ -58,3 +63,4 @@ pub use lists::InteractionLists;
 pub use morton::{DEEPEST_LEVEL, FINEST_GRID, MortonKey};
 pub use octree::Octree;
 pub use options::TreeOptions;
+pub use shape::{MortonCodes, ShapeBox, TreeShape};

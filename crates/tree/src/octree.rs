@@ -21,11 +21,9 @@
 
 use std::ops::Range;
 
-use rayon::prelude::*;
-
 use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
-use crate::domain::{Domain, validate_points};
+use crate::domain::{Domain, check_inside, validate_points};
 use crate::error::{PointSet, TreeError};
 use crate::lists::InteractionLists;
 use crate::morton::MortonKey;
@@ -464,20 +462,5 @@ impl Octree {
         out.sort_unstable();
         out.dedup();
         out
-    }
-}
-
-/// Checks that every point of `p` lies in the closed cube of `d`.
-fn check_inside(set: PointSet, p: &[f64], d: &Domain) -> Result<(), TreeError> {
-    let bad = p
-        .par_chunks_exact(3)
-        .position_first(|c| !d.contains([c[0], c[1], c[2]]));
-    match bad {
-        Some(index) => Err(TreeError::OutsideDomain {
-            set,
-            index,
-            point: [p[3 * index], p[3 * index + 1], p[3 * index + 2]],
-        }),
-        None => Ok(()),
     }
 }
