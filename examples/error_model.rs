@@ -7,6 +7,8 @@
 //! ```
 //!
 //! * `N`: points per geometry (default 20000).
+//! * `kernel=laplace` (default) or `kernel=yukawa:K` (modified Helmholtz
+//!   `e^{-K r} / (4 pi r)`; the geometries span about one unit).
 //! * `geometries=cube,sphere,...` (default: all of `Geometry::ALL`),
 //!   `charges=signed,positive` (default both), `orders=3,4,...` (default
 //!   3..=12), `leaves=64` (leaf sizes), `precision=f64|f32`,
@@ -24,7 +26,7 @@ use std::time::Instant;
 
 use ferrofmm::field::{SvdConfig, SvdM2l, default_svd_tolerance};
 use ferrofmm::fmm::{Charges, Fmm, FmmBuilder, Geometry, relative_errors, sample_indices};
-use ferrofmm::kernels::{EvalMode, Laplace3d, Precision, Real};
+use ferrofmm::kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real};
 
 const CACHE: &str = "target/error-model-cache";
 const SAMPLE: usize = 997;
@@ -57,8 +59,8 @@ impl SvdTolerance {
 }
 
 /// Values for every charge vector.
-fn evaluate_all<T: Real, S: ferrofmm::field::M2lScheme<T>>(
-    fmm: &Fmm<T, Laplace3d, S>,
+fn evaluate_all<T: Real, K: Kernel, S: ferrofmm::field::M2lScheme<T>>(
+    fmm: &Fmm<T, K, S>,
     charge_sets: &[(Charges, Vec<T>)],
 ) -> Vec<Vec<T>> {
     charge_sets
@@ -79,8 +81,18 @@ fn main() {
     let mut leaves = vec![64usize];
     let mut precision = Precision::F64;
     let mut schemes = vec![Scheme::Dense, Scheme::Svd(SvdTolerance::Default)];
+    let mut yukawa: Option<f64> = None;
     for a in std::env::args().skip(1) {
-        if let Some(v) = a.strip_prefix("geometries=") {
+        if let Some(v) = a.strip_prefix("kernel=") {
+            yukawa = match v.strip_prefix("yukawa:").map(str::parse) {
+                Some(Ok(k)) => Some(k),
+                _ if v == "laplace" => None,
+                _ => {
+                    eprintln!("unknown kernel {v}");
+                    std::process::exit(2);
+                }
+            };
+        } else if let Some(v) = a.strip_prefix("geometries=") {
             geometries = v.split(',').filter_map(Geometry::from_name).collect();
         } else if let Some(v) = a.strip_prefix("charges=") {
             kinds = v.split(',').filter_map(Charges::from_name).collect();
@@ -118,7 +130,8 @@ fn main() {
         }
     }
     println!(
-        "N = {n}, {}, potential + gradient, {SAMPLE} sampled targets\n",
+        "N = {n}, {}, {}, potential + gradient, {SAMPLE} sampled targets\n",
+        yukawa.map_or("laplace".to_string(), |k| format!("yukawa k = {k}")),
         precision.name()
     );
     println!(
@@ -126,79 +139,111 @@ fn main() {
     );
     println!("|---|---|---|---|---|---|---|---|---|---|---|");
     for g in &geometries {
-        match precision {
-            Precision::F64 => measure::<f64>(*g, n, &kinds, &orders, &leaves, &schemes),
-            Precision::F32 => measure::<f32>(*g, n, &kinds, &orders, &leaves, &schemes),
+        let run = Run {
+            geometry: *g,
+            n,
+            kinds: &kinds,
+            orders: &orders,
+            leaves: &leaves,
+            schemes: &schemes,
+        };
+        match (precision, yukawa) {
+            (Precision::F64, None) => run.measure::<f64, _>(Laplace3d),
+            (Precision::F32, None) => run.measure::<f32, _>(Laplace3d),
+            (Precision::F64, Some(k)) => run.measure::<f64, _>(yukawa_kernel(k)),
+            (Precision::F32, Some(k)) => run.measure::<f32, _>(yukawa_kernel(k)),
         }
     }
 }
 
-fn measure<T: Real>(
-    g: Geometry,
+fn yukawa_kernel(k: f64) -> ModifiedHelmholtz3d {
+    ModifiedHelmholtz3d::new(k).unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(2)
+    })
+}
+
+/// One geometry's runs.
+struct Run<'a> {
+    geometry: Geometry,
     n: usize,
-    kinds: &[Charges],
-    orders: &[usize],
-    leaves: &[usize],
-    schemes: &[Scheme],
-) {
-    let points: Vec<T> = g.points(n, 7);
-    let charge_sets: Vec<(Charges, Vec<T>)> =
-        kinds.iter().map(|&k| (k, k.generate(n, 11))).collect();
-    let sample = sample_indices(n, SAMPLE);
-    let mode = EvalMode::PotentialGradient;
-    for &p in orders {
-        for &leaf in leaves {
-            let mut dense: Vec<Option<(f64, f64)>> = vec![None; charge_sets.len()];
-            for &scheme in schemes {
-                let t = Instant::now();
-                let builder = FmmBuilder::new(&points)
-                    .order(p)
-                    .leaf_size(leaf)
-                    .mode(mode)
-                    .cache_dir(CACHE);
-                let (results, rank, label) = match scheme {
-                    Scheme::Dense => {
-                        let Ok(fmm) = builder.build_dense().inspect_err(|e| eprintln!("{e}"))
-                        else {
-                            continue;
-                        };
-                        let r = evaluate_all(&fmm, &charge_sets);
-                        (r, "-".to_string(), "dense".to_string())
-                    }
-                    Scheme::Svd(tolerance) => {
-                        let tau = tolerance.at::<T>(p);
-                        let config = SvdConfig {
-                            rank: None,
-                            tolerance: tau,
-                        };
-                        let built = builder.build_with::<SvdM2l<T>>(config);
-                        let Ok(fmm) = built.inspect_err(|e| eprintln!("{e}")) else {
-                            continue;
-                        };
-                        let r = evaluate_all(&fmm, &charge_sets);
-                        let rank = fmm.m2l_scheme().rank().to_string();
-                        (r, rank, format!("svd {tau:.0e}"))
-                    }
-                };
-                let seconds = t.elapsed().as_secs_f64();
-                for (i, ((kind, q), values)) in charge_sets.iter().zip(&results).enumerate() {
-                    let e = relative_errors(&Laplace3d, mode, &points, q, &points, values, &sample);
-                    let grad = e.gradient.unwrap_or(f64::NAN);
-                    let loss = match (scheme, dense[i]) {
-                        (Scheme::Svd(_), Some((dp, dg))) => {
-                            format!("{:.2} | {:.2}", e.potential / dp, grad / dg)
+    kinds: &'a [Charges],
+    orders: &'a [usize],
+    leaves: &'a [usize],
+    schemes: &'a [Scheme],
+}
+
+impl Run<'_> {
+    fn measure<T: Real, K: Kernel + Clone>(&self, kernel: K) {
+        let Run {
+            geometry: g,
+            n,
+            kinds,
+            orders,
+            leaves,
+            schemes,
+        } = *self;
+        let points: Vec<T> = g.points(n, 7);
+        let charge_sets: Vec<(Charges, Vec<T>)> =
+            kinds.iter().map(|&k| (k, k.generate(n, 11))).collect();
+        let sample = sample_indices(n, SAMPLE);
+        let mode = EvalMode::PotentialGradient;
+        for &p in orders {
+            for &leaf in leaves {
+                let mut dense: Vec<Option<(f64, f64)>> = vec![None; charge_sets.len()];
+                for &scheme in schemes {
+                    let t = Instant::now();
+                    let builder = FmmBuilder::new(&points)
+                        .kernel(kernel.clone())
+                        .order(p)
+                        .leaf_size(leaf)
+                        .mode(mode)
+                        .cache_dir(CACHE);
+                    let (results, rank, label) = match scheme {
+                        Scheme::Dense => {
+                            let Ok(fmm) = builder.build_dense().inspect_err(|e| eprintln!("{e}"))
+                            else {
+                                continue;
+                            };
+                            let r = evaluate_all(&fmm, &charge_sets);
+                            (r, "-".to_string(), "dense".to_string())
                         }
-                        _ => "- | -".to_string(),
+                        Scheme::Svd(tolerance) => {
+                            let tau = tolerance.at::<T>(p);
+                            let config = SvdConfig {
+                                rank: None,
+                                tolerance: tau,
+                            };
+                            let built = builder.build_with::<SvdM2l<T>>(config);
+                            let Ok(fmm) = built.inspect_err(|e| eprintln!("{e}")) else {
+                                continue;
+                            };
+                            let r = evaluate_all(&fmm, &charge_sets);
+                            let rank = fmm.m2l_scheme().rank().to_string();
+                            (r, rank, format!("svd {tau:.0e}"))
+                        }
                     };
-                    if let Scheme::Dense = scheme {
-                        dense[i] = Some((e.potential, grad));
+                    let seconds = t.elapsed().as_secs_f64();
+                    for (i, ((kind, q), values)) in charge_sets.iter().zip(&results).enumerate() {
+                        let e =
+                            relative_errors(&kernel, mode, &points, q, &points, values, &sample);
+                        let grad = e.gradient.unwrap_or(f64::NAN);
+                        let loss = match (scheme, dense[i]) {
+                            (Scheme::Svd(_), Some((dp, dg))) => {
+                                format!("{:.2} | {:.2}", e.potential / dp, grad / dg)
+                            }
+                            _ => "- | -".to_string(),
+                        };
+                        if let Scheme::Dense = scheme {
+                            dense[i] = Some((e.potential, grad));
+                        }
+                        println!(
+                            "| {} | {} | {p} | {leaf} | {label} | {rank} | {:.2e} | {grad:.2e} | {loss} | {seconds:.1} |",
+                            g.name(),
+                            kind.name(),
+                            e.potential
+                        );
                     }
-                    println!(
-                        "| {} | {} | {p} | {leaf} | {label} | {rank} | {:.2e} | {grad:.2e} | {loss} | {seconds:.1} |",
-                        g.name(),
-                        kind.name(),
-                        e.potential
-                    );
                 }
             }
         }

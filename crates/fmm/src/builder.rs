@@ -2,6 +2,7 @@
 //! then build the tree and the operators once.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use ferrofmm_field::{
     DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
@@ -11,7 +12,7 @@ use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
 use crate::fmm::ChosenScheme;
-use crate::tuning::ChosenParameters;
+use crate::tuning::{ChosenParameters, TuningModel};
 use crate::{Fmm, FmmError, tuning};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
@@ -55,6 +56,7 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) verify: bool,
     pub(crate) memory_limit: MemoryLimit,
     pub(crate) monitor: PrecomputeMonitor,
+    pub(crate) tuning_model: Option<Arc<dyn TuningModel>>,
 }
 
 impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
@@ -79,6 +81,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             verify: true,
             memory_limit: MemoryLimit::Auto,
             monitor: PrecomputeMonitor::default(),
+            tuning_model: None,
         }
     }
 }
@@ -102,6 +105,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             verify: self.verify,
             memory_limit: self.memory_limit,
             monitor: self.monitor,
+            tuning_model: None,
         }
     }
 
@@ -133,6 +137,27 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// ```
     pub fn tolerance(mut self, eps: f64) -> Self {
         self.tolerance = Some(eps);
+        self
+    }
+
+    /// The models a [`FmmBuilder::tolerance`] is chosen with: your own
+    /// [`TuningModel`] for a kernel or scheme the defaults do not know
+    /// ([`tuning::default_model`]: measured for Laplace and modified
+    /// Helmholtz, Laplace's tables borrowed for other kernels). Changing
+    /// the kernel with [`FmmBuilder::kernel`] resets it.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry, tuning::LaplaceModel};
+    /// let points: Vec<f64> = Geometry::Cube.points(5000, 1);
+    /// let fmm = FmmBuilder::new(&points)
+    ///     .tolerance(1e-5)
+    ///     .tuning_model(LaplaceModel)
+    ///     .build_svd()?;
+    /// assert_eq!(fmm.chosen_parameters().unwrap().model, "laplace");
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn tuning_model(mut self, model: impl TuningModel + 'static) -> Self {
+        self.tuning_model = Some(Arc::new(model));
         self
     }
 

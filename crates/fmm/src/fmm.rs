@@ -14,7 +14,7 @@ use crate::builder::FmmBuilder;
 use crate::memory::MemoryReport;
 use crate::part::{Body, Part, PointsPart, TreePart};
 use crate::timings::{EvalTimings, SetupTimings};
-use crate::tuning::{ChosenParameters, Tuner};
+use crate::tuning::{self, ChosenParameters, ErrorModel, Tuner};
 use crate::verify::Verification;
 use crate::{FmmError, passes};
 
@@ -63,6 +63,9 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) config_from_chosen: ConfigFromChosen<S::Config, S>,
     /// Whether [`Fmm::evaluate_verified`] checks a tolerance.
     pub(crate) verify: bool,
+    /// The error model the parameters were chosen with (`None`: given by
+    /// the caller); the verification raises the order with it.
+    pub(crate) error_model: Option<ErrorModel>,
     /// The last verification (see [`Fmm::evaluate_verified`]).
     pub(crate) verification: Option<Verification>,
 }
@@ -129,6 +132,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let tgt64 = b.targets.map(to_f64);
         let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());
         let main = &clusters[0];
+        let mut error_model = None;
         let chosen = match b.tolerance {
             Some(eps) => {
                 let t = Instant::now();
@@ -140,20 +144,30 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     ),
                     (_, None) => (Some(gather(&src64, &main.sources)), None),
                 };
-                let c = Tuner::new(T::PRECISION)
-                    .for_mode(b.mode)
-                    .for_scheme(S::COST_SHAPE)
-                    .choose(
-                        eps,
-                        s.as_deref().unwrap_or(&src64),
-                        if clusters.len() == 1 {
-                            tgt64.as_deref()
-                        } else {
-                            tg.as_deref()
-                        },
-                        b.domain,
-                        b.max_level,
-                    )?;
+                let model = match &b.tuning_model {
+                    Some(m) => m.clone(),
+                    None => {
+                        let width = match (b.domain, &tgt64) {
+                            (Some(d), _) => d.width,
+                            (None, Some(t)) => Domain::from_points(&[&src64, t])?.width,
+                            (None, None) => Domain::from_points(&[&src64])?.width,
+                        };
+                        tuning::default_model(&b.kernel, width)
+                    }
+                };
+                let tuner = Tuner::from_model(model, T::PRECISION, b.mode, S::COST_SHAPE);
+                error_model = Some(tuner.error.clone());
+                let c = tuner.choose(
+                    eps,
+                    s.as_deref().unwrap_or(&src64),
+                    if clusters.len() == 1 {
+                        tgt64.as_deref()
+                    } else {
+                        tg.as_deref()
+                    },
+                    b.domain,
+                    b.max_level,
+                )?;
                 b.order = c.order;
                 b.leaf_size = c.leaf_size;
                 setup.tuning = t.elapsed();
@@ -231,6 +245,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             config,
             config_from_chosen: from_chosen,
             verify: b.verify,
+            error_model,
             verification: None,
         })
     }

@@ -146,7 +146,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             });
         };
         let eps = chosen.tolerance;
-        let model = ErrorModel::laplace(T::PRECISION).for_mode(self.mode);
+        let model = self
+            .error_model
+            .clone()
+            .unwrap_or_else(|| ErrorModel::laplace_for(T::PRECISION, self.mode));
         let ratio = chosen.estimated_work.rounding_ratio;
         let mut verification = Verification {
             tolerance: eps,

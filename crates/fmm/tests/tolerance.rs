@@ -311,3 +311,146 @@ fn error_model_is_consistent() {
     let m = ErrorModel::laplace(Precision::F64);
     assert!(m.svd_tolerance(6, 1e-4, 0.0) > 10.0 * m.base_svd_tolerance(6));
 }
+
+/// A kernel written outside the crates (`1 / (2 pi r)`, twice Laplace's,
+/// homogeneous so that its operators are computed once): the default model
+/// is Laplace's, reported as borrowed; the tolerance is still met, because
+/// the verification measures whatever the kernel.
+#[derive(Clone, Copy, Debug)]
+struct TwiceLaplace;
+
+impl ferrofmm_kernels::Kernel for TwiceLaplace {
+    fn name(&self) -> String {
+        "twice-laplace".into()
+    }
+    fn homogeneity(&self) -> Option<f64> {
+        Some(-1.0)
+    }
+    fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if r2 == T::ZERO {
+            return T::ZERO;
+        }
+        T::from_f64(0.5 / std::f64::consts::PI) / r2.sqrt()
+    }
+    fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if r2 == T::ZERO {
+            return [T::ZERO; 3];
+        }
+        let f = -T::from_f64(0.5 / std::f64::consts::PI) / (r2 * r2.sqrt());
+        [f * d[0], f * d[1], f * d[2]]
+    }
+}
+
+#[test]
+fn models_are_keyed_on_the_kernel_and_can_be_replaced() {
+    use std::sync::Arc;
+    use tuning::{CostModel, M2lCostShape, TuningModel};
+    let n = 6000;
+    let points: Vec<f64> = Geometry::Sphere.points(n, 3);
+    let q: Vec<f64> = charges(n, 5);
+    let eps = 1e-5;
+
+    // Laplace: the measured model.
+    let laplace = FmmBuilder::new(&points).tolerance(eps).build_svd().unwrap();
+    let c = laplace.chosen_parameters().unwrap();
+    assert_eq!(c.model, "laplace");
+    assert!(c.model_measured);
+
+    // Modified Helmholtz: Laplace's tables, measured to bound it, and a
+    // dearer kernel in the cost model.
+    let yukawa = ferrofmm_kernels::ModifiedHelmholtz3d::new(3.0).unwrap();
+    let fmm = FmmBuilder::new(&points)
+        .kernel(yukawa)
+        .tolerance(eps)
+        .build_svd()
+        .unwrap();
+    let c = fmm.chosen_parameters().unwrap();
+    assert!(c.model.starts_with("modified-helmholtz"), "{}", c.model);
+    assert!(c.model_measured);
+
+    // A user kernel: borrowed, and the verification still holds it to eps.
+    let mut fmm = FmmBuilder::new(&points)
+        .kernel(TwiceLaplace)
+        .tolerance(eps)
+        .build_svd()
+        .unwrap();
+    let c = fmm.chosen_parameters().unwrap().clone();
+    assert_eq!(c.model, "laplace tables for twice-laplace");
+    assert!(!c.model_measured);
+    let out = fmm.evaluate_verified(&q).unwrap();
+    assert!(out.verification.unwrap().met);
+    let sample = sample_indices(n, SAMPLE);
+    let e = relative_errors(
+        &TwiceLaplace,
+        EvalMode::Potential,
+        &points,
+        &q,
+        &points,
+        &out.values,
+        &sample,
+    );
+    assert!(e.potential <= eps, "{e:?}");
+
+    // A model of one's own: errors ten times smaller than Laplace's at
+    // every order let the chooser take a lower order.
+    #[derive(Debug)]
+    struct Tenfold;
+    impl TuningModel for Tenfold {
+        fn name(&self) -> String {
+            "tenfold".into()
+        }
+        fn error_model(&self, p: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
+            let mut m = ErrorModel::laplace_for(p, mode);
+            m.order_errors.iter_mut().for_each(|(_, e)| *e *= 0.01);
+            m
+        }
+        fn cost_model(&self, mode: EvalMode, _: M2lCostShape) -> CostModel {
+            CostModel::default().for_mode(mode)
+        }
+    }
+    let fmm = FmmBuilder::new(&points)
+        .tolerance(eps)
+        .tuning_model(Tenfold)
+        .verify(false)
+        .build_svd()
+        .unwrap();
+    let own = fmm.chosen_parameters().unwrap();
+    assert_eq!(own.model, "tenfold");
+    let base = laplace.chosen_parameters().unwrap();
+    assert!(own.order < base.order, "{} vs {}", own.order, base.order);
+    // The tuner asks the model again for another mode or scheme.
+    let t = tuning::Tuner::new(Precision::F64).with_model(Arc::new(Tenfold));
+    let g = t.clone().for_mode(EvalMode::PotentialGradient);
+    assert_eq!(
+        g.error,
+        Tenfold.error_model(
+            Precision::F64,
+            EvalMode::PotentialGradient,
+            M2lCostShape::Compressed
+        )
+    );
+    assert_eq!(
+        g.cost,
+        CostModel::default().for_mode(EvalMode::PotentialGradient)
+    );
+}
+
+#[test]
+fn only_the_svd_scheme_loosens_its_compression() {
+    let points: Vec<f64> = Geometry::Cube.points(20_000, 3);
+    let occ = tuning::Occupancy::new(&points, None, None, 19).unwrap();
+    let eps = 1e-5;
+    let svd = tuning::Tuner::new(Precision::F64)
+        .choose_with(eps, &occ)
+        .unwrap();
+    let fft = tuning::Tuner::new(Precision::F64)
+        .for_scheme(tuning::M2lCostShape::Fft)
+        .choose_with(eps, &occ)
+        .unwrap();
+    let base = |p| ferrofmm_field::default_svd_tolerance(Precision::F64, p);
+    assert!(svd.svd_tolerance >= base(svd.order));
+    assert_eq!(fft.svd_tolerance, base(fft.order));
+    assert_eq!(fft.m2l_cost, "fft");
+}

@@ -37,6 +37,11 @@ pub struct ChosenParameters {
     /// The M2L cost shape the prediction assumed (`"compressed"` for the
     /// SVD scheme, `"fft"`, `"dense"`).
     pub m2l_cost: String,
+    /// The [`TuningModel`] the choice came from.
+    pub model: String,
+    /// Whether its error table was measured for this kernel (`false`: a
+    /// borrowed table, backed only by the verification).
+    pub model_measured: bool,
     /// Estimated work of the chosen tree.
     pub estimated_work: WorkCounts,
 }
@@ -61,40 +66,106 @@ pub struct Candidate {
 }
 
 /// Chooses order, leaf size and SVD tolerance for a tolerance (see the
-/// [module docs](crate::tuning)). [`Tuner::new`] holds the measured models; both
-/// can be replaced.
+/// [module docs](crate::tuning)). The error and cost models come from a
+/// [`TuningModel`] (the measured Laplace one by default), for the float
+/// type, the evaluation mode and the M2L scheme's cost shape; both can also
+/// be replaced directly.
 #[derive(Clone, Debug)]
 pub struct Tuner {
-    /// The error model.
+    /// Where [`Tuner::error`] and [`Tuner::cost`] come from.
+    pub model: Arc<dyn TuningModel>,
+    /// Float type.
+    pub precision: Precision,
+    /// What is evaluated.
+    pub mode: EvalMode,
+    /// How the M2L scheme to be built scales (the SVD scheme's by
+    /// default).
+    pub scheme: M2lCostShape,
+    /// The error model (from [`Tuner::model`]).
     pub error: ErrorModel,
-    /// The cost model.
+    /// The cost model (from [`Tuner::model`]).
     pub cost: CostModel,
     /// Leaf sizes to consider.
     pub leaf_sizes: Vec<usize>,
     /// How many admissible orders to consider, from the smallest up.
     pub orders: usize,
-    /// How the M2L scheme to be built scales (the SVD scheme's by
-    /// default).
-    pub scheme: M2lCostShape,
+}
+
+/// An admissible order for a tolerance, with what goes with it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(super) struct OrderChoice {
+    pub(super) order: usize,
+    pub(super) svd_tolerance: f64,
+    pub(super) estimated_rank: usize,
+    pub(super) predicted_error: f64,
+}
+
+/// A candidate tree the leaf-size search simulated.
+struct SimulatedTree {
+    /// Smallest leaf size giving this tree.
+    leaf_size: usize,
+    work: WorkCounts,
+    boxes_per_level: Vec<usize>,
+    /// Predicted seconds of its cheapest admissible order.
+    cost: f64,
 }
 
 impl Tuner {
-    /// The measured Laplace models for `precision`.
+    /// The measured Laplace models for `precision`, potentials, the SVD
+    /// scheme.
     pub fn new(precision: Precision) -> Self {
+        Self::from_model(
+            Arc::new(LaplaceModel),
+            precision,
+            EvalMode::Potential,
+            M2lCostShape::Compressed,
+        )
+    }
+
+    /// The models of `model` for `precision`, `mode` and `scheme`.
+    pub fn from_model(
+        model: Arc<dyn TuningModel>,
+        precision: Precision,
+        mode: EvalMode,
+        scheme: M2lCostShape,
+    ) -> Self {
         Tuner {
-            error: ErrorModel::laplace(precision),
-            cost: CostModel::default(),
+            error: model.error_model(precision, mode, scheme),
+            cost: model.cost_model(mode, scheme),
+            model,
+            precision,
+            mode,
+            scheme,
             leaf_sizes: LEAF_SIZE_CANDIDATES.to_vec(),
             orders: 3,
-            scheme: M2lCostShape::Compressed,
+        }
+    }
+
+    /// The same tuner with the models of `model`.
+    pub fn with_model(self, model: Arc<dyn TuningModel>) -> Self {
+        Self {
+            leaf_sizes: self.leaf_sizes,
+            orders: self.orders,
+            ..Self::from_model(model, self.precision, self.mode, self.scheme)
         }
     }
 
     /// The same tuner for an M2L scheme that scales as `shape`
-    /// ([`M2lScheme::COST_SHAPE`](ferrofmm_field::M2lScheme::COST_SHAPE)).
+    /// ([`M2lScheme::COST_SHAPE`](ferrofmm_field::M2lScheme::COST_SHAPE));
+    /// the models are asked again.
     pub fn for_scheme(mut self, shape: M2lCostShape) -> Self {
         self.scheme = shape;
-        self
+        let model = self.model.clone();
+        self.with_model(model)
+    }
+
+    /// The same tuner for evaluation mode `mode`; the models are asked
+    /// again (with gradients: the worse of the potential's and the
+    /// gradient's error, dearer target-side kernel work).
+    pub fn for_mode(mut self, mode: EvalMode) -> Self {
+        self.mode = mode;
+        let model = self.model.clone();
+        self.with_model(model)
     }
 
     /// Predicted cost of `(order, rank)` on `work` with this tuner's scheme.
@@ -102,30 +173,30 @@ impl Tuner {
         self.cost.predict_for(self.scheme, work, order, rank)
     }
 
-    /// The same tuner for evaluation mode `mode` (the cost model of
-    /// [`CostModel::for_mode`] and [`ErrorModel::for_mode`]).
-    pub fn for_mode(mut self, mode: EvalMode) -> Self {
-        self.cost = self.cost.for_mode(mode);
-        self.error = self.error.for_mode(mode);
-        self
-    }
-
-    /// The admissible `(order, svd tolerance, estimated rank, predicted
-    /// error)` for `eps` on a tree with rounding ratio `ratio`: the
-    /// smallest admissible order and the next `orders - 1`.
-    pub(super) fn orders_for(&self, eps: f64, ratio: f64) -> Vec<(usize, f64, usize, f64)> {
+    /// The admissible orders for `eps` on a tree with rounding ratio
+    /// `ratio`: the smallest and the next `orders - 1`. Only the SVD
+    /// scheme has a compression tolerance to loosen; the others keep the
+    /// base one (unused by them).
+    pub(super) fn orders_for(&self, eps: f64, ratio: f64) -> Vec<OrderChoice> {
         let Some(p0) = self.error.smallest_order(eps, ratio) else {
             return Vec::new();
         };
         (p0..p0 + self.orders.max(1))
             .filter(|&p| self.error.admissible(p, eps, ratio))
             .map(|p| {
-                let tau = self.error.svd_tolerance(p, eps, ratio);
-                let err = self
-                    .error
-                    .predicted_error(p, tau, ratio)
-                    .expect("admissible order");
-                (p, tau, estimated_svd_rank(p, tau), err)
+                let tau = match self.scheme {
+                    M2lCostShape::Compressed => self.error.svd_tolerance(p, eps, ratio),
+                    _ => self.error.base_svd_tolerance(p),
+                };
+                OrderChoice {
+                    order: p,
+                    svd_tolerance: tau,
+                    estimated_rank: estimated_svd_rank(p, tau),
+                    predicted_error: self
+                        .error
+                        .predicted_error(p, tau, ratio)
+                        .expect("admissible order"),
+                }
             })
             .collect()
     }
@@ -146,36 +217,32 @@ impl Tuner {
     /// [`MIN_CHOICE_SECONDS`], whichever is larger).
     pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
         validate_tolerance(eps, self.error.precision)?;
-        let mut sizes = self.leaf_sizes.clone();
-        sizes.sort_unstable_by(|a, b| b.cmp(a));
-        sizes.dedup();
         let permissive = self.orders_for(eps, 0.0);
         let cost_of = |w: &WorkCounts| {
             self.orders_for(eps, w.rounding_ratio)
                 .iter()
-                .map(|&(p, _, k, _)| self.predict(w, p, k).total)
+                .map(|o| self.predict(w, o.order, o.estimated_rank).total)
                 .fold(f64::INFINITY, f64::min)
         };
-        // (leaf size, work, boxes per level of the refinement, cost)
-        let mut trees: Vec<(usize, WorkCounts, Vec<usize>, f64)> = Vec::new();
+        let mut trees: Vec<SimulatedTree> = Vec::new();
         let mut best = f64::INFINITY;
         // Simulated boxes so far, in units of a fully simulated box.
         let mut spent = 0.0;
         // Simulate the tree of leaf size `s` unless it is a known one or
         // over the budget; `Some(cost)` when simulated, `None` to stop.
         let mut visit = |s: usize,
-                         trees: &mut Vec<(usize, WorkCounts, Vec<usize>, f64)>,
+                         trees: &mut Vec<SimulatedTree>,
                          best: &mut f64,
                          bounded: bool|
          -> Option<f64> {
             let refined = occupancy.refine(s.max(1));
-            let shape: Vec<usize> = refined.iter().map(|l| l.keys.len()).collect();
+            let shape = refined.boxes_per_level();
             let boxes: usize = shape.iter().sum();
             spent += REFINE_SHARE * boxes as f64;
-            if let Some(t) = trees.iter_mut().find(|t| t.2 == shape) {
+            if let Some(t) = trees.iter_mut().find(|t| t.boxes_per_level == shape) {
                 // The same tree: report the smallest leaf size giving it.
-                t.0 = t.0.min(s);
-                return Some(t.3);
+                t.leaf_size = t.leaf_size.min(s);
+                return Some(t.cost);
             }
             // The search may spend CHOICE_BUDGET of the best time so far.
             if !trees.is_empty()
@@ -197,16 +264,21 @@ impl Tuner {
                 };
                 let lower = permissive
                     .iter()
-                    .map(|&(p, _, k, _)| self.predict(&bound, p, k).total)
+                    .map(|o| self.predict(&bound, o.order, o.estimated_rank).total)
                     .fold(f64::INFINITY, f64::min);
                 if lower > *best {
                     return None;
                 }
             }
             spent += boxes as f64;
-            let w = occupancy.work_of(refined);
-            let cost = cost_of(&w);
-            trees.push((s, w, shape, cost));
+            let work = occupancy.work_of(refined);
+            let cost = cost_of(&work);
+            trees.push(SimulatedTree {
+                leaf_size: s,
+                work,
+                boxes_per_level: shape,
+                cost,
+            });
             *best = best.min(cost);
             Some(cost)
         };
@@ -229,33 +301,34 @@ impl Tuner {
                 break;
             }
         }
-        if let Some(&(s_best, ..)) = trees
+        if let Some(s_best) = trees
             .iter()
-            .filter(|t| t.3.is_finite())
-            .min_by(|a, b| a.3.total_cmp(&b.3))
+            .filter(|t| t.cost.is_finite())
+            .min_by(|a, b| a.cost.total_cmp(&b.cost))
+            .map(|t| t.leaf_size)
             && let Some(i) = sizes.iter().position(|&s| s == s_best)
         {
             for j in [i.wrapping_sub(1), i + 1] {
                 if let Some(&s) = sizes.get(j)
-                    && !trees.iter().any(|t| t.0 == s)
+                    && !trees.iter().any(|t| t.leaf_size == s)
                     && visit(s, &mut trees, &mut best, false).is_none()
                 {
                     break;
                 }
             }
         }
-        trees.sort_by_key(|t| t.0);
+        trees.sort_by_key(|t| t.leaf_size);
         let mut out = Vec::new();
-        for (s, w, ..) in &trees {
-            for (p, tau, k, err) in self.orders_for(eps, w.rounding_ratio) {
+        for t in &trees {
+            for o in self.orders_for(eps, t.work.rounding_ratio) {
                 out.push(Candidate {
-                    order: p,
-                    leaf_size: *s,
-                    svd_tolerance: tau,
-                    estimated_rank: k,
-                    predicted_error: err,
-                    predicted: self.predict(w, p, k),
-                    work: *w,
+                    order: o.order,
+                    leaf_size: t.leaf_size,
+                    svd_tolerance: o.svd_tolerance,
+                    estimated_rank: o.estimated_rank,
+                    predicted_error: o.predicted_error,
+                    predicted: self.predict(&t.work, o.order, o.estimated_rank),
+                    work: t.work,
                 });
             }
         }
@@ -312,6 +385,8 @@ impl Tuner {
             predicted_error: best.predicted_error,
             predicted_seconds: best.predicted.total,
             m2l_cost: self.scheme.name().to_string(),
+            model: self.model.name(),
+            model_measured: self.model.measured(),
             estimated_work: best.work,
         })
     }

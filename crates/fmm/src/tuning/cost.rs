@@ -134,6 +134,27 @@ impl CostModel {
     }
 }
 
+impl CostModel {
+    /// The model of a kernel whose pairwise evaluation costs `factor` times
+    /// the one this model was fitted on: every kernel evaluation (P2P
+    /// pairs and point-surface work) scales, the operator products do not.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::CostModel;
+    /// let m = CostModel::default().scaled_kernel(4.0);
+    /// assert_eq!(m.p2p_pair, 4.0 * CostModel::default().p2p_pair);
+    /// assert_eq!(m.m2l_flop, CostModel::default().m2l_flop);
+    /// ```
+    pub fn scaled_kernel(self, factor: f64) -> Self {
+        CostModel {
+            p2p_pair: self.p2p_pair * factor,
+            surface_point: self.surface_point * factor,
+            far_point: self.far_point * factor,
+            ..self
+        }
+    }
+}
+
 /// Predicted seconds, by kind of work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct CostPrediction {

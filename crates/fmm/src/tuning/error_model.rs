@@ -166,21 +166,22 @@ impl ErrorModel {
         Self::from_table(precision, &F64_POTENTIAL_ERRORS, SVD_POTENTIAL_FACTOR)
     }
 
-    /// The model for everything `mode` evaluates: with gradients, the
-    /// worse of the potential's and the gradient's error at each order
-    /// (and the gradient's larger SVD error), so that a tolerance holds
-    /// for both.
+    /// The measured Laplace model for everything `mode` evaluates: with
+    /// gradients, the worse of the potential's and the gradient's error at
+    /// each order (and the gradient's larger SVD error and rounding), so
+    /// that a tolerance holds for both.
     ///
     /// ```
     /// use ferrofmm_fmm::tuning::ErrorModel;
     /// use ferrofmm_kernels::{EvalMode, Precision};
     /// let pot = ErrorModel::laplace(Precision::F64);
-    /// let both = pot.clone().for_mode(EvalMode::PotentialGradient);
+    /// let both = ErrorModel::laplace_for(Precision::F64, EvalMode::PotentialGradient);
     /// assert!(both.order_error(6).unwrap() >= pot.order_error(6).unwrap());
+    /// assert_eq!(ErrorModel::laplace_for(Precision::F64, EvalMode::Potential), pot);
     /// ```
-    pub fn for_mode(self, mode: EvalMode) -> Self {
+    pub fn laplace_for(precision: Precision, mode: EvalMode) -> Self {
         if mode.values_per_target() == 1 {
-            return self;
+            return Self::laplace(precision);
         }
         let worst: Vec<f64> = F64_POTENTIAL_ERRORS
             .iter()
@@ -188,12 +189,11 @@ impl ErrorModel {
             .map(|(p, g)| p.max(*g))
             .collect();
         let mut m = Self::from_table(
-            self.precision,
+            precision,
             &worst,
             SVD_POTENTIAL_FACTOR.max(SVD_GRADIENT_FACTOR),
         );
-        m.safety = self.safety;
-        if self.precision == Precision::F32 {
+        if precision == Precision::F32 {
             m.floor = F32_GRADIENT_FLOOR;
         }
         m.rounding_factor = 3.0 * ROUNDING_FACTOR;

@@ -1,167 +1,67 @@
-//! Pre-pass: the occupancy of the adaptive tree for any leaf size,
-//! simulated from the points' Morton codes.
+//! Pre-pass: the work of the adaptive tree for any leaf size, counted on
+//! its shape ([`ferrofmm_tree::TreeShape`]: the tree builder's own
+//! refinement and 2:1 balance run on the sorted Morton codes).
 
 // The parent's imports and the sibling modules' items (one namespace,
 // split by job).
 #[allow(unused_imports)]
 use super::*;
 
-/// A fast mixer for Morton keys (the std SipHash is several times slower,
-/// and no attacker chooses these keys). SplitMix64's finaliser: every input
-/// bit reaches the low bits the table indexes with.
-#[derive(Default)]
-pub(super) struct KeyHasher(u64);
-
-impl Hasher for KeyHasher {
-    fn finish(&self) -> u64 {
-        self.0
-    }
-    fn write(&mut self, bytes: &[u8]) {
-        for &b in bytes {
-            self.write_u64(self.0 ^ b as u64);
-        }
-    }
-    fn write_u64(&mut self, x: u64) {
-        let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        self.0 = z ^ (z >> 31);
-    }
-}
-
-pub(super) type KeyMap = HashMap<u64, u32, BuildHasherDefault<KeyHasher>>;
-
-/// A box of a simulated tree: its level and integer coordinates on that
-/// level's grid (cheaper to step to neighbours than Morton keys).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub(super) struct Cell {
-    pub(super) level: u32,
-    pub(super) c: [u32; 3],
-}
-
-impl Cell {
-    const ROOT: Cell = Cell {
-        level: 0,
-        c: [0; 3],
-    };
-
-    pub(super) fn level(self) -> u32 {
-        self.level
-    }
-
-    /// Key in the level's lookup table (21 bits per coordinate).
-    pub(super) fn raw(self) -> u64 {
-        self.c[0] as u64 | (self.c[1] as u64) << 21 | (self.c[2] as u64) << 42
-    }
-
-    /// The same-level box at `offset`, if inside the domain.
-    pub(super) fn neighbour(self, offset: [i32; 3]) -> Option<Cell> {
-        let n = 1i64 << self.level;
-        let mut c = [0u32; 3];
-        for a in 0..3 {
-            let x = self.c[a] as i64 + offset[a] as i64;
-            if x < 0 || x >= n {
-                return None;
-            }
-            c[a] = x as u32;
-        }
-        Some(Cell {
-            level: self.level,
-            c,
-        })
-    }
-
-    /// The 8 children in octant order (bit 0: upper half in `x`, bit 1 in
-    /// `y`, bit 2 in `z`, as Morton digits and `MortonKey::octant`).
-    pub(super) fn children(self) -> [Cell; 8] {
-        std::array::from_fn(|d| Cell {
-            level: self.level + 1,
-            c: [
-                2 * self.c[0] + (d & 1) as u32,
-                2 * self.c[1] + ((d >> 1) & 1) as u32,
-                2 * self.c[2] + ((d >> 2) & 1) as u32,
-            ],
-        })
-    }
-
-    pub(super) fn octant(self) -> usize {
-        (self.c[0] & 1) as usize | ((self.c[1] & 1) as usize) << 1 | ((self.c[2] & 1) as usize) << 2
-    }
-
-    pub(super) fn ancestor(self, level: u32) -> Cell {
-        let up = self.level - level;
-        Cell {
-            level,
-            c: self.c.map(|x| x >> up),
-        }
-    }
-
-    pub(super) fn parent(self) -> Cell {
-        self.ancestor(self.level - 1)
-    }
-
-    /// Whether the closed boxes touch (or overlap).
-    pub(super) fn is_adjacent(self, other: Cell) -> bool {
-        let d = DEEPEST_LEVEL;
-        (0..3).all(|a| {
-            let (s0, s1) = (1u64 << (d - self.level), 1u64 << (d - other.level));
-            let (lo0, lo1) = (self.c[a] as u64 * s0, other.c[a] as u64 * s1);
-            lo0 <= lo1 + s1 && lo1 <= lo0 + s0
-        })
-    }
-
-    pub(super) fn center_ratio(self, domain: &Domain) -> f64 {
-        let h = domain.width / (1u64 << (self.level + 1)) as f64;
-        let r2: f64 = (0..3)
-            .map(|a| {
-                let x = domain.origin[a] + (2 * self.c[a] + 1) as f64 * h;
-                x * x
-            })
-            .sum();
-        r2.sqrt() / h
-    }
-}
-
-/// A box of a simulated tree: key and point ranges in the sorted codes.
-pub(super) type SimNode = (Cell, [usize; 2], [usize; 2]);
-
-/// One level of a simulated adaptive tree.
-#[derive(Default)]
-pub(super) struct SimLevel {
-    pub(super) keys: Vec<Cell>,
-    pub(super) sources: Vec<[usize; 2]>,
-    pub(super) targets: Vec<[usize; 2]>,
+/// One level of a balanced [`TreeShape`], as the work count reads it.
+pub(super) struct CountLevel {
+    pub(super) keys: Vec<MortonKey>,
+    pub(super) sources: Vec<u32>,
+    pub(super) targets: Vec<u32>,
     /// Octants of the existing children (0 for a leaf).
     pub(super) masks: Vec<u8>,
-    pub(super) index: KeyMap,
 }
 
-impl SimLevel {
-    pub(super) fn find(&self, key: Cell) -> Option<usize> {
-        self.index.get(&key.raw()).map(|&i| i as usize)
-    }
-
-    pub(super) fn push(&mut self, node: SimNode) -> usize {
-        let i = self.keys.len();
-        self.index.insert(node.0.raw(), i as u32);
-        self.keys.push(node.0);
-        self.sources.push(node.1);
-        self.targets.push(node.2);
-        self.masks.push(0);
-        i
+impl CountLevel {
+    pub(super) fn find(&self, key: MortonKey) -> Option<usize> {
+        self.keys.binary_search(&key).ok()
     }
 
     pub(super) fn n_sources(&self, i: usize) -> usize {
-        self.sources[i][1] - self.sources[i][0]
+        self.sources[i] as usize
     }
 
     pub(super) fn n_targets(&self, i: usize) -> usize {
-        self.targets[i][1] - self.targets[i][0]
+        self.targets[i] as usize
     }
 }
 
-/// The box with `key` in simulated `levels`: `(level, index)`.
-pub(super) fn sim_find(levels: &[SimLevel], key: Cell) -> Option<(usize, usize)> {
+/// The levels of a balanced shape with each box's child mask (children of
+/// one parent follow each other in Morton order, so one merge per level
+/// finds them).
+pub(super) fn count_levels(shape: &TreeShape) -> Vec<CountLevel> {
+    let mut levels: Vec<CountLevel> = (0..shape.n_levels())
+        .map(|l| {
+            let boxes: Vec<ShapeBox> = shape.level(l).collect();
+            CountLevel {
+                keys: boxes.iter().map(|b| b.key).collect(),
+                sources: boxes.iter().map(|b| b.n_sources() as u32).collect(),
+                targets: boxes.iter().map(|b| b.n_targets() as u32).collect(),
+                masks: vec![0; boxes.len()],
+            }
+        })
+        .collect();
+    for l in 1..levels.len() {
+        let (upper, lower) = levels.split_at_mut(l);
+        let parents = &mut upper[l - 1];
+        let mut j = 0;
+        for k in &lower[0].keys {
+            let parent = k.parent();
+            while parents.keys[j] != parent {
+                j += 1;
+            }
+            parents.masks[j] |= 1 << k.octant();
+        }
+    }
+    levels
+}
+
+/// The box `key` in `levels`: `(level, index)`.
+pub(super) fn count_find(levels: &[CountLevel], key: MortonKey) -> Option<(usize, usize)> {
     let l = key.level() as usize;
     levels.get(l)?.find(key).map(|i| (l, i))
 }
@@ -218,10 +118,10 @@ pub(super) fn adjacent_child_masks() -> [u8; 27] {
     out
 }
 
-/// The point distribution as sorted Morton codes: enough to simulate the
-/// adaptive, 2:1-balanced refinement for any leaf size and count its work
-/// ([`Occupancy::work`]) without building a tree, at a fraction of the
-/// cost of building one.
+/// The point distribution as sorted Morton codes: enough to find the
+/// adaptive, 2:1-balanced tree of any leaf size ([`ferrofmm_tree::shape`])
+/// and count its work ([`Occupancy::work`]) without building a tree, at a
+/// fraction of the cost of building one.
 ///
 /// ```
 /// use ferrofmm_fmm::Geometry;
@@ -234,9 +134,7 @@ pub(super) fn adjacent_child_masks() -> [u8; 27] {
 /// assert!(fine.p2p_pairs < coarse.p2p_pairs);
 /// ```
 pub struct Occupancy {
-    domain: Domain,
-    sources: Vec<u64>,
-    targets: Option<Vec<u64>>,
+    codes: MortonCodes,
     max_level: u32,
 }
 
@@ -244,6 +142,9 @@ impl Occupancy {
     /// Morton codes (deepest level) of the sources and, when different, the
     /// targets, in the bounding cube of both (or `domain`), sorted.
     /// `max_level` is the deepest level a box may have.
+    ///
+    /// # Errors
+    /// Invalid points, or points outside `domain` ([`FmmError::Tree`]).
     pub fn new(
         sources: &[f64],
         targets: Option<&[f64]>,
@@ -257,174 +158,26 @@ impl Occupancy {
                 None => Domain::from_points(&[sources])?,
             },
         };
-        let codes = |p: &[f64]| {
-            let mut c: Vec<u64> = p
-                .par_chunks_exact(3)
-                .map(|x| MortonKey::from_point([x[0], x[1], x[2]], &domain, DEEPEST_LEVEL).morton())
-                .collect();
-            c.par_sort_unstable();
-            c
-        };
         Ok(Occupancy {
-            domain,
-            sources: codes(sources),
-            targets: targets.map(codes),
+            codes: MortonCodes::new(sources, targets, domain)?,
             max_level: max_level.min(DEEPEST_LEVEL),
         })
     }
 
     /// Number of sources.
     pub fn n_sources(&self) -> usize {
-        self.sources.len()
+        self.codes.n_sources()
     }
 
     /// Number of targets.
     pub fn n_targets(&self) -> usize {
-        self.targets.as_ref().map_or(self.sources.len(), Vec::len)
+        self.codes.n_targets()
     }
 
-    /// Size of a box for the refinement rule: `max(#sources, #targets)`.
-    pub(super) fn count(&self, n: &SimNode) -> usize {
-        let s = n.1[1] - n.1[0];
-        if self.targets.is_some() {
-            s.max(n.2[1] - n.2[0])
-        } else {
-            s
-        }
-    }
-
-    /// The non-empty children of a box.
-    pub(super) fn split(&self, n: &SimNode) -> impl Iterator<Item = SimNode> + use<> {
-        let level = n.0.level();
-        let shift = 3 * (DEEPEST_LEVEL - level - 1);
-        let digit = |c: u64| ((c >> shift) & 7) as usize;
-        let bounds = |codes: &[u64], r: [usize; 2]| {
-            let s = &codes[r[0]..r[1]];
-            let mut b = [r[0]; 9];
-            for (d, slot) in b.iter_mut().enumerate().skip(1) {
-                *slot = r[0] + s.partition_point(|&c| digit(c) < d);
-            }
-            b[8] = r[1];
-            b
-        };
-        let bs = bounds(&self.sources, n.1);
-        let bt = match &self.targets {
-            Some(t) => bounds(t, n.2),
-            None => bs,
-        };
-        n.0.children()
-            .into_iter()
-            .enumerate()
-            .filter(move |&(d, _)| bs[d] < bs[d + 1] || bt[d] < bt[d + 1])
-            .map(move |(d, k)| (k, [bs[d], bs[d + 1]], [bt[d], bt[d + 1]]))
-    }
-
-    /// The adaptive refinement for `leaf_size` (before balancing), level by
-    /// level, without the lookup tables.
-    pub(super) fn refine(&self, leaf_size: usize) -> Vec<SimLevel> {
-        let mut levels: Vec<SimLevel> = Vec::new();
-        let mut current: Vec<SimNode> =
-            vec![(Cell::ROOT, [0, self.sources.len()], [0, self.n_targets()])];
-        loop {
-            let level = levels.len() as u32;
-            let children: Vec<(u32, SimNode)> = current
-                .par_iter()
-                .with_min_len(MIN_PARALLEL)
-                .enumerate()
-                .filter(|(_, n)| self.count(n) > leaf_size && level < self.max_level)
-                .flat_map_iter(|(i, n)| self.split(n).map(move |c| (i as u32, c)))
-                .collect();
-            let mut lv = SimLevel {
-                masks: vec![0; current.len()],
-                ..Default::default()
-            };
-            for &(i, c) in &children {
-                lv.masks[i as usize] |= 1 << c.0.octant();
-            }
-            lv.keys = current.iter().map(|n| n.0).collect();
-            lv.sources = current.iter().map(|n| n.1).collect();
-            lv.targets = current.iter().map(|n| n.2).collect();
-            levels.push(lv);
-            if children.is_empty() {
-                break;
-            }
-            current = children.into_iter().map(|(_, c)| c).collect();
-        }
-        levels
-    }
-
-    /// The refinement for `leaf_size`, 2:1 balanced with the rule of
-    /// `ferrofmm_tree::balance` (a leaf adjacent to an internal box one
-    /// level deeper is split), with lookup tables.
-    pub(super) fn balanced(&self, mut levels: Vec<SimLevel>) -> Vec<SimLevel> {
-        levels.par_iter_mut().for_each(|lv| {
-            lv.index.reserve(lv.keys.len());
-            for (i, k) in lv.keys.iter().enumerate() {
-                lv.index.insert(k.raw(), i as u32);
-            }
-        });
-        self.balance(&mut levels);
-        levels
-    }
-
-    /// Ripple the 2:1 balance to a fixed point.
-    pub(super) fn balance(&self, levels: &mut Vec<SimLevel>) {
-        let adj = adjacent_child_masks();
-        let depth = levels.len();
-        let mut candidates: Vec<(usize, usize)> = levels
-            .iter()
-            .enumerate()
-            .take(depth.saturating_sub(2))
-            .flat_map(|(l, lv)| {
-                (0..lv.keys.len())
-                    .filter(|&i| lv.masks[i] == 0)
-                    .map(move |i| (l, i))
-            })
-            .collect();
-        while !candidates.is_empty() {
-            let lv: &[SimLevel] = levels;
-            let mut violators: Vec<(usize, usize)> = candidates
-                .par_iter()
-                .with_min_len(MIN_PARALLEL)
-                .copied()
-                .filter(|&(l, i)| lv[l].masks[i] == 0 && violates(lv, l, i, &adj))
-                .collect();
-            violators.sort_unstable();
-            violators.dedup();
-            let mut next = Vec::new();
-            for &(l, i) in &violators {
-                let node = (
-                    levels[l].keys[i],
-                    levels[l].sources[i],
-                    levels[l].targets[i],
-                );
-                let children: Vec<SimNode> = self.split(&node).collect();
-                if levels.len() == l + 1 {
-                    levels.push(SimLevel::default());
-                }
-                let mut mask = 0u8;
-                for c in children {
-                    mask |= 1 << c.0.octant();
-                    let j = levels[l + 1].push(c);
-                    next.push((l + 1, j));
-                }
-                levels[l].masks[i] = mask;
-                // Leaves one level coarser and adjacent to the new internal box.
-                if l >= 1 {
-                    for o in offsets() {
-                        if let Some(nk) = node.0.neighbour(o)
-                            && let Some(j) = levels[l - 1].find(nk.parent())
-                            && levels[l - 1].masks[j] == 0
-                        {
-                            next.push((l - 1, j));
-                        }
-                    }
-                }
-            }
-            next.sort_unstable();
-            next.dedup();
-            candidates = next;
-        }
+    /// The adaptive refinement for `leaf_size`, before balancing (the tree
+    /// builder's own, [`MortonCodes::refine`]).
+    pub fn refine(&self, leaf_size: usize) -> TreeShape {
+        self.codes.refine(leaf_size.max(1), self.max_level)
     }
 
     /// Estimated [`WorkCounts`] of the tree built with `leaf_size`, counted
@@ -438,9 +191,11 @@ impl Occupancy {
         self.work_of(self.refine(leaf_size.max(1)))
     }
 
-    /// [`Occupancy::work`] of a refinement.
-    pub(super) fn work_of(&self, refined: Vec<SimLevel>) -> WorkCounts {
-        let levels = self.balanced(refined);
+    /// [`Occupancy::work`] of a refinement ([`Occupancy::refine`]),
+    /// balanced first.
+    pub fn work_of(&self, mut shape: TreeShape) -> WorkCounts {
+        shape.balance(&self.codes);
+        let levels = count_levels(&shape);
         let nonadj = non_adjacent_masks();
         let adj = adjacent_child_masks();
         let depth = (levels.len() - 1) as u32;
@@ -526,7 +281,7 @@ impl Occupancy {
                 .iter()
                 .flat_map(|lv| lv.keys.iter().zip(&lv.masks))
                 .filter(|&(_, &m)| m == 0)
-                .map(|(&k, _)| k.center_ratio(&self.domain))
+                .map(|(&k, _)| center_ratio(k, self.codes.domain()))
                 .fold(0.0, f64::max),
         }
     }
@@ -538,33 +293,6 @@ pub(super) fn center_ratio(key: MortonKey, domain: &Domain) -> f64 {
     (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / key.half_width(domain)
 }
 
-/// Whether leaf `(l, i)` is adjacent to an internal box one level deeper.
-pub(super) fn violates(levels: &[SimLevel], l: usize, i: usize, adj: &[u8; 27]) -> bool {
-    if l + 2 >= levels.len() {
-        return false;
-    }
-    let key = levels[l].keys[i];
-    offsets().enumerate().any(|(oi, o)| {
-        if oi == 13 {
-            return false;
-        }
-        let Some(nk) = key.neighbour(o) else {
-            return false;
-        };
-        let Some(j) = levels[l].find(nk) else {
-            return false;
-        };
-        let touching = levels[l].masks[j] & adj[oi];
-        touching != 0
-            && nk.children().into_iter().enumerate().any(|(c, ck)| {
-                touching & (1 << c) != 0
-                    && levels[l + 1]
-                        .find(ck)
-                        .is_some_and(|m| levels[l + 1].masks[m] != 0)
-            })
-    })
-}
-
 /// `(P2P pairs, far points, U-list entries)` of leaf `(l, i)`: its
 /// targets times the sources of its U list, for every W-list box `a` its
 /// targets (M2P) plus, for the matching X-list entry of `a`, its sources
@@ -574,7 +302,7 @@ pub(super) fn violates(levels: &[SimLevel], l: usize, i: usize, adj: &[u8; 27]) 
 /// leaves (2:1 balance: a box one level deeper touching a leaf is a leaf;
 /// deeper ones are still walked), the others are its W list.
 pub(super) fn leaf_work(
-    levels: &[SimLevel],
+    levels: &[CountLevel],
     l: usize,
     i: usize,
     adj: &[u8; 27],
@@ -641,7 +369,7 @@ pub(super) fn leaf_work(
         }
         // Covered by a coarser leaf (U), or empty.
         for up in (0..l).rev() {
-            let Some((m, a)) = sim_find(levels, nk.ancestor(up as u32)) else {
+            let Some((m, a)) = count_find(levels, nk.ancestor(up as u32)) else {
                 continue;
             };
             if levels[m].masks[a] == 0 && !coarse[..n_coarse].contains(&(m, a)) {
