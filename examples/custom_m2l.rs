@@ -22,7 +22,7 @@ use ferrofmm::field::plumbing::{
     scatter_add,
 };
 use ferrofmm::field::{
-    FieldError, M2lInteractions, M2lScheme, M2lUsage, OperatorParams, gemm, gemm_scaled,
+    FieldError, M2lInteractions, M2lScheme, M2lUsage, OperatorParams, Update, gemm, gemm_scaled,
     n_surface_points, planned_sets, transfer_vectors,
 };
 use ferrofmm::fmm::{FmmBuilder, Geometry, charges, relative_errors, sample_indices};
@@ -163,7 +163,7 @@ impl<T: Real> M2lScheme<T> for PerVectorSvd<T> {
                     &f.vt,
                     &src[..n * len],
                     &mut mid[..f.rank * len],
-                    false,
+                    Update::Overwrite,
                 );
                 gemm_scaled(
                     n,
@@ -173,7 +173,7 @@ impl<T: Real> M2lScheme<T> for PerVectorSvd<T> {
                     &f.us,
                     &mid[..f.rank * len],
                     &mut dst[..n * len],
-                    false,
+                    Update::Overwrite,
                 );
                 scatter_add(n, &dst[..n * len], g.targets, out);
             }

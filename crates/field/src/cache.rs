@@ -7,13 +7,16 @@
 //! | 8 | magic `b"FFMMOPS\0"` |
 //! | 4 | format version, `u32` little-endian |
 //! | 4 | header length `L`, `u32` little-endian |
-//! | `L` | header: bincode 2 (standard config) of [`CacheHeader`]: the full [`CacheKey`], layout metadata, payload length (elements) and checksum |
+//! | `L` | header: bincode 2 (standard config) of [`CacheHeader`]: the full [`CacheKey`], the payload's typed layout ([`CachePayload::Layout`], itself bincode-encoded), payload length (elements) and checksum |
 //! | rest | payload: the operator values of the working type, raw little-endian (`bytemuck`) |
 //!
 //! The checksum is XXH64 (seed 0) of the payload bytes. A file is used only
 //! when magic, version, key (compared field by field, not by hash), exact
 //! file length, checksum and layout all agree; otherwise it is recomputed and
-//! rewritten. Files are written to a temporary name in the same directory
+//! rewritten. The layout is a typed description of the stored arrays
+//! (named factors, ranks, summaries: [`StoreLayout`]); it must decode, agree
+//! with the payload length ([`StoreLayout::n_values`]) and with the
+//! parameters of the caller. Files are written to a temporary name in the same directory
 //! and renamed into place, so a reader never sees a half-written file.
 //! The file name carries a hash of the key, so different parameters live in
 //! different files.
@@ -24,13 +27,14 @@ use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use ferrofmm_kernels::{Kernel, Real};
+use serde::de::DeserializeOwned;
 use serde::{Deserialize, Serialize};
 
 use crate::FieldError;
 
 /// Version of the cache file layout; bump on any change of header or
 /// payload layout (old files are then rebuilt).
-pub const CACHE_FORMAT_VERSION: u32 = 1;
+pub const CACHE_FORMAT_VERSION: u32 = 2;
 
 const MAGIC: &[u8; 8] = b"FFMMOPS\0";
 const MAX_HEADER: usize = 1 << 20;
@@ -76,13 +80,24 @@ impl CacheKey {
             flags: Vec::new(),
         }
     }
+
+    /// The same key for a domain of width `width` and depth `depth`,
+    /// which matter only to a kernel without homogeneity (its operators
+    /// are computed per level).
+    pub fn for_domain(mut self, width: f64, depth: u32) -> Self {
+        if self.kernel_homogeneity.is_none() {
+            self.geometry = Some((width, depth));
+        }
+        self
+    }
 }
 
 /// The bincode-encoded header.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub(crate) struct CacheHeader {
     pub key: CacheKey,
-    pub meta: Vec<u64>,
+    /// The payload's [`StoreLayout`], bincode-encoded.
+    pub layout: Vec<u8>,
     pub payload_len: u64,
     pub checksum: u64,
 }
@@ -126,14 +141,101 @@ impl CacheStatus {
     }
 }
 
-/// Something that can be stored in the cache as `(meta, data)`.
+/// The typed description of what a cache file's payload holds: which
+/// arrays, of which shapes, in which order (named fields, never positional
+/// words). Written in the header, checked against the payload on reading.
+pub(crate) trait StoreLayout: Serialize + DeserializeOwned {
+    /// Number of values the arrays of this layout hold together; `Err`
+    /// when the layout contradicts itself (a rank above the surface size,
+    /// say).
+    fn n_values(&self) -> Result<usize, String>;
+
+    /// A check for [`load_or_compute`] that a file's layout is exactly
+    /// `self` (for layouts fixed by the parameters alone).
+    fn accept(self) -> impl Fn(&Self) -> Result<(), String>
+    where
+        Self: PartialEq + std::fmt::Debug + Sized,
+    {
+        move |found| {
+            if *found == self {
+                Ok(())
+            } else {
+                Err(format!("layout {found:?}, expected {self:?}"))
+            }
+        }
+    }
+}
+
+/// Something stored in the cache: a [`StoreLayout`] and the values of its
+/// arrays, written one after another in layout order.
 pub(crate) trait CachePayload<T: Real>: Sized {
-    /// Layout metadata (small).
-    fn meta(&self) -> Vec<u64>;
-    /// All values.
-    fn data(&self) -> &[T];
-    /// Rebuild from a file's parts; `Err` when the layout is inconsistent.
-    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String>;
+    /// The layout written in the header.
+    type Layout: StoreLayout;
+    /// The layout of `self`.
+    fn layout(&self) -> Self::Layout;
+    /// The arrays, in the order the layout lists them.
+    fn arrays(&self) -> Vec<&[T]>;
+    /// Rebuild from a layout and its values (their number already checked
+    /// against [`StoreLayout::n_values`]).
+    fn from_values(layout: Self::Layout, values: Vec<T>) -> Result<Self, String>;
+}
+
+/// Reads the arrays of a payload back in layout order.
+pub(crate) struct ValueReader<T> {
+    values: std::vec::IntoIter<T>,
+}
+
+impl<T: Real> ValueReader<T> {
+    /// A reader over `values`.
+    pub fn new(values: Vec<T>) -> Self {
+        ValueReader {
+            values: values.into_iter(),
+        }
+    }
+
+    /// The next `len` values.
+    pub fn take(&mut self, len: usize) -> Result<Vec<T>, String> {
+        let v: Vec<T> = self.values.by_ref().take(len).collect();
+        if v.len() == len {
+            Ok(v)
+        } else {
+            Err("payload shorter than its layout".into())
+        }
+    }
+
+    /// `Err` unless every value was read.
+    pub fn finish(self) -> Result<(), String> {
+        if self.values.len() == 0 {
+            Ok(())
+        } else {
+            Err("payload longer than its layout".into())
+        }
+    }
+}
+
+/// The payload of a scheme whose values are one flat array (slots indexed
+/// by set and transfer vector): a typed layout and the array.
+pub(crate) struct FlatStore<L, T> {
+    /// What the values are.
+    pub layout: L,
+    /// The values.
+    pub data: Vec<T>,
+}
+
+impl<T: Real, L: StoreLayout + Clone> CachePayload<T> for FlatStore<L, T> {
+    type Layout = L;
+
+    fn layout(&self) -> L {
+        self.layout.clone()
+    }
+
+    fn arrays(&self) -> Vec<&[T]> {
+        vec![&self.data]
+    }
+
+    fn from_values(layout: L, data: Vec<T>) -> Result<Self, String> {
+        Ok(FlatStore { layout, data })
+    }
 }
 
 /// Load `S` from the cache when a valid file exists (and `accept` agrees
@@ -141,18 +243,24 @@ pub(crate) trait CachePayload<T: Real>: Sized {
 pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
     dir: Option<&Path>,
     key: &CacheKey,
-    accept: impl Fn(&S) -> Result<(), String>,
+    accept: impl Fn(&S::Layout) -> Result<(), String>,
     compute: impl FnOnce() -> Result<S, FieldError>,
 ) -> Result<(S, CacheStatus), FieldError> {
     let Some(dir) = dir else {
         return Ok((compute()?, CacheStatus::Disabled));
     };
     let path = file_path(dir, key);
-    let rejected = match read::<T>(&path, key) {
-        Ok((meta, data)) => match S::from_parts(meta, data).and_then(|s| accept(&s).map(|_| s)) {
-            Ok(s) => return Ok((s, CacheStatus::Hit { path })),
-            Err(reason) => Some(format!("inconsistent layout: {reason}")),
-        },
+    let loaded = read::<T>(&path, key).map(|(layout, data)| {
+        let layout: S::Layout = decode_layout(&layout)?;
+        if layout.n_values()? != data.len() {
+            return Err("payload length disagrees with the layout".to_string());
+        }
+        accept(&layout)?;
+        S::from_values(layout, data)
+    });
+    let rejected = match loaded {
+        Ok(Ok(s)) => return Ok((s, CacheStatus::Hit { path })),
+        Ok(Err(reason)) => Some(format!("inconsistent layout: {reason}")),
         Err(FieldError::CacheIo { source, .. })
             if source.kind() == std::io::ErrorKind::NotFound =>
         {
@@ -161,7 +269,9 @@ pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
         Err(e) => Some(e.to_string()),
     };
     let s = compute()?;
-    let write_error = write::<T>(&path, key, &s.meta(), s.data())
+    let write_error = bincode::serde::encode_to_vec(s.layout(), bincode::config::standard())
+        .map_err(|e| invalid(&path, format!("layout does not encode: {e}")))
+        .and_then(|layout| write::<T>(&path, key, &layout, &s.arrays()))
         .err()
         .map(|e| e.to_string());
     Ok((
@@ -172,6 +282,14 @@ pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
             write_error,
         },
     ))
+}
+
+fn decode_layout<L: StoreLayout>(bytes: &[u8]) -> Result<L, String> {
+    match bincode::serde::decode_from_slice(bytes, bincode::config::standard()) {
+        Ok((layout, used)) if used == bytes.len() => Ok(layout),
+        Ok(_) => Err("layout has trailing bytes".into()),
+        Err(e) => Err(format!("undecodable layout: {e}")),
+    }
 }
 
 /// `dir/<kind>_<kernel>_p<order>_<float>_<hash of key>.ffmm`.
@@ -214,8 +332,9 @@ fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> FieldError + '_ {
     }
 }
 
-/// Read and fully validate a cache file against `key`.
-pub(crate) fn read<T: Real>(path: &Path, key: &CacheKey) -> Result<(Vec<u64>, Vec<T>), FieldError> {
+/// Read and fully validate a cache file against `key`: the encoded layout
+/// and the values.
+pub(crate) fn read<T: Real>(path: &Path, key: &CacheKey) -> Result<(Vec<u8>, Vec<T>), FieldError> {
     let mut file = File::open(path).map_err(io_err(path))?;
     let file_len = file.metadata().map_err(io_err(path))?.len();
     let mut prefix = [0u8; 16];
@@ -276,27 +395,34 @@ pub(crate) fn read<T: Real>(path: &Path, key: &CacheKey) -> Result<(Vec<u64>, Ve
         ));
     }
     from_le_in_place(&mut data);
-    Ok((header.meta, data))
+    Ok((header.layout, data))
 }
 
 static TMP_COUNTER: AtomicU64 = AtomicU64::new(0);
 
 /// Write a cache file atomically (temporary file in the same directory,
-/// then rename).
+/// then rename): the encoded layout and the arrays, one after another.
 pub(crate) fn write<T: Real>(
     path: &Path,
     key: &CacheKey,
-    meta: &[u64],
-    data: &[T],
+    layout: &[u8],
+    arrays: &[&[T]],
 ) -> Result<(), FieldError> {
     let dir = path.parent().unwrap_or(Path::new("."));
     fs::create_dir_all(dir).map_err(io_err(dir))?;
-    let le = to_le(data);
+    let joined: Vec<T>;
+    let le = match arrays {
+        [one] => to_le(one),
+        _ => {
+            joined = arrays.concat();
+            to_le(&joined)
+        }
+    };
     let bytes: &[u8] = bytemuck::cast_slice(&le);
     let header = CacheHeader {
         key: key.clone(),
-        meta: meta.to_vec(),
-        payload_len: data.len() as u64,
+        layout: layout.to_vec(),
+        payload_len: le.len() as u64,
         checksum: xxh64(bytes, 0),
     };
     let header_bytes = bincode::serde::encode_to_vec(&header, bincode::config::standard())

@@ -4,38 +4,39 @@
 use faer::{Accum, MatMut, MatRef, Par};
 use ferrofmm_kernels::Real;
 
+/// What a product does with the values already in its output.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Update {
+    /// `c = a b`: the old contents (even NaN) are ignored.
+    Overwrite,
+    /// `c += a b`.
+    Accumulate,
+}
+
 /// `c (m x n) = [c +] a (m x k) * b (k x n)`, all column-major and
 /// contiguous (`a.len() == m k`, `b.len() == k n`, `c.len() == m n`).
 ///
 /// Runs sequentially (`faer::Par::Seq`), so it is safe and efficient inside
 /// rayon tasks; parallelise over column blocks of `b`/`c` outside. With
-/// `accumulate == false` `c` is overwritten (its old contents, even NaN, are
-/// ignored).
+/// [`Update::Overwrite`] `c` is overwritten (its old contents, even NaN,
+/// are ignored), with [`Update::Accumulate`] the product is added.
 ///
 /// # Panics
 /// When a slice length disagrees with the dimensions.
 ///
 /// ```
-/// use ferrofmm_field::gemm;
+/// use ferrofmm_field::{Update, gemm};
 /// // [1 3; 2 4] * [1; 1] = [4; 6]
 /// let a = [1.0f64, 2.0, 3.0, 4.0];
 /// let b = [1.0, 1.0];
 /// let mut c = [10.0, 10.0];
-/// gemm(2, 1, 2, &a, &b, &mut c, true);
+/// gemm(2, 1, 2, &a, &b, &mut c, Update::Accumulate);
 /// assert_eq!(c, [14.0, 16.0]);
-/// gemm(2, 1, 2, &a, &b, &mut c, false);
+/// gemm(2, 1, 2, &a, &b, &mut c, Update::Overwrite);
 /// assert_eq!(c, [4.0, 6.0]);
 /// ```
-pub fn gemm<T: Real>(
-    m: usize,
-    n: usize,
-    k: usize,
-    a: &[T],
-    b: &[T],
-    c: &mut [T],
-    accumulate: bool,
-) {
-    gemm_scaled(m, n, k, 1.0, a, b, c, accumulate);
+pub fn gemm<T: Real>(m: usize, n: usize, k: usize, a: &[T], b: &[T], c: &mut [T], update: Update) {
+    gemm_scaled(m, n, k, 1.0, a, b, c, update);
 }
 
 /// `c = [c +] alpha * a * b`: [`gemm`] with a scale factor (used to apply
@@ -45,11 +46,11 @@ pub fn gemm<T: Real>(
 /// When a slice length disagrees with the dimensions.
 ///
 /// ```
-/// use ferrofmm_field::gemm_scaled;
+/// use ferrofmm_field::{Update, gemm_scaled};
 /// let a = [2.0f32];
 /// let b = [3.0f32];
 /// let mut c = [1.0f32];
-/// gemm_scaled(1, 1, 1, 0.5, &a, &b, &mut c, true);
+/// gemm_scaled(1, 1, 1, 0.5, &a, &b, &mut c, Update::Accumulate);
 /// assert_eq!(c, [4.0]);
 /// ```
 #[allow(clippy::too_many_arguments)]
@@ -61,7 +62,7 @@ pub fn gemm_scaled<T: Real>(
     a: &[T],
     b: &[T],
     c: &mut [T],
-    accumulate: bool,
+    update: Update,
 ) {
     assert_eq!(
         a.len(),
@@ -85,15 +86,14 @@ pub fn gemm_scaled<T: Real>(
         return;
     }
     if k == 0 {
-        if !accumulate {
+        if update == Update::Overwrite {
             c.fill(T::ZERO);
         }
         return;
     }
-    let accum = if accumulate {
-        Accum::Add
-    } else {
-        Accum::Replace
+    let accum = match update {
+        Update::Accumulate => Accum::Add,
+        Update::Overwrite => Accum::Replace,
     };
     if let (Some(a), Some(b), Some(c)) = (
         T::as_f64_slice(a),
@@ -149,19 +149,19 @@ mod tests {
         let b: Vec<f64> = (0..k * n).map(|i| (i as f64 * 0.71).cos()).collect();
         let want = naive(m, n, k, &a, &b);
         let mut c = vec![f64::NAN; m * n];
-        gemm(m, n, k, &a, &b, &mut c, false);
+        gemm(m, n, k, &a, &b, &mut c, Update::Overwrite);
         for (x, y) in c.iter().zip(&want) {
             assert!((x - y).abs() < 1e-14);
         }
         let a32: Vec<f32> = a.iter().map(|&x| x as f32).collect();
         let b32: Vec<f32> = b.iter().map(|&x| x as f32).collect();
         let mut c32 = vec![1.0f32; m * n];
-        gemm_scaled(m, n, k, 2.0, &a32, &b32, &mut c32, true);
+        gemm_scaled(m, n, k, 2.0, &a32, &b32, &mut c32, Update::Accumulate);
         for (x, y) in c32.iter().zip(&want) {
             assert!((*x as f64 - (1.0 + 2.0 * y)).abs() < 1e-5);
         }
         let mut z = vec![f64::NAN; m * n];
-        gemm(m, n, 0, &[], &[], &mut z, false);
+        gemm(m, n, 0, &[], &[], &mut z, Update::Overwrite);
         assert!(z.iter().all(|&x| x == 0.0));
     }
 }

@@ -92,7 +92,7 @@ mod surface;
 
 pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};
 pub use error::FieldError;
-pub use gemm::{gemm, gemm_scaled};
+pub use gemm::{Update, gemm, gemm_scaled};
 pub use interactions::{
     M2lInteractions, N_TRANSFER_VECTORS, transfer_vector_index, transfer_vectors,
 };

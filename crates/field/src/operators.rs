@@ -1,18 +1,18 @@
 //! [`Operators`]: check-to-equivalent pseudo-inverses (UC2E, DC2E) and the
 //! parent/child translations (M2M, L2L) for every level of a tree.
 
-use std::ops::Range;
-
 use faer::{Accum, Mat, MatRef, Par};
 use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
-use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
+use crate::cache::{
+    CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
+};
 use crate::levels::LevelMap;
 use crate::linalg::{col_major, kernel_matrix, round_to};
 use crate::pinv::{PinvF64, PinvSummary, pinv};
 use crate::{
-    FieldError, OperatorParams, SurfaceKind, SurfaceRadii, gemm_scaled, n_surface_points,
+    FieldError, OperatorParams, SurfaceKind, SurfaceRadii, Update, gemm_scaled, n_surface_points,
     surface_points,
 };
 
@@ -76,8 +76,7 @@ pub struct Operators<T: Real> {
     rcond: f64,
     levels: LevelMap,
     child_levels: LevelMap,
-    store: OperatorStore<T>,
-    layout: Layout,
+    tables: OperatorTables<T>,
     cache_status: CacheStatus,
 }
 
@@ -106,128 +105,176 @@ pub struct OperatorDiagnostics {
 /// `eps_T * condition` above this threshold.
 pub const AMPLIFICATION_WARNING: f64 = 1e3;
 
-#[derive(Clone, Debug)]
-struct SetInfo {
+/// A truncated pseudo-inverse `A^+ = (V_r S_r^-1) U_r^T` in the working
+/// type, kept as its two factors and applied as two products (never
+/// formed: see `docs/stability.md`).
+struct PinvFactors<T> {
+    /// `V_r S_r^-1`, column-major `n x r`.
+    vs: Vec<T>,
+    /// `U_r^T`, column-major `r x n`.
+    ut: Vec<T>,
+    /// What the truncation kept (`n`, the rank `r`, singular values).
+    summary: PinvSummary,
+}
+
+impl<T: Real> PinvFactors<T> {
+    fn from_f64(p: &PinvF64) -> Self {
+        PinvFactors {
+            vs: round_to(&p.vs),
+            ut: round_to(&p.ut),
+            summary: p.summary,
+        }
+    }
+
+    /// `out = [out +] scale A^+ input` for `ncols` column-major columns.
+    fn apply(&self, scale: f64, ncols: usize, input: &[T], out: &mut [T], update: Update) {
+        let (n, r) = (self.summary.n, self.summary.rank);
+        let mut tmp = vec![T::ZERO; r * ncols];
+        gemm_scaled(
+            r,
+            ncols,
+            n,
+            1.0,
+            &self.ut,
+            input,
+            &mut tmp,
+            Update::Overwrite,
+        );
+        gemm_scaled(n, ncols, r, scale, &self.vs, &tmp, out, update);
+    }
+}
+
+/// The check-to-equivalent pseudo-inverses of one operator set (one level,
+/// or every level of a homogeneous kernel).
+struct CheckToEquivalent<T> {
+    /// UC2E: upward check potential -> upward equivalent density.
+    uc2e: PinvFactors<T>,
+    /// DC2E: downward check potential -> downward equivalent density.
+    dc2e: PinvFactors<T>,
+}
+
+/// The parent/child translations of one child-level set: one column-major
+/// `n x n` matrix per octant of the child.
+struct ChildTranslations<T> {
+    /// M2M: child upward equivalent density -> parent's.
+    m2m: [Vec<T>; 8],
+    /// L2L: parent downward equivalent density -> child's.
+    l2l: [Vec<T>; 8],
+}
+
+/// Everything [`Operators`] precomputes; what the operator cache stores.
+struct OperatorTables<T> {
+    n: usize,
+    sets: Vec<CheckToEquivalent<T>>,
+    children: Vec<ChildTranslations<T>>,
+}
+
+/// The pseudo-inverse summaries of one set, as cached.
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+struct SetSummaries {
     uc2e: PinvSummary,
     dc2e: PinvSummary,
 }
 
-/// The cached part: layout metadata and one flat value array.
-struct OperatorStore<T> {
+/// What a cached [`OperatorTables`] holds, in order: per set the factors
+/// `V_r S_r^-1` and `U_r^T` of UC2E then of DC2E (their ranks in the
+/// summaries), then per child set the eight M2M and the eight L2L
+/// matrices (`n x n`).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+struct OperatorLayout {
+    /// Surface points `n`.
     n: usize,
-    sets: Vec<SetInfo>,
-    n_child_sets: usize,
-    data: Vec<T>,
+    /// Per set, what its two pseudo-inverses kept.
+    sets: Vec<SetSummaries>,
+    /// Child-level sets (M2M and L2L).
+    child_sets: usize,
 }
 
-#[derive(Clone, Debug)]
-struct SetRanges {
-    uc_vs: Range<usize>,
-    uc_ut: Range<usize>,
-    dc_vs: Range<usize>,
-    dc_ut: Range<usize>,
-}
-
-#[derive(Clone, Debug)]
-struct Layout {
-    sets: Vec<SetRanges>,
-    /// First value of child set `c`; M2M octant `o` at `+ o n^2`, L2L at
-    /// `+ (8 + o) n^2`.
-    child_base: Vec<usize>,
-    total: usize,
-}
-
-fn layout(n: usize, sets: &[SetInfo], n_child_sets: usize) -> Layout {
-    let mut off = 0;
-    let mut take = |len: usize| {
-        let r = off..off + len;
-        off += len;
-        r
-    };
-    let set_ranges = sets
-        .iter()
-        .map(|s| SetRanges {
-            uc_vs: take(n * s.uc2e.rank),
-            uc_ut: take(s.uc2e.rank * n),
-            dc_vs: take(n * s.dc2e.rank),
-            dc_ut: take(s.dc2e.rank * n),
-        })
-        .collect();
-    let child_base = (0..n_child_sets).map(|_| take(16 * n * n).start).collect();
-    Layout {
-        sets: set_ranges,
-        child_base,
-        total: off,
-    }
-}
-
-fn summary_to_meta(s: &PinvSummary, out: &mut Vec<u64>) {
-    out.extend([
-        s.n as u64,
-        s.rank as u64,
-        s.sigma_max.to_bits(),
-        s.sigma_min_kept.to_bits(),
-        s.sigma_min.to_bits(),
-    ]);
-}
-
-fn summary_from_meta(m: &[u64]) -> PinvSummary {
-    PinvSummary {
-        n: m[0] as usize,
-        rank: m[1] as usize,
-        sigma_max: f64::from_bits(m[2]),
-        sigma_min_kept: f64::from_bits(m[3]),
-        sigma_min: f64::from_bits(m[4]),
-    }
-}
-
-impl<T: Real> CachePayload<T> for OperatorStore<T> {
-    fn meta(&self) -> Vec<u64> {
-        let mut m = vec![
-            self.n as u64,
-            self.sets.len() as u64,
-            self.n_child_sets as u64,
-        ];
+impl StoreLayout for OperatorLayout {
+    fn n_values(&self) -> Result<usize, String> {
+        let n = self.n;
+        let mut total = 16 * n * n * self.child_sets;
         for s in &self.sets {
-            summary_to_meta(&s.uc2e, &mut m);
-            summary_to_meta(&s.dc2e, &mut m);
+            for p in [s.uc2e, s.dc2e] {
+                if p.n != n || p.rank > n {
+                    return Err(format!(
+                        "pseudo-inverse of rank {} on {} points for n = {n}",
+                        p.rank, p.n
+                    ));
+                }
+                total += 2 * n * p.rank;
+            }
         }
-        m
+        Ok(total)
+    }
+}
+
+impl<T: Real> CachePayload<T> for OperatorTables<T> {
+    type Layout = OperatorLayout;
+
+    fn layout(&self) -> OperatorLayout {
+        OperatorLayout {
+            n: self.n,
+            sets: self
+                .sets
+                .iter()
+                .map(|s| SetSummaries {
+                    uc2e: s.uc2e.summary,
+                    dc2e: s.dc2e.summary,
+                })
+                .collect(),
+            child_sets: self.children.len(),
+        }
     }
 
-    fn data(&self) -> &[T] {
-        &self.data
-    }
-
-    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String> {
-        if meta.len() < 3 {
-            return Err("short metadata".into());
-        }
-        let (n, n_sets, n_child_sets) = (meta[0] as usize, meta[1] as usize, meta[2] as usize);
-        if meta.len() != 3 + 10 * n_sets {
-            return Err("metadata length".into());
-        }
-        let sets: Vec<SetInfo> = (0..n_sets)
-            .map(|s| SetInfo {
-                uc2e: summary_from_meta(&meta[3 + 10 * s..]),
-                dc2e: summary_from_meta(&meta[8 + 10 * s..]),
-            })
-            .collect();
-        if sets
+    fn arrays(&self) -> Vec<&[T]> {
+        let pinvs = self
+            .sets
             .iter()
-            .any(|s| s.uc2e.rank > n || s.dc2e.rank > n || s.uc2e.n != n || s.dc2e.n != n)
-        {
-            return Err("rank exceeds surface size".into());
-        }
-        if layout(n, &sets, n_child_sets).total != data.len() {
-            return Err("payload length disagrees with layout".into());
-        }
-        Ok(OperatorStore {
-            n,
-            sets,
-            n_child_sets,
-            data,
-        })
+            .flat_map(|s| [&s.uc2e.vs, &s.uc2e.ut, &s.dc2e.vs, &s.dc2e.ut].map(Vec::as_slice));
+        let children = self
+            .children
+            .iter()
+            .flat_map(|c| c.m2m.iter().chain(&c.l2l).map(Vec::as_slice));
+        pinvs.chain(children).collect()
+    }
+
+    fn from_values(layout: OperatorLayout, values: Vec<T>) -> Result<Self, String> {
+        let n = layout.n;
+        let mut reader = ValueReader::new(values);
+        let mut factors = |summary: PinvSummary| -> Result<PinvFactors<T>, String> {
+            Ok(PinvFactors {
+                vs: reader.take(n * summary.rank)?,
+                ut: reader.take(summary.rank * n)?,
+                summary,
+            })
+        };
+        let sets = layout
+            .sets
+            .iter()
+            .map(|s| {
+                Ok(CheckToEquivalent {
+                    uc2e: factors(s.uc2e)?,
+                    dc2e: factors(s.dc2e)?,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        let mut octants = || -> Result<[Vec<T>; 8], String> {
+            let mats: Vec<Vec<T>> = (0..8)
+                .map(|_| reader.take(n * n))
+                .collect::<Result<_, _>>()?;
+            Ok(mats.try_into().expect("eight octants"))
+        };
+        let children = (0..layout.child_sets)
+            .map(|_| {
+                Ok(ChildTranslations {
+                    m2m: octants()?,
+                    l2l: octants()?,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        reader.finish()?;
+        Ok(OperatorTables { n, sets, children })
     }
 }
 
@@ -253,35 +300,29 @@ impl<T: Real> Operators<T> {
         let n_child_sets = if depth >= 1 { child_levels.n_sets() } else { 0 };
 
         let mut key =
-            CacheKey::new::<K, T>("operators", kernel, params.order, params.radii.to_array());
+            CacheKey::new::<K, T>("operators", kernel, params.order, params.radii.to_array())
+                .for_domain(domain_width, depth);
         key.rcond = Some(rcond);
         key.flags = vec![n_child_sets as u64];
-        if homogeneity.is_none() {
-            key.geometry = Some((domain_width, depth));
-        }
-        let accept = |s: &OperatorStore<T>| {
-            if s.n == n && s.sets.len() == levels.n_sets() && s.n_child_sets == n_child_sets {
+        let accept = |l: &OperatorLayout| {
+            if l.n == n && l.sets.len() == levels.n_sets() && l.child_sets == n_child_sets {
                 Ok(())
             } else {
                 Err("layout disagrees with the parameters".to_string())
             }
         };
-        let (store, cache_status) = load_or_compute::<T, OperatorStore<T>>(
-            params.cache_dir.as_deref(),
-            &key,
-            accept,
-            || compute(kernel, params, rcond, &levels, n_child_sets),
-        )?;
-        let layout = layout(n, &store.sets, n_child_sets);
+        let (tables, cache_status) =
+            load_or_compute(params.cache_dir.as_deref(), &key, accept, || {
+                compute(kernel, params, rcond, &levels, n_child_sets)
+            })?;
         Ok(Operators {
             order: params.order,
-            n: store.n,
+            n: tables.n,
             radii: params.radii,
             rcond,
             levels,
             child_levels,
-            store,
-            layout,
+            tables,
             cache_status,
         })
     }
@@ -337,14 +378,15 @@ impl<T: Real> Operators<T> {
 
     /// Bytes held by the operator values.
     pub fn memory_bytes(&self) -> usize {
-        self.store.data.len() * std::mem::size_of::<T>()
+        let values: usize = self.tables.arrays().iter().map(|a| a.len()).sum();
+        values * std::mem::size_of::<T>()
     }
 
     /// Ranks and conditioning of the pseudo-inverses, with warnings when the
     /// cutoff lets rounding errors of `T` dominate.
     pub fn diagnostics(&self) -> OperatorDiagnostics {
-        let uc2e: Vec<_> = self.store.sets.iter().map(|s| s.uc2e).collect();
-        let dc2e: Vec<_> = self.store.sets.iter().map(|s| s.dc2e).collect();
+        let uc2e: Vec<_> = self.tables.sets.iter().map(|s| s.uc2e.summary).collect();
+        let dc2e: Vec<_> = self.tables.sets.iter().map(|s| s.dc2e.summary).collect();
         let max_condition = uc2e
             .iter()
             .chain(&dc2e)
@@ -405,17 +447,9 @@ impl<T: Real> Operators<T> {
             "uc2e: equiv and check lengths differ"
         );
         let (set, scale) = self.levels.lookup(level, -1.0);
-        let r = &self.layout.sets[set];
-        self.apply_pinv(
-            &r.uc_vs,
-            &r.uc_ut,
-            self.store.sets[set].uc2e.rank,
-            scale,
-            ncols,
-            check,
-            equiv,
-            false,
-        );
+        self.tables.sets[set]
+            .uc2e
+            .apply(scale, ncols, check, equiv, Update::Overwrite);
     }
 
     /// `local += DC2E(level) check`: downward check potentials to downward
@@ -431,66 +465,21 @@ impl<T: Real> Operators<T> {
             "dc2e: local and check lengths differ"
         );
         let (set, scale) = self.levels.lookup(level, -1.0);
-        let r = &self.layout.sets[set];
-        self.apply_pinv(
-            &r.dc_vs,
-            &r.dc_ut,
-            self.store.sets[set].dc2e.rank,
-            scale,
-            ncols,
-            check,
-            local,
-            true,
-        );
+        self.tables.sets[set]
+            .dc2e
+            .apply(scale, ncols, check, local, Update::Accumulate);
     }
 
-    #[allow(clippy::too_many_arguments)]
-    fn apply_pinv(
-        &self,
-        vs: &Range<usize>,
-        ut: &Range<usize>,
-        rank: usize,
-        scale: f64,
-        ncols: usize,
-        input: &[T],
-        out: &mut [T],
-        accumulate: bool,
-    ) {
-        let n = self.n;
-        let mut tmp = vec![T::ZERO; rank * ncols];
-        gemm_scaled(
-            rank,
-            ncols,
-            n,
-            1.0,
-            &self.store.data[ut.clone()],
-            input,
-            &mut tmp,
-            false,
-        );
-        gemm_scaled(
-            n,
-            ncols,
-            rank,
-            scale,
-            &self.store.data[vs.clone()],
-            &tmp,
-            out,
-            accumulate,
-        );
-    }
-
-    fn child_op(&self, child_level: u32, octant: usize, l2l: bool) -> &[T] {
+    /// The parent/child translations for children at `child_level`.
+    fn children(&self, child_level: u32, octant: usize) -> &ChildTranslations<T> {
         assert!(octant < 8, "octant must be < 8, got {octant}");
         assert!(child_level >= 1, "child level must be at least 1");
         assert!(
-            !self.layout.child_base.is_empty(),
+            !self.tables.children.is_empty(),
             "operators were built with depth 0: no M2M/L2L"
         );
         let (set, _) = self.child_levels.lookup(child_level, 0.0);
-        let nn = self.n * self.n;
-        let start = self.layout.child_base[set] + (octant + if l2l { 8 } else { 0 }) * nn;
-        &self.store.data[start..start + nn]
+        &self.tables.children[set]
     }
 
     /// `parent += M2M(child_level, octant) child`: child upward equivalent
@@ -507,8 +496,17 @@ impl<T: Real> Operators<T> {
             child.len(),
             "m2m: parent and child lengths differ"
         );
-        let op = self.child_op(child_level, octant, false);
-        gemm_scaled(self.n, ncols, self.n, 1.0, op, child, parent, true);
+        let op = &self.children(child_level, octant).m2m[octant];
+        gemm_scaled(
+            self.n,
+            ncols,
+            self.n,
+            1.0,
+            op,
+            child,
+            parent,
+            Update::Accumulate,
+        );
     }
 
     /// `child += L2L(child_level, octant) parent`: parent downward
@@ -523,8 +521,60 @@ impl<T: Real> Operators<T> {
             child.len(),
             "l2l: parent and child lengths differ"
         );
-        let op = self.child_op(child_level, octant, true);
-        gemm_scaled(self.n, ncols, self.n, 1.0, op, parent, child, true);
+        let op = &self.children(child_level, octant).l2l[octant];
+        gemm_scaled(
+            self.n,
+            ncols,
+            self.n,
+            1.0,
+            op,
+            parent,
+            child,
+            Update::Accumulate,
+        );
+    }
+}
+
+/// Where the translations of one child-level set come from: the parent's
+/// and the child's operator set, half-width and pseudo-inverse scale.
+struct ChildGeometry {
+    parent_set: usize,
+    parent_half_width: f64,
+    /// Factor on the parent's UC2E (M2M).
+    parent_scale: f64,
+    child_set: usize,
+    child_half_width: f64,
+    /// Factor on the child's DC2E (L2L).
+    child_scale: f64,
+}
+
+impl ChildGeometry {
+    /// Child set `c` (children at level `c + 1`): a homogeneous kernel of
+    /// degree `d` computes everything at parent half-width 1 (the child's
+    /// DC2E, computed at half-width 1, scales by `(1/2)^-d`); any other
+    /// kernel uses the sets of both levels.
+    fn of(levels: &LevelMap, c: usize) -> Self {
+        match levels.homogeneity {
+            Some(d) => ChildGeometry {
+                parent_set: 0,
+                parent_half_width: 1.0,
+                parent_scale: 1.0,
+                child_set: 0,
+                child_half_width: 0.5,
+                child_scale: 0.5f64.powf(-d),
+            },
+            None => {
+                let hc = levels.half_width(c as u32 + 1);
+                ChildGeometry {
+                    parent_set: c,
+                    parent_half_width: 2.0 * hc,
+                    parent_scale: 1.0,
+                    child_set: c + 1,
+                    child_half_width: hc,
+                    child_scale: 1.0,
+                }
+            }
+        }
     }
 }
 
@@ -535,7 +585,7 @@ fn compute<K: Kernel, T: Real>(
     rcond: f64,
     levels: &LevelMap,
     n_child_sets: usize,
-) -> Result<OperatorStore<T>, FieldError> {
+) -> Result<OperatorTables<T>, FieldError> {
     let p = params.order;
     let n = n_surface_points(p);
     let r = params.radii;
@@ -554,65 +604,52 @@ fn compute<K: Kernel, T: Real>(
         let pd = pinv(a_d.as_ref(), rcond, "DC2E")?;
         pinvs.push((pu, pd));
     }
-    let sets: Vec<SetInfo> = pinvs
-        .iter()
-        .map(|(u, d)| SetInfo {
-            uc2e: u.summary,
-            dc2e: d.summary,
-        })
-        .collect();
-    let lay = layout(n, &sets, n_child_sets);
-    let mut data = vec![T::ZERO; lay.total];
-    for (s, (pu, pd)) in pinvs.iter().enumerate() {
-        let rr = &lay.sets[s];
-        data[rr.uc_vs.clone()].copy_from_slice(&round_to::<T>(&pu.vs));
-        data[rr.uc_ut.clone()].copy_from_slice(&round_to::<T>(&pu.ut));
-        data[rr.dc_vs.clone()].copy_from_slice(&round_to::<T>(&pd.vs));
-        data[rr.dc_ut.clone()].copy_from_slice(&round_to::<T>(&pd.ut));
-    }
-    // Child operators.
-    for c in 0..n_child_sets {
-        // (parent set, parent factor, parent h, child set, child factor, child h)
-        let (sp, fp, hp, sc, fc, hc) = match levels.homogeneity {
-            Some(d) => (0, 1.0, 1.0, 0, 0.5f64.powf(-d), 0.5),
-            None => {
-                let hc = levels.half_width(c as u32 + 1);
-                (c, 1.0, 2.0 * hc, c + 1, 1.0, hc)
-            }
-        };
-        let (pu, _) = &pinvs[sp];
-        let (_, pd) = &pinvs[sc];
-        let ops: Vec<Result<Vec<f64>, FieldError>> = (0..16usize)
-            .into_par_iter()
-            .map(|job| {
-                let octant = job % 8;
+    // Child operators: M2M_o = UC2E(parent) K(uc_parent <- ue_child),
+    // L2L_o = DC2E(child) K(dc_child <- de_parent).
+    let children = (0..n_child_sets)
+        .map(|c| -> Result<ChildTranslations<T>, FieldError> {
+            let g = ChildGeometry::of(levels, c);
+            let (pu, _) = &pinvs[g.parent_set];
+            let (_, pd) = &pinvs[g.child_set];
+            let (hp, hc) = (g.parent_half_width, g.child_half_width);
+            let translation = |octant: usize, m2m: bool| -> Result<Vec<T>, FieldError> {
                 let off = octant_offset(octant);
                 let cc = [hc * off[0], hc * off[1], hc * off[2]];
-                if job < 8 {
+                let op = if m2m {
                     let ue_c: Vec<f64> = surface_points(p, cc, hc, r.upward_equivalent);
-                    let uc_p: Vec<f64> = surface_points(p, [0.0; 3], hp, r.upward_check);
+                    let uc_p: Vec<f64> = surface_points(p, origin, hp, r.upward_check);
                     let k = kernel_matrix(kernel, &ue_c, &uc_p, "M2M")?;
-                    Ok(apply_pinv_f64(pu, fp, k.as_ref()))
+                    apply_pinv_f64(pu, g.parent_scale, k.as_ref())
                 } else {
-                    let de_p: Vec<f64> = surface_points(p, [0.0; 3], hp, r.downward_equivalent);
+                    let de_p: Vec<f64> = surface_points(p, origin, hp, r.downward_equivalent);
                     let dc_c: Vec<f64> = surface_points(p, cc, hc, r.downward_check);
                     let k = kernel_matrix(kernel, &de_p, &dc_c, "L2L")?;
-                    Ok(apply_pinv_f64(pd, fc, k.as_ref()))
-                }
+                    apply_pinv_f64(pd, g.child_scale, k.as_ref())
+                };
+                Ok(round_to(&op))
+            };
+            let octants = |m2m: bool| -> Result<[Vec<T>; 8], FieldError> {
+                let mats: Vec<Vec<T>> = (0..8)
+                    .into_par_iter()
+                    .map(|o| translation(o, m2m))
+                    .collect::<Result<_, _>>()?;
+                Ok(mats.try_into().expect("eight octants"))
+            };
+            let (m2m, l2l) = rayon::join(|| octants(true), || octants(false));
+            Ok(ChildTranslations {
+                m2m: m2m?,
+                l2l: l2l?,
             })
-            .collect();
-        let base = lay.child_base[c];
-        for (job, op) in ops.into_iter().enumerate() {
-            let op = op?;
-            data[base + job * n * n..base + (job + 1) * n * n].copy_from_slice(&round_to::<T>(&op));
-        }
-    }
-    Ok(OperatorStore {
-        n,
-        sets,
-        n_child_sets,
-        data,
-    })
+        })
+        .collect::<Result<Vec<_>, _>>()?;
+    let sets = pinvs
+        .iter()
+        .map(|(u, d)| CheckToEquivalent {
+            uc2e: PinvFactors::from_f64(u),
+            dc2e: PinvFactors::from_f64(d),
+        })
+        .collect();
+    Ok(OperatorTables { n, sets, children })
 }
 
 /// `factor * vs * (ut * k)` in `f64`, column-major.
@@ -632,4 +669,59 @@ fn apply_pinv_f64(p: &PinvF64, factor: f64, k: MatRef<'_, f64>) -> Vec<f64> {
         Par::Seq,
     );
     col_major(out.as_ref())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrofmm_kernels::{Laplace3d, ModifiedHelmholtz3d};
+
+    /// The cached form holds every factor and matrix once, in layout
+    /// order, and reads back to the same tables; a layout that contradicts
+    /// itself or its payload is refused.
+    #[test]
+    fn tables_round_trip_through_their_layout() {
+        let yukawa = ModifiedHelmholtz3d::new(2.0).unwrap();
+        let params = OperatorParams::new(3);
+        let levels = LevelMap::new(yukawa.homogeneity(), 1.0, 3, 0).unwrap();
+        let tables: OperatorTables<f64> =
+            compute(&yukawa, &params, 1e-12, &levels, 3).expect("operators");
+        let layout = tables.layout();
+        assert_eq!(layout.sets.len(), 4);
+        assert_eq!(layout.child_sets, 3);
+        let values: Vec<f64> = tables.arrays().concat();
+        assert_eq!(layout.n_values(), Ok(values.len()));
+        let back = OperatorTables::from_values(layout.clone(), values.clone()).unwrap();
+        assert_eq!(back.arrays(), tables.arrays());
+        assert_eq!(back.layout(), layout);
+        // One value short or long, or a rank above n: refused.
+        assert!(OperatorTables::<f64>::from_values(layout.clone(), values[1..].to_vec()).is_err());
+        let mut longer = values.clone();
+        longer.push(0.0);
+        assert!(OperatorTables::<f64>::from_values(layout.clone(), longer).is_err());
+        let mut bad = layout;
+        bad.sets[1].dc2e.rank = bad.n + 1;
+        assert!(bad.n_values().is_err());
+    }
+
+    /// M2M and L2L come from the per-octant arrays: octant `o`'s M2M of a
+    /// constant density differs from octant `7 - o`'s by the mirror
+    /// symmetry only, so their sums agree.
+    #[test]
+    fn octant_matrices_are_the_ones_applied() {
+        let ops = Operators::<f64>::new(&Laplace3d, &OperatorParams::new(4), 1.0, 2).unwrap();
+        let n = ops.n_surface();
+        let child = vec![1.0; n];
+        let sum = |o: usize| {
+            let mut parent = vec![0.0; n];
+            ops.m2m(2, o, &child, &mut parent);
+            parent.iter().sum::<f64>()
+        };
+        for o in 0..8 {
+            let (a, b) = (sum(o), sum(7 - o));
+            assert!((a - b).abs() <= 1e-10 * a.abs(), "{o}: {a} vs {b}");
+            let direct = &ops.children(2, o).m2m[o];
+            assert_eq!(direct.len(), n * n);
+        }
+    }
 }

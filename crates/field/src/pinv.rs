@@ -25,7 +25,7 @@ pub(crate) struct PinvF64 {
 }
 
 /// What the truncated pseudo-inverse of one check matrix kept.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PinvSummary {
     /// Number of singular values (the surface size `n`).
     pub n: usize,

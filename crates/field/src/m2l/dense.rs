@@ -7,11 +7,11 @@ use super::{
     FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
     scatter_add,
 };
-use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
+use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
 use crate::levels::LevelMap;
 use crate::linalg::col_major;
 use crate::{
-    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, gemm_scaled,
+    FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, Update, gemm_scaled,
     n_surface_points, transfer_vectors,
 };
 
@@ -43,37 +43,26 @@ pub struct DenseConfig;
 pub struct DenseM2l<T: Real> {
     n: usize,
     levels: LevelMap,
-    store: DenseStore<T>,
+    store: FlatStore<DenseLayout, T>,
     /// Per set, the storage slot of each transfer vector's matrix
     /// ([`NOT_COMPUTED`] when not precomputed).
     slots: Vec<Vec<u32>>,
     cache_status: CacheStatus,
 }
 
-struct DenseStore<T> {
+/// What a cached dense scheme holds: `sets x 316` column-major `n x n`
+/// matrices `K_v`, set by set, in transfer-vector order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+struct DenseLayout {
+    /// Surface points `n`.
     n: usize,
-    n_sets: usize,
-    data: Vec<T>,
+    /// Operator sets.
+    sets: usize,
 }
 
-impl<T: Real> CachePayload<T> for DenseStore<T> {
-    fn meta(&self) -> Vec<u64> {
-        vec![self.n as u64, self.n_sets as u64]
-    }
-
-    fn data(&self) -> &[T] {
-        &self.data
-    }
-
-    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String> {
-        if meta.len() != 2 {
-            return Err("metadata length".into());
-        }
-        let (n, n_sets) = (meta[0] as usize, meta[1] as usize);
-        if data.len() != n_sets * N_TRANSFER_VECTORS * n * n {
-            return Err("payload length disagrees with layout".into());
-        }
-        Ok(DenseStore { n, n_sets, data })
+impl StoreLayout for DenseLayout {
+    fn n_values(&self) -> Result<usize, String> {
+        Ok(self.sets * N_TRANSFER_VECTORS * self.n * self.n)
     }
 }
 
@@ -147,7 +136,7 @@ impl<T: Real> DenseM2l<T> {
             .enumerate()
             .flat_map(|(set, vs)| vs.iter().map(move |&v| (set, v)))
             .collect();
-        let compute = || -> Result<DenseStore<T>, FieldError> {
+        let compute = || -> Result<FlatStore<DenseLayout, T>, FieldError> {
             let mut data = vec![T::ZERO; order.len() * n * n];
             data.par_chunks_mut(n * n)
                 .zip(order.par_iter())
@@ -160,22 +149,22 @@ impl<T: Real> DenseM2l<T> {
                     }
                     units.add(1)
                 })?;
-            Ok(DenseStore { n, n_sets, data })
+            Ok(FlatStore {
+                layout: DenseLayout { n, sets: n_sets },
+                data,
+            })
         };
         let (store, cache_status) = if full {
-            let mut key =
-                CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array());
-            if levels.homogeneity.is_none() {
-                key.geometry = Some((domain_width, depth));
-            }
-            let accept = |s: &DenseStore<T>| {
-                if s.n == n && s.n_sets == n_sets {
-                    Ok(())
-                } else {
-                    Err("layout disagrees with the parameters".to_string())
-                }
-            };
-            load_or_compute::<T, DenseStore<T>>(params.cache_dir.as_deref(), &key, accept, compute)?
+            let key =
+                CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array())
+                    .for_domain(domain_width, depth);
+            let expected = DenseLayout { n, sets: n_sets };
+            load_or_compute(
+                params.cache_dir.as_deref(),
+                &key,
+                expected.accept(),
+                compute,
+            )?
         } else {
             (compute()?, CacheStatus::Disabled)
         };
@@ -252,7 +241,7 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
                     self.matrix(set, g.vector),
                     &src[..n * len],
                     &mut dst[..n * len],
-                    false,
+                    Update::Overwrite,
                 );
                 scatter_add(n, &dst[..n * len], g.targets, out);
             }

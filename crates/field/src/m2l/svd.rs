@@ -9,13 +9,13 @@ use super::{
     FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
     scatter_add,
 };
-use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
+use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
 use crate::levels::LevelMap;
 use crate::linalg::{col_major, householder_r_until, nested_par, round_to, svd};
 use crate::precompute::{FLOPS_PER_THREAD, Units, effective_threads};
 use crate::{
     FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
-    gemm, gemm_scaled, n_surface_points, transfer_vectors,
+    Update, gemm, gemm_scaled, n_surface_points, transfer_vectors,
 };
 
 /// Configuration of [`SvdM2l`].
@@ -117,7 +117,7 @@ const F32_FLOOR: f64 = 1e-7;
 pub struct SvdM2l<T: Real> {
     n: usize,
     levels: LevelMap,
-    store: SvdStore<T>,
+    store: FlatStore<SvdLayout, T>,
     /// Per set: start of the set in the store and the 316 operators.
     layout: Vec<(usize, Vec<VectorOp>)>,
     tolerance: f64,
@@ -133,7 +133,7 @@ pub struct SvdM2l<T: Real> {
 const RECOMPRESSION_FACTOR: f64 = 0.3;
 
 /// Per-set compression summary.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 struct SvdSetInfo {
     rank: usize,
     /// `sigma_k / sigma_0` of the fat and tall stacks (first dropped value,
@@ -178,70 +178,37 @@ struct VectorOp {
     rank: usize,
 }
 
-struct SvdStore<T> {
+/// What a cached SVD scheme holds, set by set: `U_k` (`n x k`), `V_k^T`
+/// (`k x n`), then per transfer vector either `C_v` (`k x k`) or its
+/// factors `A_v` (`k x r_v`) and `B_v^T` (`r_v x k`), all column-major.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+struct SvdLayout {
+    /// Surface points `n`.
     n: usize,
+    /// Ranks and truncation estimates of each set.
     sets: Vec<SvdSetInfo>,
-    /// Per set: `U_k` (`n x k`), `V_k^T` (`k x n`), then per transfer
-    /// vector either `C_v` (`k x k`) or its factors `A_v` (`k x r_v`) and
-    /// `B_v^T` (`r_v x k`), all column-major.
-    data: Vec<T>,
 }
 
-/// Metadata words per set: rank, two truncation estimates, 316 ranks.
-const META_PER_SET: usize = 3 + N_TRANSFER_VECTORS;
-
-impl<T: Real> CachePayload<T> for SvdStore<T> {
-    fn meta(&self) -> Vec<u64> {
-        let mut m = vec![self.n as u64, self.sets.len() as u64];
+impl StoreLayout for SvdLayout {
+    fn n_values(&self) -> Result<usize, String> {
         for s in &self.sets {
-            m.extend([
-                s.rank as u64,
-                s.dropped_fat.to_bits(),
-                s.dropped_tall.to_bits(),
-            ]);
-            m.extend(s.vector_ranks.iter().map(|&r| r as u64));
-        }
-        m
-    }
-
-    fn data(&self) -> &[T] {
-        &self.data
-    }
-
-    fn from_parts(meta: Vec<u64>, data: Vec<T>) -> Result<Self, String> {
-        if meta.len() < 2 {
-            return Err("short metadata".into());
-        }
-        let (n, n_sets) = (meta[0] as usize, meta[1] as usize);
-        if meta.len() != 2 + META_PER_SET * n_sets {
-            return Err("metadata length".into());
-        }
-        let sets: Vec<SvdSetInfo> = meta[2..]
-            .chunks_exact(META_PER_SET)
-            .map(|m| SvdSetInfo {
-                rank: m[0] as usize,
-                dropped_fat: f64::from_bits(m[1]),
-                dropped_tall: f64::from_bits(m[2]),
-                vector_ranks: m[3..]
-                    .iter()
-                    .map(|&r| r.min(u32::MAX as u64) as u32)
-                    .collect(),
-            })
-            .collect();
-        if sets.iter().any(|s| s.rank == 0 || s.rank > n) {
-            return Err("rank outside 1..=n".into());
-        }
-        if sets.iter().any(|s| {
-            s.vector_ranks
+            if s.vector_ranks.len() != N_TRANSFER_VECTORS {
+                return Err(format!(
+                    "{} transfer-vector ranks, expected {N_TRANSFER_VECTORS}",
+                    s.vector_ranks.len()
+                ));
+            }
+            if s.rank == 0 || s.rank > self.n {
+                return Err("rank outside 1..=n".into());
+            }
+            if s.vector_ranks
                 .iter()
                 .any(|&r| r == 0 || r as usize > s.rank)
-        }) {
-            return Err("transfer-vector rank outside 1..=k".into());
+            {
+                return Err("transfer-vector rank outside 1..=k".into());
+            }
         }
-        if sets.iter().map(|s| s.len(n)).sum::<usize>() != data.len() {
-            return Err("payload length disagrees with layout".into());
-        }
-        Ok(SvdStore { n, sets, data })
+        Ok(self.sets.iter().map(|s| s.len(self.n)).sum())
     }
 }
 
@@ -249,12 +216,18 @@ impl<T: Real> SvdM2l<T> {
     /// Compression rank `k` (the largest over operator sets; a homogeneous
     /// kernel has one set).
     pub fn rank(&self) -> usize {
-        self.store.sets.iter().map(|s| s.rank).max().unwrap_or(0)
+        self.store
+            .layout
+            .sets
+            .iter()
+            .map(|s| s.rank)
+            .max()
+            .unwrap_or(0)
     }
 
     /// Compression rank used at `level`.
     pub fn rank_at(&self, level: u32) -> usize {
-        self.store.sets[self.levels.lookup(level, 1.0).0].rank
+        self.store.layout.sets[self.levels.lookup(level, 1.0).0].rank
     }
 
     /// Tolerance the rank was chosen with (resolved default, or the
@@ -267,6 +240,7 @@ impl<T: Real> SvdM2l<T> {
     /// estimate of the relative compression error.
     pub fn truncation_estimate(&self) -> f64 {
         self.store
+            .layout
             .sets
             .iter()
             .map(|s| s.dropped_fat.max(s.dropped_tall))
@@ -278,6 +252,7 @@ impl<T: Real> SvdM2l<T> {
     /// `2 k^2` for one stored whole.
     pub fn mean_vector_rank(&self) -> f64 {
         self.store
+            .layout
             .sets
             .iter()
             .map(|s| {
@@ -327,7 +302,7 @@ impl<T: Real> SvdM2l<T> {
             .map(|vs| set_units(vs.len(), config.rank.is_none()))
             .sum();
         let units = monitor.units(total);
-        let compute = || -> Result<SvdStore<T>, FieldError> {
+        let compute = || -> Result<FlatStore<SvdLayout, T>, FieldError> {
             let mut sets = Vec::new();
             let mut data = Vec::new();
             for (set, vs) in plan_sets.iter().enumerate() {
@@ -346,27 +321,28 @@ impl<T: Real> SvdM2l<T> {
                 sets.push(info);
                 data.extend(round_to::<T>(&values));
             }
-            Ok(SvdStore { n, sets, data })
+            Ok(FlatStore {
+                layout: SvdLayout { n, sets },
+                data,
+            })
         };
         let (store, cache_status) = if full {
             let mut key =
-                CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array());
+                CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array())
+                    .for_domain(domain_width, depth);
             key.scheme_config = format!(
                 "rank={:?};tolerance={:?};recompression={RECOMPRESSION_FACTOR:?}",
                 config.rank.map(|r| r.min(n)),
                 tolerance
             );
-            if levels.homogeneity.is_none() {
-                key.geometry = Some((domain_width, depth));
-            }
-            let accept = |s: &SvdStore<T>| {
-                if s.n == n && s.sets.len() == levels.n_sets() {
+            let accept = |l: &SvdLayout| {
+                if l.n == n && l.sets.len() == levels.n_sets() {
                     Ok(())
                 } else {
                     Err("layout disagrees with the parameters".to_string())
                 }
             };
-            load_or_compute::<T, SvdStore<T>>(params.cache_dir.as_deref(), &key, accept, compute)?
+            load_or_compute(params.cache_dir.as_deref(), &key, accept, compute)?
         } else {
             (compute()?, CacheStatus::Disabled)
         };
@@ -384,6 +360,7 @@ impl<T: Real> SvdM2l<T> {
     /// Number of transfer vectors with an operator, over all sets.
     pub fn n_vectors(&self) -> usize {
         self.store
+            .layout
             .sets
             .iter()
             .map(|s| s.vector_ranks.iter().filter(|&&r| r > 0).count())
@@ -391,13 +368,14 @@ impl<T: Real> SvdM2l<T> {
     }
 
     /// Start of each set in the store and where its 316 operators lie.
-    fn layout_of(store: &SvdStore<T>) -> Vec<(usize, Vec<VectorOp>)> {
+    fn layout_of(store: &FlatStore<SvdLayout, T>) -> Vec<(usize, Vec<VectorOp>)> {
         let mut start = 0;
         store
+            .layout
             .sets
             .iter()
             .map(|s| {
-                let mut offset = start + 2 * store.n * s.rank;
+                let mut offset = start + 2 * store.layout.n * s.rank;
                 let ops = (0..N_TRANSFER_VECTORS)
                     .map(|v| {
                         let op = VectorOp {
@@ -409,7 +387,7 @@ impl<T: Real> SvdM2l<T> {
                     })
                     .collect();
                 let set_start = start;
-                start += s.len(store.n);
+                start += s.len(store.layout.n);
                 (set_start, ops)
             })
             .collect()
@@ -503,7 +481,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             return;
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
-        let k = self.store.sets[set].rank;
+        let k = self.store.layout.sets[set].rank;
         let (start, ops) = &self.layout[set];
         let data = &self.store.data[*start..];
         let (u, rest) = data.split_at(n * k);
@@ -514,7 +492,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         const COLS: usize = 256;
         mc.par_chunks_mut(k * COLS)
             .zip(multipoles.par_chunks(n * COLS))
-            .for_each(|(out, m)| gemm(k, m.len() / n, n, vt, m, out, false));
+            .for_each(|(out, m)| gemm(k, m.len() / n, n, vt, m, out, Update::Overwrite));
         let mc = &mc;
         let store = &self.store.data;
         let max_rank = ops.iter().map(|o| o.rank).max().unwrap_or(k);
@@ -537,16 +515,40 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
                 );
                 if r == k {
                     let cv = &store[offset..offset + k * k];
-                    gemm(k, len, k, cv, &src[..k * len], &mut dst[..k * len], false);
+                    gemm(
+                        k,
+                        len,
+                        k,
+                        cv,
+                        &src[..k * len],
+                        &mut dst[..k * len],
+                        Update::Overwrite,
+                    );
                 } else {
                     // C_v = A_v B_v^T: mid = B_v^T src, dst = A_v mid.
                     let (av, bt) = store[offset..offset + 2 * k * r].split_at(k * r);
-                    gemm(r, len, k, bt, &src[..k * len], &mut mid[..r * len], false);
-                    gemm(k, len, r, av, &mid[..r * len], &mut dst[..k * len], false);
+                    gemm(
+                        r,
+                        len,
+                        k,
+                        bt,
+                        &src[..k * len],
+                        &mut mid[..r * len],
+                        Update::Overwrite,
+                    );
+                    gemm(
+                        k,
+                        len,
+                        r,
+                        av,
+                        &mid[..r * len],
+                        &mut dst[..k * len],
+                        Update::Overwrite,
+                    );
                 }
                 scatter_add(k, &dst[..k * len], g.targets, &mut acc);
             }
-            gemm_scaled(n, nt, k, scale, u, &acc, out, true);
+            gemm_scaled(n, nt, k, scale, u, &acc, out, Update::Accumulate);
         });
     }
 
@@ -556,7 +558,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
         // Assumes the first set; ranks are equal or close across sets.
-        let Some(set) = self.store.sets.first() else {
+        let Some(set) = self.store.layout.sets.first() else {
             return 0.0;
         };
         let k = set.rank as f64;

@@ -39,7 +39,7 @@ use ferrofmm_kernels::{Kernel, Real};
 
 use super::{LevelMap, m2l_matrix};
 use crate::{
-    M2lInteractions, M2lScheme, M2lUsage, OperatorParams, gemm_scaled, n_surface_points,
+    M2lInteractions, M2lScheme, M2lUsage, OperatorParams, Update, gemm_scaled, n_surface_points,
     transfer_vector_index, transfer_vectors,
 };
 
@@ -292,7 +292,16 @@ fn reference<T: Real, K: Kernel>(
             .flat_map(|&(_, s)| multipoles[s * n..(s + 1) * n].iter().map(|x| x.to_f64()))
             .collect();
         let mut product = vec![0.0; n * list.len()];
-        gemm_scaled(n, list.len(), n, 1.0, &k, &block, &mut product, false);
+        gemm_scaled(
+            n,
+            list.len(),
+            n,
+            1.0,
+            &k,
+            &block,
+            &mut product,
+            Update::Overwrite,
+        );
         for (j, &(t, _)) in list.iter().enumerate() {
             for (o, p) in out[t * n..(t + 1) * n]
                 .iter_mut()

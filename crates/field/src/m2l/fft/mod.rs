@@ -64,7 +64,9 @@ use rustfft::num_complex::Complex;
 
 use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W, block_tables};
 use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
-use crate::cache::{CacheKey, CachePayload, CacheStatus, load_or_compute};
+use crate::cache::{
+    CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
+};
 use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
 use crate::plumbing::SiblingBlocks;
@@ -116,36 +118,53 @@ pub struct FftM2l<T: Real> {
     _values: PhantomData<T>,
 }
 
-/// The kernel slabs of every set, as stored in the operator cache (always
-/// `f64`, whatever `T`; every vector of every set).
-struct FftStore {
+/// What a cached FFT scheme holds: one kernel slab per set, each
+/// `blocks x SLAB_VECTORS x W` values (always `f64`, whatever `T`; every
+/// vector of every set).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+struct FftLayout {
+    /// Frequency blocks of a spectrum.
     blocks: usize,
-    n_sets: usize,
-    data: Vec<f64>,
+    /// Operator sets.
+    sets: usize,
 }
 
-impl CachePayload<f64> for FftStore {
-    fn meta(&self) -> Vec<u64> {
-        vec![self.blocks as u64, self.n_sets as u64]
+impl FftLayout {
+    fn slab_len(&self) -> usize {
+        self.blocks * SLAB_VECTORS * W
+    }
+}
+
+impl StoreLayout for FftLayout {
+    fn n_values(&self) -> Result<usize, String> {
+        Ok(self.sets * self.slab_len())
+    }
+}
+
+/// The kernel slabs of every set, as the operator cache stores them.
+struct FftSlabs {
+    layout: FftLayout,
+    slabs: Vec<Vec<f64>>,
+}
+
+impl CachePayload<f64> for FftSlabs {
+    type Layout = FftLayout;
+
+    fn layout(&self) -> FftLayout {
+        self.layout
     }
 
-    fn data(&self) -> &[f64] {
-        &self.data
+    fn arrays(&self) -> Vec<&[f64]> {
+        self.slabs.iter().map(Vec::as_slice).collect()
     }
 
-    fn from_parts(meta: Vec<u64>, data: Vec<f64>) -> Result<Self, String> {
-        let [blocks, n_sets] = meta[..] else {
-            return Err("metadata length".into());
-        };
-        let (blocks, n_sets) = (blocks as usize, n_sets as usize);
-        if data.len() != n_sets * blocks * SLAB_VECTORS * W {
-            return Err("payload length disagrees with layout".into());
-        }
-        Ok(FftStore {
-            blocks,
-            n_sets,
-            data,
-        })
+    fn from_values(layout: FftLayout, values: Vec<f64>) -> Result<Self, String> {
+        let mut reader = ValueReader::new(values);
+        let slabs = (0..layout.sets)
+            .map(|_| reader.take(layout.slab_len()))
+            .collect::<Result<_, _>>()?;
+        reader.finish()?;
+        Ok(FftSlabs { layout, slabs })
     }
 }
 
@@ -353,41 +372,24 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let complete = sets.iter().all(|w| w.len() == vectors.len());
         let (slabs, cache_status) = if complete && params.cache_dir.is_some() {
             let mut key =
-                CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array());
+                CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array())
+                    .for_domain(domain_width, depth);
             key.scheme_config = format!("grid {grid}");
-            if kernel.homogeneity().is_none() {
-                key.geometry = Some((domain_width, depth));
-            }
-            let compute = || -> Result<FftStore, FieldError> {
-                let mut data = Vec::with_capacity(n_sets * slab_len);
-                for (set, wanted) in sets.iter().enumerate() {
-                    data.extend(compute_set(set, wanted)?);
-                }
-                Ok(FftStore {
-                    blocks,
-                    n_sets,
-                    data,
-                })
+            let layout = FftLayout {
+                blocks,
+                sets: n_sets,
             };
-            let accept = |s: &FftStore| {
-                if s.blocks == blocks && s.n_sets == n_sets {
-                    Ok(())
-                } else {
-                    Err("layout disagrees with the parameters".to_string())
-                }
+            let compute = || -> Result<FftSlabs, FieldError> {
+                let slabs = sets
+                    .iter()
+                    .enumerate()
+                    .map(|(set, wanted)| compute_set(set, wanted))
+                    .collect::<Result<_, _>>()?;
+                Ok(FftSlabs { layout, slabs })
             };
-            let (store, status) = load_or_compute::<f64, FftStore>(
-                params.cache_dir.as_deref(),
-                &key,
-                accept,
-                compute,
-            )?;
-            let slabs = store
-                .data
-                .chunks_exact(slab_len)
-                .map(<[f64]>::to_vec)
-                .collect();
-            (slabs, status)
+            let (store, status) =
+                load_or_compute(params.cache_dir.as_deref(), &key, layout.accept(), compute)?;
+            (store.slabs, status)
         } else {
             let slabs = sets
                 .iter()
