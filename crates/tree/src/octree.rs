@@ -165,6 +165,37 @@ impl Octree {
         Ok(tree)
     }
 
+    /// A tree of the boxes `keys` and all their ancestors, without points:
+    /// every box counts as holding sources and targets (ranges `0..1`, no
+    /// coordinates), with its colleague table but no lists. Only for
+    /// [`lists_of_boxes`](crate::lists::lists_of_boxes).
+    pub(crate) fn skeleton(keys: &[MortonKey]) -> Self {
+        let mut all: Vec<MortonKey> = keys
+            .iter()
+            .flat_map(|&k| std::iter::once(k).chain(k.ancestors()))
+            .chain(std::iter::once(MortonKey::ROOT))
+            .collect();
+        all.sort_unstable_by_key(|k| (k.level(), *k));
+        all.dedup();
+        let depth = all.last().map_or(0, |k| k.level() as usize);
+        let mut levels: Vec<Vec<Node>> = vec![Vec::new(); depth + 1];
+        for key in all {
+            levels[key.level() as usize].push(Node {
+                key,
+                src: [0, 1],
+                tgt: [0, 1],
+                leaf: false,
+            });
+        }
+        let domain = Domain {
+            origin: [0.0; 3],
+            width: 1.0,
+        };
+        let mut tree = Self::flatten(domain, &levels);
+        tree.colleagues = ColleagueTable::build(&tree);
+        tree
+    }
+
     /// Flat arrays from the per-level boxes.
     fn flatten(domain: Domain, levels: &[Vec<Node>]) -> Self {
         let n: usize = levels.iter().map(Vec::len).sum();
