@@ -1,0 +1,181 @@
+//! Parallel sort of the points along the Morton curve (sample sort).
+//!
+//! Each rank first sorts its own points with the tree crate's sort
+//! ([`morton_order`]), keyed by `(finest Morton code, global id)` — the id
+//! breaks ties between points in one finest cell, so the order is total and
+//! every point has one place. Then:
+//!
+//! 1. every rank takes `S = 16 R` regular samples of its sorted keys (fewer
+//!    if it holds fewer points) and all samples are gathered on every rank
+//!    (`all_gather`, `16 R^2` keys in all);
+//! 2. the sorted samples at positions `k * total / R` (`k = 1 .. R - 1`)
+//!    are the splitters; rank `k` receives the keys in
+//!    `[splitter_k, splitter_(k+1))`;
+//! 3. one personalised all-to-all moves every point (code, coordinates, id,
+//!    weight) to its bucket's rank, which merges the `R` sorted runs it
+//!    receives.
+//!
+//! With regular sampling a bucket holds at most about `n/R + n/S` points
+//! (Shi & Schaeffer 1992), so the sort itself is balanced to a few percent;
+//! the exact balance by weight, on box-aligned cuts, is
+//! [`partition`](crate::partition)'s job.
+
+use ferrofmm_tree::Domain;
+use ferrofmm_tree::shape::morton_order;
+use mpi::traits::*;
+
+use crate::exchange::all_to_all;
+
+/// Words per point in a message: code, x, y, z, id, weight.
+const WORDS: usize = 6;
+
+/// The points held by one rank, sorted by `(code, id)`.
+#[derive(Clone, Debug, Default)]
+pub struct LocalPoints {
+    /// Finest-level Morton codes, ascending.
+    pub codes: Vec<u64>,
+    /// Interleaved `xyz`, in the order of `codes`.
+    pub coords: Vec<f64>,
+    /// Global ids: the position of the point in the concatenation of all
+    /// ranks' inputs in rank order.
+    pub ids: Vec<u64>,
+    /// Weight of each point (1 unless given).
+    pub weights: Vec<f64>,
+}
+
+impl LocalPoints {
+    /// Number of points.
+    pub fn len(&self) -> usize {
+        self.codes.len()
+    }
+
+    /// `true` if the rank holds no point.
+    pub fn is_empty(&self) -> bool {
+        self.codes.is_empty()
+    }
+
+    /// The points of `points` (validated, inside `domain`) sorted with the
+    /// tree crate's sort; `first_id` is the global id of the first one.
+    pub(crate) fn sorted_local(
+        points: &[f64],
+        weights: Option<&[f64]>,
+        domain: &Domain,
+        first_id: u64,
+    ) -> Self {
+        let (codes, perm) = morton_order(points, domain).expect("points validated before sorting");
+        let mut coords = Vec::with_capacity(points.len());
+        for &i in &perm {
+            coords.extend_from_slice(&points[3 * i..3 * i + 3]);
+        }
+        let ids = perm.iter().map(|&i| first_id + i as u64).collect();
+        let weights = match weights {
+            Some(w) => perm.iter().map(|&i| w[i]).collect(),
+            None => vec![1.0; perm.len()],
+        };
+        LocalPoints {
+            codes,
+            coords,
+            ids,
+            weights,
+        }
+    }
+
+    fn key(&self, i: usize) -> (u64, u64) {
+        (self.codes[i], self.ids[i])
+    }
+
+    /// Appends point `i` to a message.
+    pub(crate) fn pack(&self, i: usize, out: &mut Vec<u64>) {
+        let c = &self.coords[3 * i..3 * i + 3];
+        out.extend_from_slice(&[
+            self.codes[i],
+            c[0].to_bits(),
+            c[1].to_bits(),
+            c[2].to_bits(),
+            self.ids[i],
+            self.weights[i].to_bits(),
+        ]);
+    }
+
+    /// Points from received messages, sorted by `(code, id)`.
+    pub(crate) fn unpack_sorted(words: &[u64]) -> Self {
+        let mut recs: Vec<&[u64]> = words.chunks_exact(WORDS).collect();
+        recs.sort_unstable_by_key(|r| (r[0], r[4]));
+        let mut p = LocalPoints::default();
+        for r in recs {
+            p.codes.push(r[0]);
+            p.coords.extend(r[1..4].iter().map(|&b| f64::from_bits(b)));
+            p.ids.push(r[4]);
+            p.weights.push(f64::from_bits(r[5]));
+        }
+        p
+    }
+
+    /// Messages of the points `bounds[r] .. bounds[r + 1]` for each rank `r`.
+    pub(crate) fn pack_ranges(&self, bounds: &[usize]) -> Vec<Vec<u64>> {
+        bounds
+            .windows(2)
+            .map(|w| {
+                let mut out = Vec::with_capacity(WORDS * (w[1] - w[0]));
+                for i in w[0]..w[1] {
+                    self.pack(i, &mut out);
+                }
+                out
+            })
+            .collect()
+    }
+}
+
+/// Sample sort (see the [module docs](self)): returns this rank's share of
+/// the globally sorted points and the bytes it sent.
+pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoints, u64) {
+    let size = comm.size() as usize;
+    if size == 1 {
+        return (local, 0);
+    }
+    let n = local.len();
+    let s = n.min(16 * size);
+    let mut samples: Vec<u64> = Vec::with_capacity(2 * s);
+    for j in 0..s {
+        let (c, id) = local.key((j * n + n / 2) / s.max(1));
+        samples.extend_from_slice(&[c, id]);
+    }
+    let mut counts = vec![0u64; size];
+    comm.all_gather_into(&(samples.len() as u64), &mut counts[..]);
+    let total: usize = counts.iter().map(|&c| c as usize).sum();
+    let mut all = vec![0u64; total];
+    {
+        let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
+        let d: Vec<i32> = c
+            .iter()
+            .scan(0, |acc, &x| {
+                let v = *acc;
+                *acc += x;
+                Some(v)
+            })
+            .collect();
+        let mut part = mpi::datatype::PartitionMut::new(&mut all[..], c, d);
+        comm.all_gather_varcount_into(&samples[..], &mut part);
+    }
+    let mut keys: Vec<(u64, u64)> = all.chunks_exact(2).map(|p| (p[0], p[1])).collect();
+    keys.sort_unstable();
+    let splitters: Vec<(u64, u64)> = (1..size).map(|k| keys[k * keys.len() / size]).collect();
+    let mut bounds = Vec::with_capacity(size + 1);
+    bounds.push(0);
+    for sp in &splitters {
+        // First local point not below the splitter (binary search).
+        let (mut a, mut b) = (0, n);
+        while a < b {
+            let m = (a + b) / 2;
+            if local.key(m) < *sp {
+                a = m + 1;
+            } else {
+                b = m;
+            }
+        }
+        bounds.push(a);
+    }
+    bounds.push(n);
+    let (recv, bytes) = all_to_all(comm, &local.pack_ranges(&bounds));
+    (LocalPoints::unpack_sorted(&recv), bytes)
+}
