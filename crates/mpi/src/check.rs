@@ -162,8 +162,10 @@ fn compare(
             let want: BTreeSet<MortonKey> = a.get(b).iter().map(|&i| single.key(i)).collect();
             let got: BTreeSet<MortonKey> = d.get(s).iter().map(|&i| g.skeleton[i]).collect();
             if want != got {
+                let extra: Vec<String> = got.difference(&want).map(|k| format!("{k}")).collect();
+                let missing: Vec<String> = want.difference(&got).map(|k| format!("{k}")).collect();
                 bad.push(format!(
-                    "{name} list of {key}: {} entries, single {}",
+                    "{name} list of {key}: {} entries, single {} (extra {extra:?}, missing {missing:?})",
                     got.len(),
                     want.len()
                 ));
@@ -303,7 +305,7 @@ pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
 pub struct BadArgs {
     /// nan, length, empty (no points anywhere), leaf0 (zero leaf size on
     /// the last rank), options (a different leaf size on the last rank),
-    /// infinite.
+    /// infinite, weights (one weight too few on the last rank).
     #[arg(long)]
     case: String,
 }
@@ -363,7 +365,7 @@ pub fn run_bad(world: &SimpleCommunicator, a: &BadArgs) -> i32 {
             }
             if size > 1 {
                 DistError::BadInput {
-                    rank: 0,
+                    rank: size as i32 - 1,
                     problem: InputProblem::MismatchedOptions,
                 }
             } else {
@@ -371,12 +373,22 @@ pub fn run_bad(world: &SimpleCommunicator, a: &BadArgs) -> i32 {
                 return 0;
             }
         }
+        "weights" => DistError::BadInput {
+            rank: size as i32 - 1,
+            problem: InputProblem::BadWeights,
+        },
         other => {
             eprintln!("unknown case {other}");
             return 2;
         }
     };
-    let ok = match DistributedTree::build(world, &points, &DistOptions::adaptive(leaf)) {
+    let weights = (a.case == "weights").then(|| vec![1.0; points.len() / 3 - usize::from(last)]);
+    let ok = match DistributedTree::build_weighted(
+        world,
+        &points,
+        weights.as_deref(),
+        &DistOptions::adaptive(leaf),
+    ) {
         Ok(_) => {
             println!("rank {me}: no error");
             false

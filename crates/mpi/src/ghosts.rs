@@ -21,7 +21,8 @@
 //!    boxes that are ancestors of `C`, with their leaf flags;
 //! 3. the rank computes the lists of its boxes with the tree crate's own
 //!    list code ([`lists_of_boxes`]) on its boxes, the coarse tree and the
-//!    received boxes. For each of its boxes that is exactly the rows of the
+//!    received boxes, each with its leaf flag (a received box whose
+//!    children were not sent is still internal if flagged so). For each of its boxes that is exactly the rows of the
 //!    single-machine tree, since everything the rows depend on is present.
 //!    The ghosts are the list entries that are not its own.
 
@@ -159,13 +160,13 @@ pub fn exchange_ghosts<C: Communicator>(
         .collect();
     received.sort_unstable();
     received.dedup();
-    let keys: Vec<MortonKey> = local
+    let boxes: Vec<(MortonKey, bool)> = local
         .iter()
-        .map(|&(k, _)| k)
-        .chain(coarse.iter().copied())
-        .chain(received.iter().map(|g| g.key))
+        .copied()
+        .chain(coarse.iter().map(|&k| (k, false)))
+        .chain(received.iter().map(|g| (g.key, g.leaf)))
         .collect();
-    let (skeleton, lists) = lists_of_boxes(&keys);
+    let (skeleton, lists) = lists_of_boxes(&boxes);
     let mut referenced: Vec<MortonKey> = Vec::new();
     for (b, &key) in skeleton.iter().enumerate() {
         if !inside(key, lo, hi) {
@@ -187,7 +188,7 @@ pub fn exchange_ghosts<C: Communicator>(
         .map(|key| {
             let leaf = received
                 .binary_search_by_key(&key, |g| g.key)
-                .map_or(false, |i| received[i].leaf);
+                .is_ok_and(|i| received[i].leaf);
             Ghost { key, leaf }
         })
         .collect();

@@ -95,12 +95,11 @@ impl DistributedTree {
             options.max_level as u64,
             u64::from(weights.is_some()),
         ];
-        let (mut lo_o, mut hi_o) = ([0u64; 3], [0u64; 3]);
-        comm.all_reduce_into(&mine[..], &mut lo_o[..], SystemOperation::min());
-        comm.all_reduce_into(&mine[..], &mut hi_o[..], SystemOperation::max());
-        if lo_o != hi_o {
+        let mut all_o = vec![0u64; 3 * size];
+        comm.all_gather_into(&mine[..], &mut all_o[..]);
+        if let Some(r) = all_o.chunks_exact(3).position(|o| o != &all_o[..3]) {
             return Err(DistError::BadInput {
-                rank: 0,
+                rank: r as i32,
                 problem: InputProblem::MismatchedOptions,
             });
         }

@@ -120,30 +120,36 @@ impl InteractionLists {
     }
 }
 
-/// The U, V, W and X lists of the tree whose boxes are `keys` and all their
-/// ancestors, every box counting as holding sources and targets (so nothing
-/// is pruned; in a tree of one point set every existing box holds points).
-/// Returns the boxes in the tree's order (by level, then Morton order) and
-/// the lists, whose entries index that vector. Leaves are the boxes with no
-/// child among them. Duplicate keys are allowed.
+/// The U, V, W and X lists of the tree whose boxes are `boxes` (key and
+/// whether it is a leaf of the tree) and all their ancestors, every box
+/// counting as holding sources and targets (so nothing is pruned; in a tree
+/// of one point set every existing box holds points). Returns the boxes in
+/// the tree's order (by level, then Morton order) and the lists, whose
+/// entries index that vector. A box flagged internal whose children are not
+/// among `boxes` is internal all the same: it gets a placeholder child that
+/// holds nothing and appears in no list (but in the returned boxes).
+/// Duplicate keys are allowed.
 ///
 /// The lists are computed by the same code as [`Octree::interaction_lists`]
 /// and depend only on the boxes near each box: for a box `B` of level `l`,
 /// the boxes of levels `l - 1 ..= l + 1` inside the colleagues of
-/// `parent(B)` and their ancestors. So a piece of a tree holding those
-/// boxes for `B` gives `B` the rows of the whole tree (what a distributed
-/// tree uses to find the boxes it needs from other processes).
+/// `parent(B)`, their ancestors, and whether each is a leaf. So a piece of
+/// a tree holding those boxes for `B` gives `B` the rows of the whole tree
+/// (what a distributed tree uses to find the boxes it needs from other
+/// processes).
 ///
 /// ```
 /// use ferrofmm_tree::{Octree, TreeOptions, lists::lists_of_boxes};
 /// let pts: Vec<f64> = (0..3000).map(|i| (i as f64 * 0.618_034).fract()).collect();
 /// let tree = Octree::new(&pts, None, &TreeOptions::adaptive(10)).unwrap();
-/// let (keys, lists) = lists_of_boxes(tree.keys());
+/// let boxes: Vec<_> = (0..tree.n_boxes()).map(|b| (tree.key(b), tree.is_leaf(b))).collect();
+/// let (keys, lists) = lists_of_boxes(&boxes);
 /// assert_eq!(keys, tree.keys());
 /// assert_eq!(lists.v.indices(), tree.interaction_lists().v.indices());
+/// assert_eq!(lists.x.indices(), tree.interaction_lists().x.indices());
 /// ```
-pub fn lists_of_boxes(keys: &[MortonKey]) -> (Vec<MortonKey>, InteractionLists) {
-    let tree = Octree::skeleton(keys);
+pub fn lists_of_boxes(boxes: &[(MortonKey, bool)]) -> (Vec<MortonKey>, InteractionLists) {
+    let tree = Octree::skeleton(boxes);
     let lists = InteractionLists::build(&tree);
     (tree.keys().to_vec(), lists)
 }
