@@ -26,6 +26,9 @@ pub struct CheckArgs {
     /// Leaf sizes (comma-separated).
     #[arg(long, default_value = "1,16,150")]
     leaf_size: String,
+    /// Seed of the points.
+    #[arg(long, default_value_t = 7)]
+    seed: u64,
 }
 
 const LAYOUTS: [&str; 6] = [
@@ -211,7 +214,7 @@ pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
             return 2;
         };
         for layout in &layouts {
-            let mut points = geom.points(a.n, 7);
+            let mut points = geom.points(a.n, a.seed);
             if layout == "duplicates" {
                 // Every point four times (whole leaves of one cell).
                 let base = points[..3 * (a.n / 4)].to_vec();
