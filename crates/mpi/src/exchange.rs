@@ -27,9 +27,12 @@ fn layout(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
 }
 
 /// Personalised all-to-all: `send[r]` goes to rank `r`; returns what every
-/// rank sent to this one, concatenated in rank order, and the bytes sent to
-/// other ranks.
-pub(crate) fn all_to_all<C: Communicator>(comm: &C, send: &[Vec<u64>]) -> (Vec<u64>, u64) {
+/// rank sent to this one, concatenated in rank order, the number of words
+/// from each rank, and the bytes sent to other ranks.
+pub(crate) fn all_to_all<C: Communicator>(
+    comm: &C,
+    send: &[Vec<u64>],
+) -> (Vec<u64>, Vec<usize>, u64) {
     let me = comm.rank() as usize;
     let counts: Vec<usize> = send.iter().map(Vec::len).collect();
     let mut recv_counts = vec![0usize; counts.len()];
@@ -54,7 +57,7 @@ pub(crate) fn all_to_all<C: Communicator>(comm: &C, send: &[Vec<u64>]) -> (Vec<u
         .filter(|&(r, _)| r != me)
         .map(|(_, &n)| 8 * n as u64)
         .sum();
-    (recv, bytes)
+    (recv, recv_counts, bytes)
 }
 
 /// Sparse point-to-point exchange: `send` holds `(rank, words)` for the

@@ -138,18 +138,20 @@ pub fn find_cuts<C: Communicator>(
 /// rank's points (sorted) and the bytes sent.
 pub fn redistribute<C: Communicator>(
     comm: &C,
-    pts: &LocalPoints,
+    pts: LocalPoints,
     cuts: &[u64],
 ) -> (LocalPoints, u64) {
     if comm.size() == 1 {
-        return (pts.clone(), 0);
+        return (pts, 0);
     }
     let bounds: Vec<usize> = cuts
         .iter()
         .map(|&c| pts.codes.partition_point(|&x| x < c))
         .collect();
-    let (recv, bytes) = all_to_all(comm, &pts.pack_ranges(&bounds));
-    (LocalPoints::unpack_sorted(&recv), bytes)
+    let messages = pts.pack_ranges(&bounds);
+    drop(pts);
+    let (recv, runs, bytes) = all_to_all(comm, &messages);
+    (LocalPoints::unpack_merged(&recv, &runs), bytes)
 }
 
 /// The ranks whose ranges intersect the codes `range` (ranks with empty

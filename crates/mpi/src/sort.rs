@@ -13,7 +13,7 @@
 //!    `[splitter_k, splitter_(k+1))`;
 //! 3. one personalised all-to-all moves every point (code, coordinates, id,
 //!    weight) to its bucket's rank, which merges the `R` sorted runs it
-//!    receives.
+//!    receives (a heap merge, `O(n log R)`).
 //!
 //! With regular sampling a bucket holds at most about `n/R + n/S` points
 //! (Shi & Schaeffer 1992), so the sort itself is balanced to a few percent;
@@ -97,16 +97,43 @@ impl LocalPoints {
         ]);
     }
 
-    /// Points from received messages, sorted by `(code, id)`.
-    pub(crate) fn unpack_sorted(words: &[u64]) -> Self {
-        let mut recs: Vec<&[u64]> = words.chunks_exact(WORDS).collect();
-        recs.sort_unstable_by_key(|r| (r[0], r[4]));
-        let mut p = LocalPoints::default();
-        for r in recs {
-            p.codes.push(r[0]);
-            p.coords.extend(r[1..4].iter().map(|&b| f64::from_bits(b)));
-            p.ids.push(r[4]);
-            p.weights.push(f64::from_bits(r[5]));
+    /// Points from received messages: `runs[r]` words from rank `r`, each
+    /// run sorted by `(code, id)`; merged into one sorted sequence (a
+    /// `R`-way merge with a heap, `O(n log R)`).
+    pub(crate) fn unpack_merged(words: &[u64], runs: &[usize]) -> Self {
+        use std::cmp::Reverse;
+        use std::collections::BinaryHeap;
+        let mut pos: Vec<[usize; 2]> = Vec::with_capacity(runs.len());
+        let mut start = 0;
+        for &len in runs {
+            pos.push([start, start + len]);
+            start += len;
+        }
+        let key = |i: usize| (words[i], words[i + 4]);
+        let mut heap: BinaryHeap<Reverse<((u64, u64), usize)>> = pos
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p[0] < p[1])
+            .map(|(r, p)| Reverse((key(p[0]), r)))
+            .collect();
+        let n = words.len() / WORDS;
+        let mut p = LocalPoints {
+            codes: Vec::with_capacity(n),
+            coords: Vec::with_capacity(3 * n),
+            ids: Vec::with_capacity(n),
+            weights: Vec::with_capacity(n),
+        };
+        while let Some(Reverse((_, r))) = heap.pop() {
+            let i = pos[r][0];
+            let w = &words[i..i + WORDS];
+            p.codes.push(w[0]);
+            p.coords.extend(w[1..4].iter().map(|&b| f64::from_bits(b)));
+            p.ids.push(w[4]);
+            p.weights.push(f64::from_bits(w[5]));
+            pos[r][0] += WORDS;
+            if pos[r][0] < pos[r][1] {
+                heap.push(Reverse((key(pos[r][0]), r)));
+            }
         }
         p
     }
@@ -176,6 +203,6 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
         bounds.push(a);
     }
     bounds.push(n);
-    let (recv, bytes) = all_to_all(comm, &local.pack_ranges(&bounds));
-    (LocalPoints::unpack_sorted(&recv), bytes)
+    let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds));
+    (LocalPoints::unpack_merged(&recv, &runs), bytes)
 }

@@ -150,8 +150,7 @@ impl DistributedTree {
         // 3. Box-aligned cuts balanced by weight; move the points there.
         let t = Timer::start();
         let cuts = find_cuts(comm, &sorted, options.leaf_size, options.max_level);
-        let (pts, bytes) = redistribute(comm, &sorted, &cuts);
-        drop(sorted);
+        let (pts, bytes) = redistribute(comm, sorted, &cuts);
         stats.bytes_sent[2] = bytes;
         t.stop(&mut stats, 2);
 
