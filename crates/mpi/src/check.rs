@@ -17,7 +17,8 @@ pub struct CheckArgs {
     #[arg(long, default_value = "all")]
     geometry: String,
     /// Layouts of the points over the ranks (comma-separated) or `all`:
-    /// even, first-empty, all-on-last, skewed, strided, duplicates.
+    /// even, first-empty, all-on-last, skewed, strided, duplicates,
+    /// weighted (even, balanced by uneven per-point weights).
     #[arg(long, default_value = "all")]
     layout: String,
     /// Number of points (all ranks together).
@@ -31,13 +32,14 @@ pub struct CheckArgs {
     seed: u64,
 }
 
-const LAYOUTS: [&str; 6] = [
+const LAYOUTS: [&str; 7] = [
     "even",
     "first-empty",
     "all-on-last",
     "skewed",
     "strided",
     "duplicates",
+    "weighted",
 ];
 
 /// The original indices of the points each rank holds under `layout`.
@@ -234,11 +236,15 @@ pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
             {
                 let single = Octree::new(&points, None, &TreeOptions::adaptive(leaf))
                     .expect("valid test points");
-                let local_bad = match DistributedTree::build(
+                let weights: Option<Vec<f64>> = (layout == "weighted")
+                    .then(|| share[me].iter().map(|&i| 1.0 + (i % 7) as f64).collect());
+                let built = DistributedTree::build_weighted(
                     world,
                     &mine,
+                    weights.as_deref(),
                     &DistOptions::adaptive(leaf),
-                ) {
+                );
+                let local_bad = match built {
                     Ok(tree) => {
                         let mut bad = compare(&tree, &single, &points, &order, me);
                         // Every point on exactly one rank, every box once.

@@ -18,7 +18,8 @@
 //! 1. requests `(C, depth)`, merged per region, point to point to the
 //!    owners of `C`;
 //! 2. each owner answers with its boxes inside `C` down to `depth` and its
-//!    boxes that are ancestors of `C`, with their leaf flags;
+//!    boxes that are ancestors of `C`, with their leaf flags and point
+//!    counts (24 bytes a box);
 //! 3. the rank computes the lists of its boxes with the tree crate's own
 //!    list code ([`lists_of_boxes`]) on its boxes, the coarse tree and the
 //!    received boxes, each with its leaf flag (a received box whose
@@ -46,6 +47,9 @@ pub struct Ghost {
     pub key: MortonKey,
     /// Whether it is a leaf of the global tree.
     pub leaf: bool,
+    /// Points in it (0 for a box of the coarse tree, whose points are
+    /// spread over ranks).
+    pub points: usize,
 }
 
 /// The ghost data of one rank.
@@ -72,11 +76,11 @@ pub(crate) fn inside(key: MortonKey, lo: u64, hi: u64) -> bool {
 }
 
 /// Finds the ghost layer (see the [module docs](self)); returns it and the
-/// bytes sent. `local` holds this rank's boxes with their leaf flags,
-/// sorted; `coarse` the boxes straddling cuts.
+/// bytes sent. `local` holds this rank's boxes with their leaf flags and
+/// point counts, sorted; `coarse` the boxes straddling cuts.
 pub fn exchange_ghosts<C: Communicator>(
     comm: &C,
-    local: &[(MortonKey, bool)],
+    local: &[(MortonKey, bool, usize)],
     coarse: &[MortonKey],
     cuts: &[u64],
 ) -> (GhostLayer, u64) {
@@ -84,7 +88,7 @@ pub fn exchange_ghosts<C: Communicator>(
     let (lo, hi) = (cuts[me], cuts[me + 1]);
     // 1. Requests: region -> deepest level needed, per owner.
     let mut wanted: BTreeMap<(usize, MortonKey), u32> = BTreeMap::new();
-    for &(b, _) in local {
+    for &(b, _, _) in local {
         if b.level() == 0 {
             continue;
         }
@@ -109,22 +113,22 @@ pub fn exchange_ghosts<C: Communicator>(
 
     // 2. Answers: own boxes inside each region (to its depth) and own
     // ancestors of it.
-    let find = |k: MortonKey| local.binary_search_by_key(&k, |&(key, _)| key).ok();
+    let find = |k: MortonKey| local.binary_search_by_key(&k, |&(key, _, _)| key).ok();
     let mut answers: Vec<(usize, Vec<u64>)> = Vec::new();
     for (r, words) in asked {
-        let mut out: Vec<(MortonKey, bool)> = Vec::new();
+        let mut out: Vec<(MortonKey, bool, usize)> = Vec::new();
         for pair in words.chunks_exact(2) {
             let Some(c) = MortonKey::from_raw(pair[0]) else {
                 continue;
             };
             let depth = pair[1] as u32;
             let end = c.morton_range().end;
-            let start = local.partition_point(|&(k, _)| k < c);
-            let stop = start + local[start..].partition_point(|&(k, _)| k.morton() < end);
+            let start = local.partition_point(|&(k, _, _)| k < c);
+            let stop = start + local[start..].partition_point(|&(k, _, _)| k.morton() < end);
             out.extend(
                 local[start..stop]
                     .iter()
-                    .filter(|(k, _)| k.level() <= depth)
+                    .filter(|(k, _, _)| k.level() <= depth)
                     .copied(),
             );
             for a in c.ancestors() {
@@ -140,7 +144,7 @@ pub fn exchange_ghosts<C: Communicator>(
         answers.push((
             r,
             out.iter()
-                .flat_map(|&(k, leaf)| [k.raw(), u64::from(leaf)])
+                .flat_map(|&(k, leaf, n)| [k.raw(), u64::from(leaf), n as u64])
                 .collect(),
         ));
     }
@@ -150,11 +154,12 @@ pub fn exchange_ghosts<C: Communicator>(
     // 3. Lists on everything known; ghosts are the foreign entries.
     let mut received: Vec<Ghost> = got
         .iter()
-        .flat_map(|(_, w)| w.chunks_exact(2))
+        .flat_map(|(_, w)| w.chunks_exact(3))
         .filter_map(|p| {
             MortonKey::from_raw(p[0]).map(|key| Ghost {
                 key,
                 leaf: p[1] == 1,
+                points: p[2] as usize,
             })
         })
         .collect();
@@ -162,7 +167,7 @@ pub fn exchange_ghosts<C: Communicator>(
     received.dedup();
     let boxes: Vec<(MortonKey, bool)> = local
         .iter()
-        .copied()
+        .map(|&(k, leaf, _)| (k, leaf))
         .chain(coarse.iter().map(|&k| (k, false)))
         .chain(received.iter().map(|g| (g.key, g.leaf)))
         .collect();
@@ -185,11 +190,13 @@ pub fn exchange_ghosts<C: Communicator>(
     referenced.dedup();
     let ghosts = referenced
         .into_iter()
-        .map(|key| {
-            let leaf = received
-                .binary_search_by_key(&key, |g| g.key)
-                .is_ok_and(|i| received[i].leaf);
-            Ghost { key, leaf }
+        .map(|key| match received.binary_search_by_key(&key, |g| g.key) {
+            Ok(i) => received[i],
+            Err(_) => Ghost {
+                key,
+                leaf: false,
+                points: 0,
+            },
         })
         .collect();
     (

@@ -23,6 +23,15 @@ pub struct TreeArgs {
     /// Maximum points per leaf.
     #[arg(long, default_value_t = 64)]
     leaf_size: usize,
+    /// Balance by `points` (default) or by `work`: build once, estimate
+    /// each point's work from the interaction lists, build again balanced
+    /// by it (both builds are reported).
+    #[arg(long, default_value = "points")]
+    weights: String,
+    /// For `--weights work`: cost of one V, W or X entry in pair
+    /// interactions.
+    #[arg(long, default_value_t = 100.0)]
+    far_cost: f64,
     /// Print one JSON line per rank instead of the table.
     #[arg(long)]
     json: bool,
@@ -80,13 +89,40 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
     };
     world.barrier();
     let t = std::time::Instant::now();
-    let tree = match DistributedTree::build(world, &points, &DistOptions::adaptive(a.leaf_size)) {
+    let options = DistOptions::adaptive(a.leaf_size);
+    let mut tree = match DistributedTree::build(world, &points, &options) {
         Ok(t) => t,
         Err(e) => {
             eprintln!("rank {me}: {e}");
             return 1;
         }
     };
+    if a.weights == "work" {
+        let w = tree.work_weights(a.far_cost);
+        let before: f64 = w.iter().sum();
+        let coords = std::mem::take(&mut tree.points.coords);
+        tree = match DistributedTree::build_weighted(world, &coords, Some(&w), &options) {
+            Ok(t) => t,
+            Err(e) => {
+                eprintln!("rank {me}: {e}");
+                return 1;
+            }
+        };
+        let after: f64 = tree.points.weights.iter().sum();
+        let (mut all_b, mut all_a) = (vec![0.0f64; size], vec![0.0f64; size]);
+        world.all_gather_into(&before, &mut all_b[..]);
+        world.all_gather_into(&after, &mut all_a[..]);
+        if me == 0 {
+            let imb = |v: &[f64]| {
+                v.iter().cloned().fold(0.0, f64::max) * size as f64 / v.iter().sum::<f64>()
+            };
+            println!(
+                "work estimate: imbalance (max/mean) {:.4} balanced by points, {:.4} balanced by work",
+                imb(&all_b),
+                imb(&all_a)
+            );
+        }
+    }
     world.barrier();
     let total = t.elapsed().as_secs_f64();
     let n = tree.points.len() as u64;

@@ -51,6 +51,7 @@ pub struct DistributedTree {
     /// Phase times and bytes sent.
     pub stats: BuildStats,
     shape: TreeShape,
+    rank: usize,
 }
 
 impl DistributedTree {
@@ -186,8 +187,7 @@ impl DistributedTree {
         // 6. Ghosts.
         let t = Timer::start();
         let boxes = own_boxes(&shape, lo, hi);
-        let flags: Vec<(MortonKey, bool)> = boxes.iter().map(|&(k, l, _)| (k, l)).collect();
-        let (ghosts, bytes) = exchange_ghosts(comm, &flags, &coarse, &cuts);
+        let (ghosts, bytes) = exchange_ghosts(comm, &boxes, &coarse, &cuts);
         stats.bytes_sent[5] = bytes;
         t.stop(&mut stats, 5);
 
@@ -200,12 +200,58 @@ impl DistributedTree {
             ghosts,
             stats,
             shape,
+            rank: me,
         })
     }
 
     /// This rank's leaves (keys, sorted).
     pub fn leaves(&self) -> impl Iterator<Item = MortonKey> + '_ {
         self.boxes.iter().filter(|b| b.1).map(|b| b.0)
+    }
+
+    /// A work estimate per point of this rank, from the interaction lists,
+    /// for [`DistributedTree::build_weighted`]: a leaf `B` with `n_B`
+    /// points costs `n_B * sum(n_A, A in U(B))` pair interactions (P2P)
+    /// plus `far_cost` for each entry of its V, W and X lists (any box's V
+    /// and X entries likewise); a box's cost is spread evenly over its
+    /// points, and a point sums the costs of its boxes. A crude model:
+    /// `far_cost` is the cost
+    /// of one far-field translation in pair interactions (of the order of
+    /// the square of the number of equivalent points for dense M2L).
+    pub fn work_weights(&self, far_cost: f64) -> Vec<f64> {
+        let g = &self.ghosts;
+        let (lo, hi) = (self.cuts[self.rank], self.cuts[self.rank + 1]);
+        let count = |k: MortonKey| -> usize {
+            if crate::ghosts::inside(k, lo, hi) {
+                self.boxes
+                    .binary_search_by_key(&k, |b| b.0)
+                    .map_or(0, |i| self.boxes[i].2)
+            } else {
+                g.ghosts
+                    .binary_search_by_key(&k, |x| x.key)
+                    .map_or(0, |i| g.ghosts[i].points)
+            }
+        };
+        let mut w = vec![0.0; self.points.len()];
+        for (s, &key) in g.skeleton.iter().enumerate() {
+            if !crate::ghosts::inside(key, lo, hi) {
+                continue;
+            }
+            let n_b = count(key);
+            if n_b == 0 {
+                continue;
+            }
+            let near: usize = g.lists.u.get(s).iter().map(|&a| count(g.skeleton[a])).sum();
+            let far = g.lists.v.get(s).len() + g.lists.w.get(s).len() + g.lists.x.get(s).len();
+            let per_point = near as f64 + far_cost * far as f64 / n_b as f64;
+            let r = key.morton_range();
+            let first = self.points.codes.partition_point(|&c| c < r.start);
+            let last = self.points.codes.partition_point(|&c| c < r.end);
+            for x in &mut w[first..last] {
+                *x += per_point;
+            }
+        }
+        w
     }
 
     /// The rank's piece of the tree as built (its boxes, the coarse tree and
