@@ -136,6 +136,11 @@ pub fn find_cuts<C: Communicator>(
 
 /// Sends every point to the rank whose range holds its code; returns this
 /// rank's points (sorted) and the bytes sent.
+///
+/// The points are already in global order (rank by rank), so the points a
+/// rank receives from lower ranks precede its own, and those from higher
+/// ranks follow: no merge, and the points that stay are not copied through
+/// the exchange.
 pub fn redistribute<C: Communicator>(
     comm: &C,
     pts: LocalPoints,
@@ -144,14 +149,17 @@ pub fn redistribute<C: Communicator>(
     if comm.size() == 1 {
         return (pts, 0);
     }
+    let me = comm.rank() as usize;
     let bounds: Vec<usize> = cuts
         .iter()
         .map(|&c| pts.codes.partition_point(|&x| x < c))
         .collect();
-    let messages = pts.pack_ranges(&bounds);
-    drop(pts);
+    let messages = pts.pack_ranges(&bounds, Some(me));
     let (recv, runs, bytes) = all_to_all(comm, &messages);
-    (LocalPoints::unpack_merged(&recv, &runs), bytes)
+    drop(messages);
+    let split: usize = runs[..me].iter().sum();
+    let out = pts.splice(&recv[..split], bounds[me]..bounds[me + 1], &recv[split..]);
+    (out, bytes)
 }
 
 /// The ranks whose ranges intersect the codes `range` (ranks with empty

@@ -138,11 +138,51 @@ impl LocalPoints {
         p
     }
 
-    /// Messages of the points `bounds[r] .. bounds[r + 1]` for each rank `r`.
-    pub(crate) fn pack_ranges(&self, bounds: &[usize]) -> Vec<Vec<u64>> {
+    /// Concatenates the points of `self` from `range` and of the messages
+    /// `words` (unpacked in order) as `before ++ self[range] ++ after`:
+    /// what a rank holds after exchanging points that were already in global
+    /// order (lower ranks' points come first).
+    pub(crate) fn splice(
+        &self,
+        before: &[u64],
+        range: std::ops::Range<usize>,
+        after: &[u64],
+    ) -> Self {
+        let n = (before.len() + after.len()) / WORDS + range.len();
+        let mut p = LocalPoints {
+            codes: Vec::with_capacity(n),
+            coords: Vec::with_capacity(3 * n),
+            ids: Vec::with_capacity(n),
+            weights: Vec::with_capacity(n),
+        };
+        let unpack = |p: &mut LocalPoints, words: &[u64]| {
+            for w in words.chunks_exact(WORDS) {
+                p.codes.push(w[0]);
+                p.coords.extend(w[1..4].iter().map(|&b| f64::from_bits(b)));
+                p.ids.push(w[4]);
+                p.weights.push(f64::from_bits(w[5]));
+            }
+        };
+        unpack(&mut p, before);
+        p.codes.extend_from_slice(&self.codes[range.clone()]);
+        p.coords
+            .extend_from_slice(&self.coords[3 * range.start..3 * range.end]);
+        p.ids.extend_from_slice(&self.ids[range.clone()]);
+        p.weights.extend_from_slice(&self.weights[range]);
+        unpack(&mut p, after);
+        p
+    }
+
+    /// Messages of the points `bounds[r] .. bounds[r + 1]` for each rank `r`
+    /// (an empty one for rank `skip`).
+    pub(crate) fn pack_ranges(&self, bounds: &[usize], skip: Option<usize>) -> Vec<Vec<u64>> {
         bounds
             .windows(2)
-            .map(|w| {
+            .enumerate()
+            .map(|(r, w)| {
+                if skip == Some(r) {
+                    return Vec::new();
+                }
                 let mut out = Vec::with_capacity(WORDS * (w[1] - w[0]));
                 for i in w[0]..w[1] {
                     self.pack(i, &mut out);
@@ -203,6 +243,6 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
         bounds.push(a);
     }
     bounds.push(n);
-    let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds));
+    let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds, None));
     (LocalPoints::unpack_merged(&recv, &runs), bytes)
 }
