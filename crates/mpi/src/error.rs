@@ -112,11 +112,16 @@ pub(crate) fn agree<C: Communicator, T>(
     };
     let mut all = vec![0u32; comm.size() as usize];
     comm.all_gather_into(&code, &mut all[..]);
-    match all.iter().position(|&c| c != 0) {
-        None => Ok(local.unwrap_or_else(|_| unreachable!("every code is 0"))),
-        Some(rank) => Err(DistError::BadInput {
+    match (all.iter().position(|&c| c != 0), local) {
+        (None, Ok(value)) => Ok(value),
+        (Some(rank), _) => Err(DistError::BadInput {
             rank: rank as i32,
             problem: InputProblem::from_code(all[rank]),
+        }),
+        // Not reached: this rank's own code is in `all`.
+        (None, Err(problem)) => Err(DistError::BadInput {
+            rank: comm.rank(),
+            problem,
         }),
     }
 }
