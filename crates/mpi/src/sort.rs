@@ -97,26 +97,45 @@ impl LocalPoints {
         ]);
     }
 
-    /// Points from received messages: `runs[r]` words from rank `r`, each
-    /// run sorted by `(code, id)`; merged into one sorted sequence (a
-    /// `R`-way merge with a heap, `O(n log R)`).
-    pub(crate) fn unpack_merged(words: &[u64], runs: &[usize]) -> Self {
+    /// Merges, by `(code, id)`, the points `self[own]` (this rank's run,
+    /// never copied through the exchange) with the received messages
+    /// (`runs[r]` words from rank `r`, each run sorted): an `R`-way merge
+    /// with a heap, `O(n log R)`.
+    pub(crate) fn merge_runs(
+        &self,
+        own: std::ops::Range<usize>,
+        me: usize,
+        words: &[u64],
+        runs: &[usize],
+    ) -> Self {
         use std::cmp::Reverse;
         use std::collections::BinaryHeap;
+        // Run `r`: `[next, end)`, in points of `self` for `r == me`, in
+        // words of `words` otherwise.
         let mut pos: Vec<[usize; 2]> = Vec::with_capacity(runs.len());
         let mut start = 0;
-        for &len in runs {
-            pos.push([start, start + len]);
+        for (r, &len) in runs.iter().enumerate() {
+            if r == me {
+                pos.push([own.start, own.end]);
+            } else {
+                pos.push([start, start + len]);
+            }
             start += len;
         }
-        let key = |i: usize| (words[i], words[i + 4]);
+        let key = |r: usize, i: usize| {
+            if r == me {
+                (self.codes[i], self.ids[i])
+            } else {
+                (words[i], words[i + 4])
+            }
+        };
         let mut heap: BinaryHeap<Reverse<((u64, u64), usize)>> = pos
             .iter()
             .enumerate()
             .filter(|(_, p)| p[0] < p[1])
-            .map(|(r, p)| Reverse((key(p[0]), r)))
+            .map(|(r, p)| Reverse((key(r, p[0]), r)))
             .collect();
-        let n = words.len() / WORDS;
+        let n = words.len() / WORDS + own.len();
         let mut p = LocalPoints {
             codes: Vec::with_capacity(n),
             coords: Vec::with_capacity(3 * n),
@@ -125,14 +144,22 @@ impl LocalPoints {
         };
         while let Some(Reverse((_, r))) = heap.pop() {
             let i = pos[r][0];
-            let w = &words[i..i + WORDS];
-            p.codes.push(w[0]);
-            p.coords.extend(w[1..4].iter().map(|&b| f64::from_bits(b)));
-            p.ids.push(w[4]);
-            p.weights.push(f64::from_bits(w[5]));
-            pos[r][0] += WORDS;
+            if r == me {
+                p.codes.push(self.codes[i]);
+                p.coords.extend_from_slice(&self.coords[3 * i..3 * i + 3]);
+                p.ids.push(self.ids[i]);
+                p.weights.push(self.weights[i]);
+                pos[r][0] += 1;
+            } else {
+                let w = &words[i..i + WORDS];
+                p.codes.push(w[0]);
+                p.coords.extend(w[1..4].iter().map(|&b| f64::from_bits(b)));
+                p.ids.push(w[4]);
+                p.weights.push(f64::from_bits(w[5]));
+                pos[r][0] += WORDS;
+            }
             if pos[r][0] < pos[r][1] {
-                heap.push(Reverse((key(pos[r][0]), r)));
+                heap.push(Reverse((key(r, pos[r][0]), r)));
             }
         }
         p
@@ -243,6 +270,8 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
         bounds.push(a);
     }
     bounds.push(n);
-    let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds, None));
-    (LocalPoints::unpack_merged(&recv, &runs), bytes)
+    let me = comm.rank() as usize;
+    let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds, Some(me)));
+    let own = bounds[me]..bounds[me + 1];
+    (local.merge_runs(own, me, &recv, &runs), bytes)
 }
