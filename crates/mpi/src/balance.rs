@@ -8,8 +8,8 @@
 //!
 //! 1. every rank sends each of its internal boxes `X` that it has not sent
 //!    before to the ranks whose ranges meet one of `X`'s 26 same-level
-//!    neighbours (a leaf adjacent to `X` overlaps one of them), point to
-//!    point ([`sparse_exchange`](crate::exchange));
+//!    neighbours (a leaf adjacent to `X` overlaps one of them): counts by
+//!    one all-to-all of integers, the boxes point to point;
 //! 2. every rank inserts the boxes it received as internal boxes
 //!    ([`TreeShape::insert_internal`]) and runs the tree crate's balance
 //!    ([`TreeShape::balance`]), which splits its own leaves only;

@@ -2,7 +2,7 @@
 //!
 //! A check that fails on one rank only (a NaN in its share of the points)
 //! must not leave the other ranks waiting in the next collective. So every
-//! check is followed by [`agree`]: all ranks gather one code each (an
+//! check is followed by `agree`: all ranks gather one code each (an
 //! `all_gather` of `R` integers, itself a collective every rank reaches),
 //! and if any rank failed, every rank returns the error of the lowest
 //! failing rank. After that no rank can be left behind.

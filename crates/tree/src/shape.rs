@@ -14,7 +14,7 @@
 //! points, domain, leaf size and deepest level.
 //!
 //! A box of level `l` covers the codes `m .. m + 8^(D - l)` (`D` =
-//! [`DEEPEST_LEVEL`](crate::DEEPEST_LEVEL)), so its points are one range of
+//! [`DEEPEST_LEVEL`]), so its points are one range of
 //! the sorted codes, found by binary search: refining a box costs
 //! `O(log n)` per child, independent of how many points it holds.
 //!
