@@ -219,7 +219,7 @@ pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
             let mut points = geom.points(a.n, a.seed);
             if layout == "duplicates" {
                 // Every point four times (whole leaves of one cell).
-                let base = points[..3 * (a.n / 4)].to_vec();
+                let base = points[..3 * (a.n / 4).max(1).min(a.n)].to_vec();
                 points = base.repeat(4);
             }
             let n = points.len() / 3;

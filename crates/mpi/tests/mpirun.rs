@@ -40,6 +40,20 @@ fn distributed_tree_equals_the_single_machine_tree_on_1_to_4_ranks() {
     }
 }
 
+/// Fewer points than ranks, and all points in one leaf (the root).
+#[test]
+fn tiny_inputs_and_a_single_leaf() {
+    for ranks in 1..=4 {
+        for n in ["3", "100"] {
+            let (ok, out) = mpirun(ranks, &["check", "--n", n, "--leaf-size", "1,150"]);
+            assert!(
+                ok && out.contains("CHECK PASSED"),
+                "R = {ranks}, n = {n}:\n{out}"
+            );
+        }
+    }
+}
+
 #[test]
 fn bad_input_on_one_rank_is_the_same_error_on_every_rank() {
     for ranks in 1..=4 {
