@@ -212,10 +212,30 @@ pub(crate) fn refine(pts: &PointKeys<'_>, rule: Refinement) -> Vec<Vec<Node>> {
         tgt: [0, pts.tgt.len()],
         leaf: true,
     };
-    let mut levels = vec![vec![root]];
+    refine_from(pts, rule, vec![root])
+}
+
+/// Grows the subtrees below `roots` (disjoint boxes, any levels, each with
+/// its point ranges); returns the boxes of each level in Morton order, with
+/// leaf flags set. Level `l` of the result holds the roots of level `l` and
+/// the children created from level `l - 1`. With the root alone this is the
+/// whole tree ([`refine`]).
+pub(crate) fn refine_from(
+    pts: &PointKeys<'_>,
+    rule: Refinement,
+    mut roots: Vec<Node>,
+) -> Vec<Vec<Node>> {
+    roots.sort_unstable_by_key(|n| (n.key.level(), n.key));
+    let deepest_root = roots.last().map_or(0, |n| n.key.level() as usize);
+    let mut pending = vec![Vec::new(); deepest_root + 1];
+    for n in roots {
+        pending[n.key.level() as usize].push(n);
+    }
+    let mut pending = pending.into_iter();
+    let mut levels = vec![pending.next().unwrap_or_default()];
     loop {
-        let current = levels.last_mut().expect("at least the root level");
-        let next: Vec<Node> = current
+        let current = levels.last_mut().expect("at least one level");
+        let mut next: Vec<Node> = current
             .par_iter_mut()
             .flat_map_iter(|node| {
                 if rule.splits(node) {
@@ -226,8 +246,14 @@ pub(crate) fn refine(pts: &PointKeys<'_>, rule: Refinement) -> Vec<Vec<Node>> {
                 }
             })
             .collect();
-        if next.is_empty() {
-            return levels;
+        match pending.next() {
+            Some(mut more) if !more.is_empty() => {
+                next.append(&mut more);
+                next.sort_unstable_by_key(|n| n.key);
+            }
+            Some(_) => {}
+            None if next.is_empty() => return levels,
+            None => {}
         }
         levels.push(next);
     }

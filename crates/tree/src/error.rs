@@ -86,6 +86,15 @@ pub enum TreeError {
         /// Width as given.
         width: f64,
     },
+    /// A finest-level Morton code outside the grid (`>= 8^D`), given to
+    /// [`MortonCodes::from_codes`](crate::MortonCodes::from_codes).
+    #[error("code {index} ({code:#x}) is not a finest-level Morton code")]
+    InvalidCode {
+        /// Position of the code.
+        index: usize,
+        /// The code.
+        code: u64,
+    },
     /// A point outside a user-given domain (the closed cube
     /// `[origin, origin + width]^3`).
     #[error("{set}: point {index} {point:?} lies outside the given domain")]

@@ -120,6 +120,40 @@ impl InteractionLists {
     }
 }
 
+/// The U, V, W and X lists of the tree whose boxes are `boxes` (key and
+/// whether it is a leaf of the tree) and all their ancestors, every box
+/// counting as holding sources and targets (so nothing is pruned; in a tree
+/// of one point set every existing box holds points). Returns the boxes in
+/// the tree's order (by level, then Morton order) and the lists, whose
+/// entries index that vector. A box flagged internal whose children are not
+/// among `boxes` is internal all the same: it gets a placeholder child that
+/// holds nothing and appears in no list (but in the returned boxes).
+/// Duplicate keys are allowed.
+///
+/// The lists are computed by the same code as [`Octree::interaction_lists`]
+/// and depend only on the boxes near each box: for a box `B` of level `l`,
+/// the boxes of levels `l - 1 ..= l + 1` inside the colleagues of
+/// `parent(B)`, their ancestors, and whether each is a leaf. So a piece of
+/// a tree holding those boxes for `B` gives `B` the rows of the whole tree
+/// (what a distributed tree uses to find the boxes it needs from other
+/// processes).
+///
+/// ```
+/// use ferrofmm_tree::{Octree, TreeOptions, lists::lists_of_boxes};
+/// let pts: Vec<f64> = (0..3000).map(|i| (i as f64 * 0.618_034).fract()).collect();
+/// let tree = Octree::new(&pts, None, &TreeOptions::adaptive(10)).unwrap();
+/// let boxes: Vec<_> = (0..tree.n_boxes()).map(|b| (tree.key(b), tree.is_leaf(b))).collect();
+/// let (keys, lists) = lists_of_boxes(&boxes);
+/// assert_eq!(keys, tree.keys());
+/// assert_eq!(lists.v.indices(), tree.interaction_lists().v.indices());
+/// assert_eq!(lists.x.indices(), tree.interaction_lists().x.indices());
+/// ```
+pub fn lists_of_boxes(boxes: &[(MortonKey, bool)]) -> (Vec<MortonKey>, InteractionLists) {
+    let tree = Octree::skeleton(boxes);
+    let lists = InteractionLists::build(&tree);
+    (tree.keys().to_vec(), lists)
+}
+
 /// What covers the region of the same-level neighbour of `b` at table index
 /// `i`.
 enum Cover {
@@ -384,5 +418,60 @@ impl<T: Copy> RetainTail<T> for Vec<T> {
             }
         }
         self.truncate(w);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::{Octree, TreeOptions};
+
+    /// For each box `B` of a clustered tree, the boxes of levels
+    /// `l - 1 ..= l + 1` inside `parent(B)` and its colleagues (with their
+    /// leaf flags) and the existing ancestors of those regions give `B` its
+    /// rows of the whole tree. Leaf flags matter: an ancestor of an empty
+    /// region arrives without the children that make it internal.
+    #[test]
+    fn lists_of_a_neighbourhood_equal_the_tree_rows() {
+        let pts: Vec<f64> = (0..4000)
+            .flat_map(|i| {
+                let t = i as f64 * 0.618_034;
+                let s = if i % 3 == 0 { 1.0 } else { 1e-2 };
+                [s * t.fract(), s * (3.7 * t).fract(), s * (7.1 * t).fract()]
+            })
+            .collect();
+        let tree = Octree::new(&pts, None, &TreeOptions::adaptive(6)).unwrap();
+        let all = tree.interaction_lists();
+        for b in (1..tree.n_boxes()).step_by(7) {
+            let key = tree.key(b);
+            let l = key.level();
+            let p = key.parent();
+            let regions: Vec<MortonKey> = std::iter::once(p).chain(p.colleagues()).collect();
+            // The existing ancestors of every region, as a process that
+            // owns them sends them (without their other children).
+            let boxes: Vec<(MortonKey, bool)> = (0..tree.n_boxes())
+                .filter(|&a| {
+                    let k = tree.key(a);
+                    let inside = k.level() <= l + 1
+                        && regions.iter().any(|r| *r == k || r.is_ancestor_of(k));
+                    inside || regions.iter().any(|r| k.is_ancestor_of(*r))
+                })
+                .map(|a| (tree.key(a), tree.is_leaf(a)))
+                .collect();
+            let (keys, lists) = lists_of_boxes(&boxes);
+            let s = keys.iter().position(|&k| k == key).unwrap();
+            for (whole, part) in [
+                (&all.u, &lists.u),
+                (&all.v, &lists.v),
+                (&all.w, &lists.w),
+                (&all.x, &lists.x),
+            ] {
+                let mut want: Vec<MortonKey> = whole.get(b).iter().map(|&a| tree.key(a)).collect();
+                let mut got: Vec<MortonKey> = part.get(s).iter().map(|&a| keys[a]).collect();
+                want.sort_unstable();
+                got.sort_unstable();
+                assert_eq!(got, want, "box {key}");
+            }
+        }
     }
 }

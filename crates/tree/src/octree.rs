@@ -165,6 +165,58 @@ impl Octree {
         Ok(tree)
     }
 
+    /// A tree of the boxes `boxes` (key, leaf flag) and all their ancestors,
+    /// without points: every box counts as holding sources and targets
+    /// (ranges `0..1`, no coordinates), with its colleague table but no
+    /// lists. A box flagged internal that has no child among the boxes gets
+    /// a placeholder child holding nothing (ranges `0..0`), so that it is
+    /// internal in the tree while the lists, which keep only boxes with
+    /// sources, never reference the placeholder. Only for
+    /// [`lists_of_boxes`](crate::lists::lists_of_boxes).
+    pub(crate) fn skeleton(boxes: &[(MortonKey, bool)]) -> Self {
+        let mut all: Vec<(MortonKey, bool)> = boxes
+            .iter()
+            .flat_map(|&(k, _)| std::iter::once(k).chain(k.ancestors()))
+            .chain(std::iter::once(MortonKey::ROOT))
+            .map(|k| (k, true))
+            .collect();
+        let has_child = |all: &[(MortonKey, bool)], k: MortonKey| {
+            k.level() < crate::DEEPEST_LEVEL
+                && k.children()
+                    .iter()
+                    .any(|c| all.binary_search_by_key(c, |&(x, _)| x).is_ok())
+        };
+        all.sort_unstable();
+        all.dedup_by_key(|b| b.0);
+        let placeholders: Vec<(MortonKey, bool)> = boxes
+            .iter()
+            .filter(|&&(k, leaf)| !leaf && !has_child(&all, k))
+            .filter(|&&(k, _)| k.level() < crate::DEEPEST_LEVEL)
+            .map(|&(k, _)| (k.children()[0], false))
+            .collect();
+        all.extend(placeholders);
+        all.sort_unstable_by_key(|&(k, real)| (k.level(), k, !real));
+        all.dedup_by_key(|b| b.0);
+        let depth = all.last().map_or(0, |b| b.0.level() as usize);
+        let mut levels: Vec<Vec<Node>> = vec![Vec::new(); depth + 1];
+        for (key, real) in all {
+            let r = [0, usize::from(real)];
+            levels[key.level() as usize].push(Node {
+                key,
+                src: r,
+                tgt: r,
+                leaf: false,
+            });
+        }
+        let domain = Domain {
+            origin: [0.0; 3],
+            width: 1.0,
+        };
+        let mut tree = Self::flatten(domain, &levels);
+        tree.colleagues = ColleagueTable::build(&tree);
+        tree
+    }
+
     /// Flat arrays from the per-level boxes.
     fn flatten(domain: Domain, levels: &[Vec<Node>]) -> Self {
         let n: usize = levels.iter().map(Vec::len).sum();

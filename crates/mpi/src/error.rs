@@ -1,0 +1,127 @@
+//! One error type for the distributed build, the same on every rank.
+//!
+//! A check that fails on one rank only (a NaN in its share of the points)
+//! must not leave the other ranks waiting in the next collective. So every
+//! check is followed by `agree`: all ranks gather one code each (an
+//! `all_gather` of `R` integers, itself a collective every rank reaches),
+//! and if any rank failed, every rank returns the error of the lowest
+//! failing rank. After that no rank can be left behind.
+
+use ferrofmm_tree::TreeError;
+use mpi::traits::*;
+
+/// What was wrong with the input of one rank.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum InputProblem {
+    /// A coordinate array whose length is not a multiple of 3.
+    BadLength,
+    /// A NaN or infinite coordinate.
+    NonFinite,
+    /// `leaf_size` is 0.
+    ZeroLeafSize,
+    /// The ranks were given different options (leaf size, weights).
+    MismatchedOptions,
+    /// Point weights: not one per point, or negative / not finite.
+    BadWeights,
+    /// Any other failure of the tree crate on that rank.
+    Other,
+}
+
+impl InputProblem {
+    fn code(self) -> u32 {
+        match self {
+            InputProblem::BadLength => 1,
+            InputProblem::NonFinite => 2,
+            InputProblem::ZeroLeafSize => 3,
+            InputProblem::MismatchedOptions => 4,
+            InputProblem::BadWeights => 5,
+            InputProblem::Other => 6,
+        }
+    }
+
+    fn from_code(c: u32) -> Self {
+        match c {
+            1 => InputProblem::BadLength,
+            2 => InputProblem::NonFinite,
+            3 => InputProblem::ZeroLeafSize,
+            4 => InputProblem::MismatchedOptions,
+            5 => InputProblem::BadWeights,
+            _ => InputProblem::Other,
+        }
+    }
+}
+
+impl std::fmt::Display for InputProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            InputProblem::BadLength => "coordinate length not a multiple of 3",
+            InputProblem::NonFinite => "a NaN or infinite coordinate",
+            InputProblem::ZeroLeafSize => "leaf_size must be at least 1",
+            InputProblem::MismatchedOptions => "ranks were given different options",
+            InputProblem::BadWeights => "weights: not one finite, non-negative value per point",
+            InputProblem::Other => "invalid input",
+        })
+    }
+}
+
+/// Everything that can go wrong in a distributed build. Every rank returns
+/// the same value.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+pub enum DistError {
+    /// Bad input on some rank (the lowest such rank is named).
+    #[error("bad input on rank {rank}: {problem}")]
+    BadInput {
+        /// Lowest rank whose input was bad.
+        rank: i32,
+        /// What was wrong there.
+        problem: InputProblem,
+    },
+    /// No rank holds a point.
+    #[error("no points on any rank")]
+    NoPoints,
+    /// The tree crate failed on the agreed, valid input (a bug).
+    #[error("tree error on rank {rank}: {source}")]
+    Tree {
+        /// The rank that failed.
+        rank: i32,
+        /// The error.
+        source: TreeError,
+    },
+}
+
+/// The problem of a [`TreeError`] raised while validating input.
+pub(crate) fn problem_of(e: &TreeError) -> InputProblem {
+    match e {
+        TreeError::BadLength { .. } => InputProblem::BadLength,
+        TreeError::NonFinite { .. } => InputProblem::NonFinite,
+        TreeError::ZeroLeafSize => InputProblem::ZeroLeafSize,
+        _ => InputProblem::Other,
+    }
+}
+
+/// Makes a local outcome global: `Ok` on every rank only if it is `Ok` on
+/// every rank; otherwise every rank gets [`DistError::BadInput`] of the
+/// lowest failing rank. A collective: every rank must call it.
+pub(crate) fn agree<C: Communicator, T>(
+    comm: &C,
+    local: Result<T, InputProblem>,
+) -> Result<T, DistError> {
+    let code = match &local {
+        Ok(_) => 0u32,
+        Err(p) => p.code(),
+    };
+    let mut all = vec![0u32; comm.size() as usize];
+    comm.all_gather_into(&code, &mut all[..]);
+    match (all.iter().position(|&c| c != 0), local) {
+        (None, Ok(value)) => Ok(value),
+        (Some(rank), _) => Err(DistError::BadInput {
+            rank: rank as i32,
+            problem: InputProblem::from_code(all[rank]),
+        }),
+        // Not reached: this rank's own code is in `all`.
+        (None, Err(problem)) => Err(DistError::BadInput {
+            rank: comm.rank(),
+            problem,
+        }),
+    }
+}

@@ -1,0 +1,60 @@
+//! # ferrofmm-mpi
+//!
+//! The adaptive, 2:1-balanced octree of [`ferrofmm_tree`], built across the
+//! ranks of an MPI job ([`mpi`], rsmpi) from points that start anywhere:
+//! each rank passes whatever share it holds (possibly none) and ends with
+//! one contiguous range of the Morton curve, its points, its boxes, the
+//! coarse tree shared by all ranks, and the ghost boxes its interaction
+//! lists reference. The union of the ranks' boxes is **exactly** the tree
+//! [`ferrofmm_tree::Octree::new`] builds from all the points (same domain,
+//! keys, leaves, point counts, lists): every step that has single-machine
+//! maths calls the tree crate (sort, refinement, balance, lists).
+//!
+//! ## Steps ([`DistributedTree::build`])
+//!
+//! 1. **Validate and bound**: local checks, agreed on by all ranks
+//!    ([`error`]); the bounding cube from an `all_reduce` of the extremes.
+//! 2. **Sort** ([`sort`]): the tree crate's local Morton sort, then a
+//!    sample sort with regular samples; points travel with their keys.
+//! 3. **Partition** ([`partition`]): cuts at the ideal weight quantiles,
+//!    moved to the nearest boundary of the leaf holding them, so that no box
+//!    below the coarse tree is shared; points move to their range's rank.
+//! 4. **Refine** locally below the coarsest boxes of the range
+//!    ([`ferrofmm_tree::MortonCodes::refine_below`]); the boxes straddling
+//!    cuts (the coarse tree) are known from the cuts alone.
+//! 5. **Balance** ([`balance`]): rounds of exchanging internal boxes with
+//!    the neighbouring ranks and the tree crate's balance, until no rank
+//!    changes.
+//! 6. **Ghosts** ([`ghosts`]): requests to the owners of the regions each
+//!    box's lists can reach, answers, and the tree crate's lists on the
+//!    result.
+//!
+//! Bad input on any rank is the same [`DistError`] on every rank.
+//!
+//! ```no_run
+//! use ferrofmm_mpi::{DistOptions, DistributedTree};
+//! let universe = mpi::initialize().unwrap();
+//! let world = universe.world();
+//! // This rank's share: any number of points, possibly none.
+//! let points = vec![0.1, 0.2, 0.3, 0.9, 0.8, 0.7];
+//! let tree = DistributedTree::build(&world, &points, &DistOptions::adaptive(32)).unwrap();
+//! println!("{} points, {} leaves here", tree.points.len(), tree.leaves().count());
+//! ```
+#![warn(missing_docs)]
+
+pub mod balance;
+pub mod error;
+mod exchange;
+pub mod ghosts;
+pub mod inputs;
+pub mod partition;
+pub mod sort;
+pub mod stats;
+mod tree;
+
+pub use error::{DistError, InputProblem};
+pub use ghosts::{Ghost, GhostLayer};
+pub use inputs::Geometry;
+pub use sort::LocalPoints;
+pub use stats::{BuildStats, PHASES};
+pub use tree::{DistOptions, DistributedTree};

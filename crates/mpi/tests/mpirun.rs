@@ -1,0 +1,70 @@
+//! Runs the `ferrofmm-mpi` binary under `mpirun` with 1 to 4 ranks
+//! (`--oversubscribe`: CI machines have 2 cores): the distributed tree must
+//! equal the single-machine tree for every input and layout, and bad input
+//! on one rank must be the same error on every rank, without a hang (each
+//! run is killed after a time limit).
+
+use std::process::Command;
+use std::sync::Mutex;
+
+/// One MPI job at a time (the tests of this file run in parallel threads).
+static MPI_JOB: Mutex<()> = Mutex::new(());
+
+fn mpirun(ranks: usize, args: &[&str]) -> (bool, String) {
+    let _one = MPI_JOB.lock().unwrap_or_else(|e| e.into_inner());
+    let exe = env!("CARGO_BIN_EXE_ferrofmm-mpi");
+    let mpirun = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
+    let mut cmd = Command::new("timeout");
+    cmd.arg("300").arg(&mpirun).arg("--oversubscribe");
+    // Open MPI refuses to run as root without these (CI containers).
+    cmd.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
+        .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
+        .env("RAYON_NUM_THREADS", "1");
+    cmd.arg("-n").arg(ranks.to_string()).arg(exe).args(args);
+    let out = cmd
+        .output()
+        .unwrap_or_else(|e| panic!("cannot run `timeout {mpirun}` (install openmpi-bin): {e}"));
+    let text = format!(
+        "{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    (out.status.success(), text)
+}
+
+#[test]
+fn distributed_tree_equals_the_single_machine_tree_on_1_to_4_ranks() {
+    for ranks in 1..=4 {
+        let (ok, out) = mpirun(ranks, &["check", "--n", "6000", "--leaf-size", "1,20,150"]);
+        assert!(ok && out.contains("CHECK PASSED"), "R = {ranks}:\n{out}");
+    }
+}
+
+/// Fewer points than ranks, and all points in one leaf (the root).
+#[test]
+fn tiny_inputs_and_a_single_leaf() {
+    for ranks in 1..=4 {
+        for n in ["3", "100"] {
+            let (ok, out) = mpirun(ranks, &["check", "--n", n, "--leaf-size", "1,150"]);
+            assert!(
+                ok && out.contains("CHECK PASSED"),
+                "R = {ranks}, n = {n}:\n{out}"
+            );
+        }
+    }
+}
+
+#[test]
+fn bad_input_on_one_rank_is_the_same_error_on_every_rank() {
+    for ranks in 1..=4 {
+        for case in [
+            "nan", "infinite", "length", "empty", "leaf0", "options", "weights",
+        ] {
+            let (ok, out) = mpirun(ranks, &["bad", "--case", case]);
+            assert!(
+                ok && out.contains("ERROR AGREED"),
+                "R = {ranks}, {case}:\n{out}"
+            );
+        }
+    }
+}
