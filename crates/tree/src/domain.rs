@@ -164,6 +164,23 @@ impl Domain {
 /// Points per parallel work item in validation and bounds.
 const BLOCK: usize = 1 << 14;
 
+/// The sources and (when given) the targets, each checked to be a
+/// non-empty list of finite points.
+pub(crate) fn validate_sets<'a>(
+    sources: &'a [f64],
+    targets: Option<&'a [f64]>,
+) -> Result<Vec<(PointSet, &'a [f64])>, TreeError> {
+    let mut sets = vec![(PointSet::Sources, sources)];
+    sets.extend(targets.map(|t| (PointSet::Targets, t)));
+    for &(set, p) in &sets {
+        validate_points(set, p)?;
+        if p.is_empty() {
+            return Err(TreeError::Empty { set });
+        }
+    }
+    Ok(sets)
+}
+
 /// Checks that `p` is a list of finite points.
 pub(crate) fn validate_points(set: PointSet, p: &[f64]) -> Result<(), TreeError> {
     if !p.len().is_multiple_of(3) {

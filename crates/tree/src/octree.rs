@@ -23,8 +23,8 @@ use std::ops::Range;
 
 use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
-use crate::domain::{Domain, check_inside, validate_points};
-use crate::error::{PointSet, TreeError};
+use crate::domain::{Domain, check_inside, validate_sets};
+use crate::error::TreeError;
 use crate::lists::InteractionLists;
 use crate::morton::MortonKey;
 use crate::neighbours::{ColleagueTable, offset_index};
@@ -112,16 +112,7 @@ impl Octree {
         options: &TreeOptions,
     ) -> Result<Self, TreeError> {
         options.validate()?;
-        let mut sets = vec![(PointSet::Sources, sources)];
-        if let Some(t) = targets {
-            sets.push((PointSet::Targets, t));
-        }
-        for &(set, p) in &sets {
-            validate_points(set, p)?;
-            if p.is_empty() {
-                return Err(TreeError::Empty { set });
-            }
-        }
+        let sets = validate_sets(sources, targets)?;
         let domain = match options.domain {
             Some(d) => {
                 for &(set, p) in &sets {

@@ -39,7 +39,7 @@ use rayon::prelude::*;
 
 use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, refine, refine_from, sort_points};
-use crate::domain::{Domain, check_inside, validate_points};
+use crate::domain::{Domain, check_inside, validate_points, validate_sets};
 use crate::error::{PointSet, TreeError};
 use crate::morton::{DEEPEST_LEVEL, MortonKey};
 
@@ -112,15 +112,7 @@ impl MortonCodes {
         targets: Option<&[f64]>,
         domain: Domain,
     ) -> Result<Self, TreeError> {
-        let mut sets = vec![(PointSet::Sources, sources)];
-        if let Some(t) = targets {
-            sets.push((PointSet::Targets, t));
-        }
-        for &(set, p) in &sets {
-            validate_points(set, p)?;
-            if p.is_empty() {
-                return Err(TreeError::Empty { set });
-            }
+        for (set, p) in validate_sets(sources, targets)? {
             check_inside(set, p, &domain)?;
         }
         let codes = |p: &[f64]| {
