@@ -490,23 +490,8 @@ impl<T: Real> Operators<T> {
     /// On length mismatch, `octant >= 8`, `child_level == 0`, depth 0, or
     /// (non-homogeneous kernel) `child_level > depth`.
     pub fn m2m(&self, child_level: u32, octant: usize, child: &[T], parent: &mut [T]) {
-        let ncols = self.ncols(child.len(), "m2m");
-        assert_eq!(
-            parent.len(),
-            child.len(),
-            "m2m: parent and child lengths differ"
-        );
         let op = &self.children(child_level, octant).m2m[octant];
-        gemm_scaled(
-            self.n,
-            ncols,
-            self.n,
-            1.0,
-            op,
-            child,
-            parent,
-            Update::Accumulate,
-        );
+        self.translate(op, child, parent, "m2m");
     }
 
     /// `child += L2L(child_level, octant) parent`: parent downward
@@ -515,21 +500,27 @@ impl<T: Real> Operators<T> {
     /// # Panics
     /// As [`Operators::m2m`].
     pub fn l2l(&self, child_level: u32, octant: usize, parent: &[T], child: &mut [T]) {
-        let ncols = self.ncols(parent.len(), "l2l");
-        assert_eq!(
-            parent.len(),
-            child.len(),
-            "l2l: parent and child lengths differ"
-        );
         let op = &self.children(child_level, octant).l2l[octant];
+        self.translate(op, parent, child, "l2l");
+    }
+
+    /// `output += op input` with the `n x n` translation `op`, for
+    /// `input.len() / n` columns.
+    fn translate(&self, op: &[T], input: &[T], output: &mut [T], what: &str) {
+        let ncols = self.ncols(input.len(), what);
+        assert_eq!(
+            input.len(),
+            output.len(),
+            "{what}: parent and child lengths differ"
+        );
         gemm_scaled(
             self.n,
             ncols,
             self.n,
             1.0,
             op,
-            parent,
-            child,
+            input,
+            output,
             Update::Accumulate,
         );
     }
