@@ -70,9 +70,7 @@ impl LaneKernel for SoftenedLaplace {
         acc[0] = s.add(acc[0], qr);
         if GRAD {
             let qr3 = s.mul(qr, s.mul(rho_inv, rho_inv));
-            for k in 0..3 {
-                acc[k + 1] = s.mul_add(qr3, d[k], acc[k + 1]);
-            }
+            lanes::add_radial_gradient(s, qr3, &d, acc);
         }
     }
 

@@ -18,8 +18,8 @@
 //! Run with `cargo run --release --example custom_m2l`.
 
 use ferrofmm::field::plumbing::{
-    FIRST_M2L_LEVEL, LevelMap, check_lengths, conformance, for_each_chunk, gather, m2l_matrix,
-    scatter_add,
+    FIRST_M2L_LEVEL, LevelMap, check_lengths, conformance, for_each_chunk, for_each_vector_group,
+    m2l_matrix,
 };
 use ferrofmm::field::{
     FieldError, M2lInteractions, M2lScheme, M2lUsage, OperatorParams, Update, gemm, gemm_scaled,
@@ -144,39 +144,17 @@ impl<T: Real> M2lScheme<T> for PerVectorSvd<T> {
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
         for_each_chunk(interactions, n, check, |chunk, out| {
-            let m = chunk.max_group_len();
-            let (mut src, mut mid, mut dst) = (
-                vec![T::ZERO; n * m],
-                vec![T::ZERO; n * m],
-                vec![T::ZERO; n * m],
-            );
-            for g in chunk.groups() {
-                let f = self.factors[set][g.vector]
+            let max_rank = self.factors[set].iter().flatten().map(|f| f.rank).max();
+            let mut mid = vec![T::ZERO; max_rank.unwrap_or(0) * chunk.max_group_len()];
+            for_each_vector_group(&chunk, multipoles, n, out, n, |v, src, dst| {
+                let f = self.factors[set][v]
                     .as_ref()
                     .expect("apply called with a vector the scheme was not built for");
-                let len = g.sources.len();
-                gather(n, multipoles, g.sources, &mut src[..n * len]);
-                gemm(
-                    f.rank,
-                    len,
-                    n,
-                    &f.vt,
-                    &src[..n * len],
-                    &mut mid[..f.rank * len],
-                    Update::Overwrite,
-                );
-                gemm_scaled(
-                    n,
-                    len,
-                    f.rank,
-                    scale,
-                    &f.us,
-                    &mid[..f.rank * len],
-                    &mut dst[..n * len],
-                    Update::Overwrite,
-                );
-                scatter_add(n, &dst[..n * len], g.targets, out);
-            }
+                let len = src.len() / n;
+                let mid = &mut mid[..f.rank * len];
+                gemm(f.rank, len, n, &f.vt, src, mid, Update::Overwrite);
+                gemm_scaled(n, len, f.rank, scale, &f.us, mid, dst, Update::Overwrite);
+            });
         });
     }
 

@@ -23,6 +23,7 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::prelude::*;
 
+use crate::commands::{PrecisionArg, SchemeArg};
 use crate::error::{CliError, Result};
 use crate::report::{OperatorSeconds, RunReport};
 
@@ -45,7 +46,12 @@ const COLORS: [RGBColor; 10] = [
     RGBColor(23, 190, 207),
 ];
 
-type DrawResult = std::result::Result<(), String>;
+/// What drawing a chart can fail with: plotters' error for the backend
+/// (`DrawingAreaErrorKind<DB::ErrorType>`: a backend error such as an
+/// unwritable file, or a layout error), kept as the typed source of
+/// [`CliError::Chart`].
+type DrawError = Box<dyn std::error::Error + Send + Sync>;
+type DrawResult = std::result::Result<(), DrawError>;
 
 fn register_font() {
     static REGISTER: Once = Once::new();
@@ -58,7 +64,9 @@ fn register_font() {
 
 /// One chart, drawable on any backend.
 trait Chart {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult;
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static;
 }
 
 /// Write the three charts for `runs` into `dir`; returns the files written.
@@ -80,27 +88,27 @@ fn render<C: Chart>(dir: &Path, stem: &str, chart: &C) -> Result<[PathBuf; 2]> {
     let svg = dir.join(format!("{stem}.svg"));
     let fail = |path: &Path| {
         let path = path.to_path_buf();
-        move |message: String| CliError::Chart { path, message }
+        move |source: DrawError| CliError::Chart { path, source }
     };
     {
         let root = BitMapBackend::new(&png, SIZE).into_drawing_area();
         chart.draw(&root).map_err(fail(&png))?;
-        root.present()
-            .map_err(|e| e.to_string())
-            .map_err(fail(&png))?;
+        root.present().map_err(|e| fail(&png)(e.into()))?;
     }
     {
         let root = SVGBackend::new(&svg, SIZE).into_drawing_area();
         chart.draw(&root).map_err(fail(&svg))?;
-        root.present()
-            .map_err(|e| e.to_string())
-            .map_err(fail(&svg))?;
+        root.present().map_err(|e| fail(&svg)(e.into()))?;
     }
     Ok([png, svg])
 }
 
 /// Key of a line: scheme and precision.
-type SeriesKey = (String, String);
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+struct SeriesKey {
+    scheme: SchemeArg,
+    precision: PrecisionArg,
+}
 
 /// The sweep's runs grouped the way the charts need them.
 struct SweepData<'a> {
@@ -156,11 +164,14 @@ impl<'a> SweepData<'a> {
 }
 
 fn key(run: &RunReport) -> SeriesKey {
-    (run.scheme.clone(), run.precision.clone())
+    SeriesKey {
+        scheme: run.scheme,
+        precision: run.precision,
+    }
 }
 
 fn label(key: &SeriesKey) -> String {
-    format!("{} {}", key.0, key.1)
+    format!("{} {}", key.scheme, key.precision)
 }
 
 /// Smallest positive value an axis shows (an exact result has error 0).
@@ -224,10 +235,6 @@ fn sci(x: &f64) -> String {
     format!("{x:.0e}")
 }
 
-fn err<E: std::fmt::Display>(e: E) -> String {
-    e.to_string()
-}
-
 /// Runs not beaten in both time and error by another, fastest first.
 fn pareto_front<'a>(runs: &[&'a RunReport]) -> Vec<&'a RunReport> {
     let mut sorted: Vec<&RunReport> = runs
@@ -269,9 +276,12 @@ fn potential(run: &RunReport) -> f64 {
 struct TimeVsError<'a>(&'a SweepData<'a>);
 
 impl Chart for TimeVsError<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
         let data = self.0;
-        root.fill(&WHITE).map_err(err)?;
+        root.fill(&WHITE)?;
         let checked: Vec<&RunReport> = data.runs.iter().filter(|r| r.errors.is_some()).collect();
         let x_range = log_range(
             checked
@@ -289,8 +299,7 @@ impl Chart for TimeVsError<'_> {
             .margin(16)
             .x_label_area_size(48)
             .y_label_area_size(72)
-            .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())
-            .map_err(err)?;
+            .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())?;
         chart
             .configure_mesh()
             .x_desc(if checked.iter().any(|r| gradient(r).is_some()) {
@@ -305,8 +314,7 @@ impl Chart for TimeVsError<'_> {
             .y_label_formatter(&short)
             .label_style((FAMILY, 14))
             .axis_desc_style((FAMILY, 16))
-            .draw()
-            .map_err(err)?;
+            .draw()?;
 
         for (key, by_order) in &data.series {
             let color = data.color(key);
@@ -315,12 +323,10 @@ impl Chart for TimeVsError<'_> {
                 .filter(|r| &self::key(r) == key)
                 .map(|r| (potential(r), r.evaluation.best_s))
                 .collect();
-            chart
-                .draw_series(
-                    all.iter()
-                        .map(|&p| Circle::new(p, 3, color.mix(0.5).filled())),
-                )
-                .map_err(err)?;
+            chart.draw_series(
+                all.iter()
+                    .map(|&p| Circle::new(p, 3, color.mix(0.5).filled())),
+            )?;
             let line: Vec<(f64, f64, usize)> = by_order
                 .values()
                 .filter(|r| r.errors.is_some())
@@ -330,23 +336,20 @@ impl Chart for TimeVsError<'_> {
                 .draw_series(LineSeries::new(
                     line.iter().map(|&(x, y, _)| (x, y)),
                     color.stroke_width(2),
-                ))
-                .map_err(err)?
+                ))?
                 .label(label(key))
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(2))
                 });
-            chart
-                .draw_series(line.iter().map(|&(x, y, p)| {
-                    EmptyElement::at((x, y))
-                        + Circle::new((0, 0), 4, color.filled())
-                        + Text::new(
-                            format!("p={p}"),
-                            (6, -14),
-                            (FAMILY, 12).into_font().color(&color),
-                        )
-                }))
-                .map_err(err)?;
+            chart.draw_series(line.iter().map(|&(x, y, p)| {
+                EmptyElement::at((x, y))
+                    + Circle::new((0, 0), 4, color.filled())
+                    + Text::new(
+                        format!("p={p}"),
+                        (6, -14),
+                        (FAMILY, 12).into_font().color(&color),
+                    )
+            }))?;
         }
 
         for (key, by_order) in &data.series {
@@ -364,17 +367,14 @@ impl Chart for TimeVsError<'_> {
                     8,
                     4,
                     color.stroke_width(2),
-                ))
-                .map_err(err)?
+                ))?
                 .label(format!("{} gradient", label(key)))
                 .legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], color.stroke_width(1))
                 });
-            chart
-                .draw_series(line.iter().map(|&(x, y)| {
-                    Rectangle::new([(x / 1.08, y / 1.04), (x * 1.08, y * 1.04)], color.filled())
-                }))
-                .map_err(err)?;
+            chart.draw_series(line.iter().map(|&(x, y)| {
+                Rectangle::new([(x / 1.08, y / 1.04), (x * 1.08, y * 1.04)], color.filled())
+            }))?;
         }
 
         let front = pareto_front(&checked);
@@ -390,19 +390,16 @@ impl Chart for TimeVsError<'_> {
                     6,
                     4,
                     BLACK.stroke_width(1),
-                ))
-                .map_err(err)?
+                ))?
                 .label("Pareto front")
                 .legend(|(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1))
                 });
-            chart
-                .draw_series(
-                    points
-                        .iter()
-                        .map(|&p| Circle::new(p, 7, BLACK.stroke_width(1))),
-                )
-                .map_err(err)?;
+            chart.draw_series(
+                points
+                    .iter()
+                    .map(|&p| Circle::new(p, 7, BLACK.stroke_width(1))),
+            )?;
         }
         chart
             .configure_series_labels()
@@ -410,8 +407,7 @@ impl Chart for TimeVsError<'_> {
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font((FAMILY, 14))
-            .draw()
-            .map_err(err)?;
+            .draw()?;
         Ok(())
     }
 }
@@ -419,11 +415,14 @@ impl Chart for TimeVsError<'_> {
 struct Operators<'a>(&'a SweepData<'a>);
 
 impl Chart for Operators<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
         let data = self.0;
-        root.fill(&WHITE).map_err(err)?;
+        root.fill(&WHITE)?;
         let title = format!("Evaluation time per operator ({})", data.title);
-        let root = root.titled(&title, (FAMILY, 20)).map_err(err)?;
+        let root = root.titled(&title, (FAMILY, 20))?;
         let (_, height) = root.dim_in_pixel();
         let (root, legend) = root.split_vertically(height.saturating_sub(36));
         let op_colors: Vec<RGBColor> = (0..OperatorSeconds::NAMES.len())
@@ -432,15 +431,11 @@ impl Chart for Operators<'_> {
         // One legend for all panels, in stacking order from the bottom.
         for (k, name) in OperatorSeconds::NAMES.iter().enumerate() {
             let x = 60 + 100 * k as i32;
-            legend
-                .draw(&Rectangle::new(
-                    [(x, 12), (x + 14, 26)],
-                    op_colors[k].filled(),
-                ))
-                .map_err(err)?;
-            legend
-                .draw(&Text::new(*name, (x + 20, 12), (FAMILY, 14)))
-                .map_err(err)?;
+            legend.draw(&Rectangle::new(
+                [(x, 12), (x + 14, 26)],
+                op_colors[k].filled(),
+            ))?;
+            legend.draw(&Text::new(*name, (x + 20, 12), (FAMILY, 14)))?;
         }
         let panels_n = data.series.len().max(1);
         let cols = panels_n.min(2);
@@ -469,8 +464,7 @@ impl Chart for Operators<'_> {
                 .build_cartesian_2d(
                     (min_order as f64 - 0.6)..(max_order as f64 + 0.6),
                     0.0..y_max,
-                )
-                .map_err(err)?;
+                )?;
             chart
                 .configure_mesh()
                 .disable_x_mesh()
@@ -480,8 +474,7 @@ impl Chart for Operators<'_> {
                 .x_label_formatter(&order_label)
                 .label_style((FAMILY, 12))
                 .axis_desc_style((FAMILY, 14))
-                .draw()
-                .map_err(err)?;
+                .draw()?;
             for (k, color) in op_colors.iter().copied().enumerate() {
                 let bars: Vec<Rectangle<(f64, f64)>> = by_order
                     .values()
@@ -492,7 +485,7 @@ impl Chart for Operators<'_> {
                         Rectangle::new([(x - 0.35, base), (x + 0.35, base + v[k])], color.filled())
                     })
                     .collect();
-                chart.draw_series(bars).map_err(err)?;
+                chart.draw_series(bars)?;
             }
         }
         Ok(())
@@ -502,9 +495,12 @@ impl Chart for Operators<'_> {
 struct ErrorVsOrder<'a>(&'a SweepData<'a>);
 
 impl Chart for ErrorVsOrder<'_> {
-    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult {
+    fn draw<DB: DrawingBackend>(&self, root: &DrawingArea<DB, Shift>) -> DrawResult
+    where
+        DB::ErrorType: 'static,
+    {
         let data = self.0;
-        root.fill(&WHITE).map_err(err)?;
+        root.fill(&WHITE)?;
         let (min_order, max_order) = data.orders();
         let errors = data.runs.iter().filter_map(|r| r.errors.as_ref());
         let y_range = log_range(
@@ -523,8 +519,7 @@ impl Chart for ErrorVsOrder<'_> {
             .build_cartesian_2d(
                 (min_order as f64 - 0.5)..(max_order as f64 + 0.5),
                 y_range.log_scale(),
-            )
-            .map_err(err)?;
+            )?;
         chart
             .configure_mesh()
             .x_desc("expansion order p")
@@ -534,13 +529,12 @@ impl Chart for ErrorVsOrder<'_> {
             .y_label_formatter(&sci)
             .label_style((FAMILY, 14))
             .axis_desc_style((FAMILY, 16))
-            .draw()
-            .map_err(err)?;
+            .draw()?;
         for (key, by_order) in &data.series {
             let color = data.color(key);
             // Schemes often agree to plotting accuracy: the dense scheme gets
             // large hollow markers so that the SVD scheme's dots show inside.
-            let hollow = key.0 == "dense";
+            let hollow = key.scheme == SchemeArg::Dense;
             let style = if hollow {
                 color.stroke_width(2)
             } else {
@@ -556,17 +550,14 @@ impl Chart for ErrorVsOrder<'_> {
                 })
                 .collect();
             chart
-                .draw_series(LineSeries::new(pot.clone(), color.stroke_width(2)))
-                .map_err(err)?
+                .draw_series(LineSeries::new(pot.clone(), color.stroke_width(2)))?
                 .label(format!("{} potential", label(key)))
                 .legend(move |(x, y)| {
                     EmptyElement::at((x, y))
                         + PathElement::new(vec![(0, 0), (20, 0)], color.stroke_width(2))
                         + Circle::new((10, 0), size.min(6), style)
                 });
-            chart
-                .draw_series(pot.iter().map(|&p| Circle::new(p, size, style)))
-                .map_err(err)?;
+            chart.draw_series(pot.iter().map(|&p| Circle::new(p, size, style)))?;
             let grad: Vec<(f64, f64)> = by_order
                 .values()
                 .filter_map(|r| {
@@ -583,8 +574,7 @@ impl Chart for ErrorVsOrder<'_> {
                         8,
                         4,
                         color.stroke_width(2),
-                    ))
-                    .map_err(err)?
+                    ))?
                     .label(format!("{} gradient", label(key)))
                     .legend(move |(x, y)| {
                         EmptyElement::at((x, y))
@@ -592,9 +582,7 @@ impl Chart for ErrorVsOrder<'_> {
                             + PathElement::new(vec![(14, 0), (20, 0)], color.stroke_width(2))
                             + TriangleMarker::new((10, 0), size.min(6), style)
                     });
-                chart
-                    .draw_series(grad.iter().map(|&p| TriangleMarker::new(p, size, style)))
-                    .map_err(err)?;
+                chart.draw_series(grad.iter().map(|&p| TriangleMarker::new(p, size, style)))?;
             }
         }
         chart
@@ -603,8 +591,7 @@ impl Chart for ErrorVsOrder<'_> {
             .background_style(WHITE.mix(0.85))
             .border_style(BLACK)
             .label_font((FAMILY, 14))
-            .draw()
-            .map_err(err)?;
+            .draw()?;
         Ok(())
     }
 }
@@ -615,10 +602,23 @@ pub(crate) mod tests {
     use crate::report::{ErrorFigures, EvalSeconds, SetupSeconds, TreeFigures};
 
     /// A fake run for chart tests.
-    pub(crate) fn fake_run(scheme: &str, precision: &str, order: usize, leaf: usize) -> RunReport {
-        let error = 10f64.powi(-(order as i32)) * if precision == "f32" { 3.0 } else { 1.0 };
-        let time =
-            0.1 * order as f64 / leaf as f64 * 150.0 * if scheme == "dense" { 1.5 } else { 1.0 };
+    pub(crate) fn fake_run(
+        scheme: SchemeArg,
+        precision: PrecisionArg,
+        order: usize,
+        leaf: usize,
+    ) -> RunReport {
+        let error = 10f64.powi(-(order as i32))
+            * match precision {
+                PrecisionArg::F32 => 3.0,
+                _ => 1.0,
+            };
+        let time = 0.1 * order as f64 / leaf as f64
+            * 150.0
+            * match scheme {
+                SchemeArg::Dense => 1.5,
+                _ => 1.0,
+            };
         RunReport {
             command: "demo".into(),
             geometry: Some("cube".into()),
@@ -631,8 +631,8 @@ pub(crate) mod tests {
             charges: Some("signed".into()),
             verify: "n/a".into(),
             verification: None,
-            scheme: scheme.into(),
-            precision: precision.into(),
+            scheme,
+            precision,
             gradients: true,
             threads: 2,
             cache: None,
@@ -685,20 +685,21 @@ pub(crate) mod tests {
 
     #[test]
     fn pareto_front_keeps_undominated_runs() {
-        let a = fake_run("svd", "f64", 3, 150); // fast, inaccurate
-        let b = fake_run("svd", "f64", 6, 150); // slower, accurate
-        let c = fake_run("dense", "f64", 3, 150); // slower than a, same error: dominated
+        use {PrecisionArg::F64, SchemeArg::Dense, SchemeArg::Svd};
+        let a = fake_run(Svd, F64, 3, 150); // fast, inaccurate
+        let b = fake_run(Svd, F64, 6, 150); // slower, accurate
+        let c = fake_run(Dense, F64, 3, 150); // slower than a, same error: dominated
         let front = pareto_front(&[&a, &b, &c]);
         assert_eq!(front.len(), 2);
-        assert_eq!((front[0].order, front[0].scheme.as_str()), (3, "svd"));
+        assert_eq!((front[0].order, front[0].scheme), (3, Svd));
         assert_eq!(front[1].order, 6);
     }
 
     #[test]
     fn writes_non_empty_png_and_svg() {
         let mut runs = Vec::new();
-        for scheme in ["svd", "dense"] {
-            for precision in ["f32", "f64"] {
+        for scheme in [SchemeArg::Svd, SchemeArg::Dense] {
+            for precision in [PrecisionArg::F32, PrecisionArg::F64] {
                 for order in 3..=6 {
                     for leaf in [64, 150] {
                         runs.push(fake_run(scheme, precision, order, leaf));

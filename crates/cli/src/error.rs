@@ -78,12 +78,12 @@ pub enum CliError {
     #[error("{0}")]
     Fmm(#[from] FmmError),
     /// A chart could not be drawn.
-    #[error("chart {}: {message}", path.display())]
+    #[error("chart {}: {source}", path.display())]
     Chart {
         /// The chart file.
         path: PathBuf,
-        /// What went wrong.
-        message: String,
+        /// The drawing library's error (backend or layout).
+        source: Box<dyn std::error::Error + Send + Sync>,
     },
     /// `--out` names one of the input files (also through a link).
     #[error("--out {} is the same file as {option} {}: refusing to overwrite an input", out.display(), input.display())]

@@ -28,6 +28,8 @@ use std::time::Duration;
 
 use ferrofmm_field::CacheStatus;
 use ferrofmm_fmm::{EvalTimings, FmmSummary, SetupTimings};
+
+use crate::commands::{PrecisionArg, SchemeArg};
 use serde::{Deserialize, Serialize};
 
 /// Everything one `demo` or `eval` run measured.
@@ -63,10 +65,10 @@ pub struct RunReport {
     /// `--verify on`).
     #[serde(default)]
     pub verification: Option<ferrofmm_fmm::Verification>,
-    /// M2L scheme (`svd` / `dense`).
-    pub scheme: String,
-    /// Float type (`f32` / `f64`).
-    pub precision: String,
+    /// M2L scheme as run (`svd`, `dense` or `fft`; never `auto`).
+    pub scheme: SchemeArg,
+    /// Float type as run (`f32` or `f64`; never `auto`).
+    pub precision: PrecisionArg,
     /// Whether gradients were evaluated.
     pub gradients: bool,
     /// Rayon worker threads.

@@ -3,14 +3,11 @@
 
 mod common;
 
-use common::{ferrofmm, points, read_npy, rel_error, scratch, texts, write_csv, write_npy};
+use common::{charges, ferrofmm, points, read_npy, scratch, texts, write_csv, write_npy};
 use ferrofmm_kernels::{EvalMode, Laplace3d, direct_sum};
+use ferrofmm_testing::errors::relative_l2_columns;
 
 const N: usize = 2000;
-
-fn charges(n: usize) -> Vec<f64> {
-    points(n, 99).into_iter().step_by(3).collect()
-}
 
 /// Read the output file (either format) as (rows, columns, values).
 fn read_output(path: &std::path::Path) -> (usize, usize, Vec<f64>) {
@@ -42,7 +39,7 @@ fn read_output(path: &std::path::Path) -> (usize, usize, Vec<f64>) {
 fn eval_matches_direct_summation() {
     let dir = scratch("eval");
     let sources = points(N, 1);
-    let q = charges(N);
+    let q = charges(N, 99);
     let targets = points(700, 2);
     // A target on a source: the coincident pair must be skipped, not blow up.
     let mut targets = targets;
@@ -171,21 +168,20 @@ fn eval_matches_direct_summation() {
         } else {
             reference.iter().step_by(4).copied().collect()
         };
-        let e_pot = rel_error(&values, &reference, cols, 0..1);
+        let e_pot = relative_l2_columns(&values, &reference, cols, 0..1);
         assert!(
             e_pot <= pot_bound,
             "{out}: potential error {e_pot:.2e} > {pot_bound:.0e}"
         );
         assert!(values.iter().all(|v| v.is_finite()));
         if gradients {
-            let e_grad = rel_error(&values, &reference, 4, 1..4);
+            let e_grad = relative_l2_columns(&values, &reference, 4, 1..4);
             assert!(
                 e_grad <= grad_bound,
                 "{out}: gradient error {e_grad:.2e} > {grad_bound:.0e}"
             );
         }
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -194,7 +190,7 @@ fn eval_error_falls_with_order_and_check_reports_it() {
     // against direct summation can fail.
     let dir = scratch("eval-orders");
     let sources = points(N, 5);
-    let q = charges(N);
+    let q = charges(N, 99);
     let src = dir.join("s.npy");
     let chg = dir.join("q.npy");
     write_npy(&src, &sources, &[N as u64, 3]);
@@ -233,11 +229,10 @@ fn eval_error_falls_with_order_and_check_reports_it() {
             "{stdout}"
         );
         let (_, values) = read_npy(&out);
-        errors.push(rel_error(&values, &reference, 1, 0..1));
+        errors.push(relative_l2_columns(&values, &reference, 1, 0..1));
     }
     assert!(
         errors[1] < errors[0] / 100.0,
         "errors do not fall with the order: {errors:?}"
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -7,7 +7,7 @@ mod common;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use common::{ferrofmm, points, scratch, texts, write_csv, write_npy};
+use common::{charges, ferrofmm, points, scratch, texts, write_csv, write_npy};
 
 const N: usize = 1000;
 
@@ -20,7 +20,7 @@ fn inputs(dir: &Path, n: usize) -> (PathBuf, PathBuf) {
     let p = dir.join("p.npy");
     let q = dir.join("q.csv");
     write_npy(&p, &points(n, 1), &[n as u64, 3]);
-    let charges: Vec<f64> = points(n, 2).into_iter().step_by(3).collect();
+    let charges = charges(n, 2);
     write_csv(&q, &charges, 1, None);
     (p, q)
 }
@@ -115,7 +115,6 @@ fn out_naming_an_input_is_refused_and_the_input_kept() {
         "{:?}",
         listing(&dir)
     );
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -169,7 +168,6 @@ fn unusable_outputs_are_refused_before_any_work() {
         );
         assert_eq!(std::fs::read_to_string(&ro_file).unwrap(), "keep");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `ulimit -f 4`, with `SIGXFSZ` ignored by the shell and with its default
@@ -230,7 +228,6 @@ fn a_failed_write_leaves_no_partial_file() {
     expected.push("old.csv".into());
     expected.sort();
     assert_eq!(listing(&dir), expected);
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// Writing through a symbolic link replaces the linked file, not the link.
@@ -252,5 +249,4 @@ fn output_through_a_symlink_keeps_the_link() {
             .is_symlink()
     );
     assert_eq!(std::fs::read_to_string(&real).unwrap().lines().count(), 101);
-    std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -6,7 +6,7 @@ mod common;
 use std::path::Path;
 use std::process::{Command, Stdio};
 
-use common::{points, scratch, write_npy};
+use common::{charges, points, scratch, write_npy};
 
 /// Run `ferrofmm args` with stdout a pipe whose read end is closed at once.
 fn with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
@@ -46,7 +46,7 @@ fn eval_into_a_closed_pipe_is_quiet_and_writes_its_file() {
     let p = dir.join("p.npy");
     let q = dir.join("q.npy");
     write_npy(&p, &points(n, 1), &[n as u64, 3]);
-    let charges: Vec<f64> = points(n, 2).into_iter().step_by(3).collect();
+    let charges = charges(n, 2);
     write_npy(&q, &charges, &[n as u64]);
     for (k, extra) in [&[][..], &["--json"][..]].into_iter().enumerate() {
         let out = dir.join(format!("out{k}.npy"));
@@ -69,7 +69,6 @@ fn eval_into_a_closed_pipe_is_quiet_and_writes_its_file() {
         assert!(stderr.trim().is_empty(), "{args:?}: {stderr}");
         assert!(out.exists(), "the output file was not written");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 #[test]
@@ -96,5 +95,4 @@ fn sweep_into_a_closed_pipe_is_quiet() {
     assert_eq!(code, Some(0), "{stderr}");
     assert!(!stderr.contains("internal error"), "{stderr}");
     assert!(out_dir.join("results.csv").exists());
-    std::fs::remove_dir_all(&dir).unwrap();
 }

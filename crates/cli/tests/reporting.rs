@@ -114,7 +114,6 @@ fn cache_status_is_in_the_table() {
     // No --cache-dir: no row.
     let out = ferrofmm(&["demo", "-n", "300", "-p", "3", "--check", "0"]);
     assert!(!texts(&out).0.contains("operator cache"));
-    std::fs::remove_dir_all(&dir).unwrap();
 }
 
 /// `--help` and the README list the same exit codes.

@@ -86,5 +86,4 @@ fn tiny_sweep_writes_rows_and_charts() {
         let svg = std::fs::read_to_string(out_dir.join(format!("{chart}.svg"))).unwrap();
         assert!(svg.len() > 5000 && svg.contains("<svg"), "{chart}.svg");
     }
-    std::fs::remove_dir_all(&dir).unwrap();
 }

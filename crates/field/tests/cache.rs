@@ -4,22 +4,13 @@
 use std::fs;
 use std::path::{Path, PathBuf};
 
+use ferrofmm_testing::TempDir;
+
 use ferrofmm_field::{
     CacheStatus, DenseConfig, DenseM2l, M2lInteractions, M2lScheme, OperatorParams, Operators,
     SvdConfig, SvdM2l,
 };
 use ferrofmm_kernels::{Laplace3d, ModifiedHelmholtz3d, Real};
-
-/// A fresh, empty directory per test.
-fn temp_dir(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
-        "ferrofmm-field-cache-{name}-{}",
-        std::process::id()
-    ));
-    let _ = fs::remove_dir_all(&d);
-    fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn params(p: usize, dir: &Path) -> OperatorParams {
     let mut params = OperatorParams::new(p);
@@ -88,8 +79,8 @@ fn rejection(status: &CacheStatus) -> String {
 
 #[test]
 fn round_trip_is_bit_identical() {
-    let dir = temp_dir("roundtrip");
-    let p = params(4, &dir);
+    let dir = TempDir::new("roundtrip");
+    let p = params(4, dir.path());
     let a = Operators::<f64>::new(&Laplace3d, &p, 1.0, 3).unwrap();
     let path = assert_computed(a.cache_status(), false);
     let b = Operators::<f64>::new(&Laplace3d, &p, 1.0, 3).unwrap();
@@ -146,15 +137,14 @@ fn round_trip_is_bit_identical() {
     .unwrap();
     assert_computed(&s3.cache_status(), false);
     assert!(s3.rank() < s1.rank());
-    let _ = fs::remove_dir_all(&dir);
 }
 
 /// Damage the cache file of `Operators` p=4 with `damage`, check that the
 /// next construction rejects it for `reason`, rebuilds identical operators
 /// and rewrites a good file.
 fn damaged_file_is_rebuilt(name: &str, reason: &str, damage: impl FnOnce(&Path)) {
-    let dir = temp_dir(name);
-    let p = params(4, &dir);
+    let dir = TempDir::new(name);
+    let p = params(4, dir.path());
     let a = Operators::<f64>::new(&Laplace3d, &p, 1.0, 2).unwrap();
     let path = assert_computed(a.cache_status(), false);
     damage(&path);
@@ -172,7 +162,6 @@ fn damaged_file_is_rebuilt(name: &str, reason: &str, damage: impl FnOnce(&Path))
         c.cache_status()
     );
     assert_eq!(fingerprint(&a), fingerprint(&c));
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
@@ -215,14 +204,14 @@ fn wrong_version_is_rebuilt() {
 #[test]
 fn file_of_other_parameters_is_rebuilt() {
     // A file written for p = 5 placed where the p = 4 file belongs.
-    let dir = temp_dir("other-params");
-    let other = Operators::<f64>::new(&Laplace3d, &params(5, &dir), 1.0, 2).unwrap();
+    let dir = TempDir::new("other-params");
+    let other = Operators::<f64>::new(&Laplace3d, &params(5, dir.path()), 1.0, 2).unwrap();
     let other_path = assert_computed(other.cache_status(), false);
     damaged_file_is_rebuilt("other-params-order", "stale", |path| {
         fs::copy(&other_path, path).unwrap();
     });
     // Another cutoff.
-    let mut p2 = params(4, &dir);
+    let mut p2 = params(4, dir.path());
     p2.pinv_rcond = Some(1e-6);
     let other = Operators::<f64>::new(&Laplace3d, &p2, 1.0, 2).unwrap();
     let other_path = assert_computed(other.cache_status(), false);
@@ -234,7 +223,7 @@ fn file_of_other_parameters_is_rebuilt() {
         ModifiedHelmholtz3d::new(1.0).unwrap(),
         ModifiedHelmholtz3d::new(2.0).unwrap(),
     );
-    let p = params(3, &dir);
+    let p = params(3, dir.path());
     let a = DenseM2l::<f64>::precompute(&k1, &p, &DenseConfig, 1.0, 2).unwrap();
     let pa = assert_computed(&a.cache_status(), false);
     let b = DenseM2l::<f64>::precompute(&k2, &p, &DenseConfig, 1.0, 2).unwrap();
@@ -244,12 +233,11 @@ fn file_of_other_parameters_is_rebuilt() {
     let c = DenseM2l::<f64>::precompute(&k2, &p, &DenseConfig, 1.0, 2).unwrap();
     assert!(rejection(&c.cache_status()).contains("stale"));
     assert_eq!(scheme_fingerprint(&b, 26), scheme_fingerprint(&c, 26));
-    let _ = fs::remove_dir_all(&dir);
 }
 
 #[test]
 fn unwritable_cache_does_not_fail_the_computation() {
-    let dir = temp_dir("unwritable");
+    let dir = TempDir::new("unwritable");
     let blocker = dir.join("a-file");
     fs::write(&blocker, b"not a directory").unwrap();
     let p = params(3, &blocker.join("sub"));
@@ -264,7 +252,6 @@ fn unwritable_cache_does_not_fail_the_computation() {
     let plain = Operators::<f64>::new(&Laplace3d, &OperatorParams::new(3), 1.0, 2).unwrap();
     assert_eq!(plain.cache_status(), &CacheStatus::Disabled);
     assert_eq!(fingerprint(&a), fingerprint(&plain));
-    let _ = fs::remove_dir_all(&dir);
 }
 
 /// The FFT scheme's kernel spectra: one `f64` file whatever `T`, per level
@@ -273,8 +260,8 @@ fn unwritable_cache_does_not_fail_the_computation() {
 #[test]
 fn fft_spectra_round_trip_and_damaged_files_are_rebuilt() {
     use ferrofmm_field::{FftConfig, FftM2l};
-    let dir = temp_dir("fft");
-    let p = params(5, &dir);
+    let dir = TempDir::new("fft");
+    let p = params(5, dir.path());
     let n = ferrofmm_field::n_surface_points(5);
     let a = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
     let path = assert_computed(&a.cache_status(), false);
@@ -307,5 +294,4 @@ fn fft_spectra_round_trip_and_damaged_files_are_rebuilt() {
     assert_eq!(scheme_fingerprint(&a, n), scheme_fingerprint(&e, n));
     let f = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
     assert!(f.cache_status().is_hit(), "file was not rewritten");
-    let _ = fs::remove_dir_all(&dir);
 }

@@ -16,15 +16,15 @@ const SIDE: i32 = 8;
 /// Multipoles (P2M of 20 random sources) of every box of a uniform level-3
 /// grid.
 fn grid_multipoles<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> Vec<T> {
-    let mut rng = Rng(11);
+    let mut rng = SplitMix64(11);
     let h = ops.half_width(LEVEL);
     let mut all = Vec::new();
     for x in 0..SIDE {
         for y in 0..SIDE {
             for z in 0..SIDE {
                 let c = box_center(LEVEL, [x, y, z]);
-                let src = points_in_box(&mut rng, 20, c, h);
-                let q = charges(&mut rng, 20);
+                let src = in_box(&mut rng, 20, c, h);
+                let q = positive_from(&mut rng, 20);
                 all.extend(p2m(kernel, ops, LEVEL, c, &src, &q));
             }
         }
@@ -99,7 +99,7 @@ fn dense_matches_reference<T: Real, K: Kernel>(kernel: &K, p: usize, tol: f64) {
         let mut got = vec![T::ONE; n * nb]; // accumulates onto existing values
         dense.apply(LEVEL, &inter, &m, &mut got);
         let got: Vec<f64> = got.iter().map(|x| x.to_f64() - 1.0).collect();
-        let e = rel_err(&got, &want);
+        let e = relative_l2(&got, &want);
         assert!(
             e < tol,
             "{} {} chunk {chunk}: {e:.2e}",
@@ -131,7 +131,7 @@ fn svd_vs_dense<T: Real, K: Kernel>(kernel: &K, p: usize, config: SvdConfig) -> 
     dense.apply(LEVEL, &inter, &m, &mut want);
     let mut got = vec![T::ZERO; n * nb];
     svd.apply(LEVEL, &inter, &m, &mut got);
-    let e = rel_err(&to_f64(&got), &to_f64(&want));
+    let e = relative_l2(&to_f64(&got), &to_f64(&want));
     println!(
         "{} {} p={p} {config:?}: rank {}/{n}, tolerance {:.1e}, estimate {:.1e}, |svd - dense| / |dense| = {e:.2e}, \
          flops svd/dense = {:.2}",

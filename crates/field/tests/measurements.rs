@@ -11,6 +11,7 @@ use ferrofmm_field::{
     SvdConfig, SvdM2l,
 };
 use ferrofmm_kernels::{Kernel, Laplace3d, Real};
+use ferrofmm_testing::points::in_shell;
 
 #[test]
 #[ignore]
@@ -174,38 +175,21 @@ fn scheme_chain_error<T: Real, K: Kernel, S: M2lScheme<T>>(
     count: usize,
     seed: u64,
 ) -> f64 {
-    let mut rng = Rng(seed);
-    let h = ops.half_width(level);
     let n = ops.n_surface();
-    let t_idx = [3, 3, 3];
-    let ct = box_center(level, t_idx);
-    let mut worst: f64 = 0.0;
-    for v in CHAIN_VECTORS {
-        let cs = box_center(level, [t_idx[0] + v[0], t_idx[1] + v[1], t_idx[2] + v[2]]);
-        let src = points_in_box(&mut rng, count, cs, h);
-        let q = charges(&mut rng, count);
-        let tgt = points_in_box(&mut rng, count, ct, h);
-        let phi = p2m(kernel, ops, level, cs, &src, &q);
-        let check = m2l_pair(scheme, level, n, v, &phi);
-        let mut psi = vec![T::ZERO; n];
-        ops.dc2e(level, &check, &mut psi);
-        let approx = eval_density(
-            kernel,
-            ops,
-            ferrofmm_field::SurfaceKind::DownwardEquivalent,
-            level,
-            ct,
-            &psi,
-            &tgt,
-        );
-        worst = worst.max(rel_err(&approx, &direct(kernel, &src, &q, &tgt)));
-    }
-    worst
+    chain_error_with(
+        kernel,
+        ops,
+        level,
+        count,
+        seed,
+        &CHAIN_VECTORS,
+        |v, _, _, phi| m2l_pair(scheme, level, n, v, phi),
+    )
 }
 
 /// Multipoles of a uniform level-3 grid (8^3 boxes, 30 sources each).
 fn grid_multipoles<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> Vec<T> {
-    let mut rng = Rng(7);
+    let mut rng = SplitMix64(7);
     let side = 8;
     let h = ops.half_width(3);
     let mut all = Vec::new();
@@ -213,8 +197,8 @@ fn grid_multipoles<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> Vec<T>
         for y in 0..side {
             for z in 0..side {
                 let c = box_center(3, [x, y, z]);
-                let src = points_in_box(&mut rng, 30, c, h);
-                let q = charges(&mut rng, 30);
+                let src = in_box(&mut rng, 30, c, h);
+                let q = positive_from(&mut rng, 30);
                 all.extend(p2m(kernel, ops, 3, c, &src, &q));
             }
         }
@@ -273,7 +257,7 @@ fn svd_tolerance_sweep() {
                     format!("{tol:.0e}")
                 },
                 svd.rank(),
-                rel_err(&got, &want)
+                relative_l2(&got, &want)
             );
         }
     }
@@ -302,13 +286,21 @@ fn near_boundary_sweep() {
             let level = 2;
             let h = ops.half_width(level);
             let c = box_center(level, [1, 1, 1]);
-            let mut rng = Rng(99);
+            let mut rng = SplitMix64(99);
             let (mut e_l, mut e_m) = (0.0f64, 0.0f64);
             for _ in 0..4 {
-                let far = points_in_shell(&mut rng, 300, c, 3.0 * h, 3.1 * h);
-                let q = charges(&mut rng, 300);
-                let inner = points_in_box(&mut rng, 300, c, h);
-                let check = p2l_check(&Laplace3d, &ops, level, c, &far, &q);
+                let far = in_shell(&mut rng, 300, c, 3.0 * h, 3.1 * h);
+                let q = positive_from(&mut rng, 300);
+                let inner = in_box(&mut rng, 300, c, h);
+                let check = check_potential(
+                    &Laplace3d,
+                    &ops,
+                    ferrofmm_field::SurfaceKind::DownwardCheck,
+                    level,
+                    c,
+                    &far,
+                    &q,
+                );
                 let mut psi = vec![0.0; ops.n_surface()];
                 ops.dc2e(level, &check, &mut psi);
                 let approx = eval_density(
@@ -320,8 +312,8 @@ fn near_boundary_sweep() {
                     &psi,
                     &inner,
                 );
-                e_l = e_l.max(rel_err(&approx, &direct(&Laplace3d, &far, &q, &inner)));
-                let qi = charges(&mut rng, 300);
+                e_l = e_l.max(relative_l2(&approx, &direct(&Laplace3d, &far, &q, &inner)));
+                let qi = positive_from(&mut rng, 300);
                 let phi = p2m(&Laplace3d, &ops, level, c, &inner, &qi);
                 let approx = eval_density(
                     &Laplace3d,
@@ -332,7 +324,7 @@ fn near_boundary_sweep() {
                     &phi,
                     &far,
                 );
-                e_m = e_m.max(rel_err(&approx, &direct(&Laplace3d, &inner, &qi, &far)));
+                e_m = e_m.max(relative_l2(&approx, &direct(&Laplace3d, &inner, &qi, &far)));
             }
             println!("| {ue} | {uc} | {p} | {e_l:.2e} | {e_m:.2e} |");
         }

@@ -10,6 +10,7 @@ use ferrofmm_field::{
     octant_offset,
 };
 use ferrofmm_kernels::{Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
+use ferrofmm_testing::points::in_shell;
 
 const DEPTH: u32 = 4;
 
@@ -19,13 +20,13 @@ fn ops<T: Real, K: Kernel>(kernel: &K, p: usize) -> Operators<T> {
 
 /// P2M at level 2, multipole evaluated in the far field (>= 3 half-widths).
 fn p2m_error<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> f64 {
-    let mut rng = Rng(1);
+    let mut rng = SplitMix64(1);
     let level = 2;
     let c = box_center(level, [1, 2, 1]);
     let h = ops.half_width(level);
-    let src = points_in_box(&mut rng, 200, c, h);
-    let q = charges(&mut rng, 200);
-    let tgt = points_in_shell(&mut rng, 200, c, 3.0 * h, 6.0 * h);
+    let src = in_box(&mut rng, 200, c, h);
+    let q = positive_from(&mut rng, 200);
+    let tgt = in_shell(&mut rng, 200, c, 3.0 * h, 6.0 * h);
     let phi = p2m(kernel, ops, level, c, &src, &q);
     let approx = eval_density(
         kernel,
@@ -36,13 +37,13 @@ fn p2m_error<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> f64 {
         &phi,
         &tgt,
     );
-    rel_err(&approx, &direct(kernel, &src, &q, &tgt))
+    relative_l2(&approx, &direct(kernel, &src, &q, &tgt))
 }
 
 /// P2M in each child at level 3, M2M into the parent; far field of the
 /// parent against direct and against the parent's own P2M.
 fn m2m_errors<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> (f64, f64) {
-    let mut rng = Rng(2);
+    let mut rng = SplitMix64(2);
     let parent_level = 2;
     let cp = box_center(parent_level, [2, 1, 1]);
     let hp = ops.half_width(parent_level);
@@ -54,14 +55,14 @@ fn m2m_errors<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> (f64, f64) 
     for octant in 0..8 {
         let o = octant_offset(octant);
         let cc = [cp[0] + hc * o[0], cp[1] + hc * o[1], cp[2] + hc * o[2]];
-        let src = points_in_box(&mut rng, 40, cc, hc);
-        let q = charges(&mut rng, 40);
+        let src = in_box(&mut rng, 40, cc, hc);
+        let q = positive_from(&mut rng, 40);
         let phi_c = p2m(kernel, ops, parent_level + 1, cc, &src, &q);
         ops.m2m(parent_level + 1, octant, &phi_c, &mut parent);
         all_src.extend(src);
         all_q.extend(q);
     }
-    let tgt = points_in_shell(&mut rng, 200, cp, 3.0 * hp, 6.0 * hp);
+    let tgt = in_shell(&mut rng, 200, cp, 3.0 * hp, 6.0 * hp);
     let via_m2m = eval_density(
         kernel,
         ops,
@@ -82,7 +83,10 @@ fn m2m_errors<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> (f64, f64) 
         &tgt,
     );
     let exact = direct(kernel, &all_src, &all_q, &tgt);
-    (rel_err(&via_m2m, &exact), rel_err(&via_m2m, &via_p2m))
+    (
+        relative_l2(&via_m2m, &exact),
+        relative_l2(&via_m2m, &via_p2m),
+    )
 }
 
 /// P2M in a source box, M2L through `scheme`, DC2E, L2P in the target box.
@@ -92,46 +96,32 @@ fn m2l_error<T: Real, K: Kernel, S: M2lScheme<T>>(
     scheme: &S,
     level: u32,
 ) -> f64 {
-    let mut rng = Rng(3);
     let n = ops.n_surface();
-    let h = ops.half_width(level);
-    let t_idx = [3, 3, 3];
-    let ct = box_center(level, t_idx);
-    let mut worst: f64 = 0.0;
-    for v in [[2, 0, 0], [0, -3, 2], [3, 3, 3], [-2, -1, 1], [-3, 2, -3]] {
-        let cs = box_center(level, [t_idx[0] + v[0], t_idx[1] + v[1], t_idx[2] + v[2]]);
-        let src = points_in_box(&mut rng, 100, cs, h);
-        let q = charges(&mut rng, 100);
-        let tgt = points_in_box(&mut rng, 100, ct, h);
-        let phi = p2m(kernel, ops, level, cs, &src, &q);
-        let check = m2l_pair(scheme, level, n, v, &phi);
-        let mut psi = vec![T::ZERO; n];
-        ops.dc2e(level, &check, &mut psi);
-        let approx = eval_density(
-            kernel,
-            ops,
-            SurfaceKind::DownwardEquivalent,
-            level,
-            ct,
-            &psi,
-            &tgt,
-        );
-        worst = worst.max(rel_err(&approx, &direct(kernel, &src, &q, &tgt)));
-    }
-    worst
+    let vectors = [[2, 0, 0], [0, -3, 2], [3, 3, 3], [-2, -1, 1], [-3, 2, -3]];
+    chain_error_with(kernel, ops, level, 100, 3, &vectors, |v, _, _, phi| {
+        m2l_pair(scheme, level, n, v, phi)
+    })
 }
 
 /// P2L at a level-2 parent from far sources, DC2E, L2L to each child, L2P.
 fn l2l_error<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> f64 {
-    let mut rng = Rng(4);
+    let mut rng = SplitMix64(4);
     let n = ops.n_surface();
     let parent_level = 2;
     let cp = box_center(parent_level, [1, 1, 2]);
     let hp = ops.half_width(parent_level);
     let hc = hp / 2.0;
-    let src = points_in_shell(&mut rng, 300, cp, 3.0 * hp, 5.0 * hp);
-    let q = charges(&mut rng, 300);
-    let check = p2l_check(kernel, ops, parent_level, cp, &src, &q);
+    let src = in_shell(&mut rng, 300, cp, 3.0 * hp, 5.0 * hp);
+    let q = positive_from(&mut rng, 300);
+    let check = check_potential(
+        kernel,
+        ops,
+        SurfaceKind::DownwardCheck,
+        parent_level,
+        cp,
+        &src,
+        &q,
+    );
     let mut psi_p = vec![T::ZERO; n];
     ops.dc2e(parent_level, &check, &mut psi_p);
     let mut worst: f64 = 0.0;
@@ -140,7 +130,7 @@ fn l2l_error<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> f64 {
         let cc = [cp[0] + hc * o[0], cp[1] + hc * o[1], cp[2] + hc * o[2]];
         let mut psi_c = vec![T::ZERO; n];
         ops.l2l(parent_level + 1, octant, &psi_p, &mut psi_c);
-        let tgt = points_in_box(&mut rng, 50, cc, hc);
+        let tgt = in_box(&mut rng, 50, cc, hc);
         let approx = eval_density(
             kernel,
             ops,
@@ -150,7 +140,7 @@ fn l2l_error<T: Real, K: Kernel>(kernel: &K, ops: &Operators<T>) -> f64 {
             &psi_c,
             &tgt,
         );
-        worst = worst.max(rel_err(&approx, &direct(kernel, &src, &q, &tgt)));
+        worst = worst.max(relative_l2(&approx, &direct(kernel, &src, &q, &tgt)));
     }
     worst
 }

@@ -7,7 +7,8 @@ mod stability_common;
 use ferrofmm_field::{M2lScheme, SvdM2l};
 use ferrofmm_fmm::{Fmm, FmmBuilder, Geometry};
 use ferrofmm_kernels::{EvalMode, Laplace3d};
-use stability_common::{TempDir, charges_in, potential_error, tol};
+use ferrofmm_testing::TempDir;
+use stability_common::{charges_in, potential_error, tol};
 
 const THREADS: usize = 4;
 

@@ -3,9 +3,7 @@
 use ferrofmm_fmm::{FmmBuilder, FmmError};
 
 fn points(n: usize) -> Vec<f64> {
-    (0..3 * n)
-        .map(|i| ((i * 7919) % 1009) as f64 / 1009.0)
-        .collect()
+    ferrofmm_testing::points::uniform_cube(n, 0.0, 1.0, 1)
 }
 
 #[test]

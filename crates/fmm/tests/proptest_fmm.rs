@@ -12,8 +12,9 @@ mod stability_common;
 
 use ferrofmm_fmm::FmmBuilder;
 use ferrofmm_kernels::Real;
+use ferrofmm_testing::TempDir;
 use proptest::prelude::*;
-use stability_common::{TempDir, direct, norm, tol};
+use stability_common::{direct, norm2, tol};
 
 const ORDER: usize = 8;
 
@@ -77,13 +78,13 @@ fn check(case: &Case, cache: &std::path::Path) -> Result<(), TestCaseError> {
     let targets = case.targets.as_deref().unwrap_or(&case.sources);
     let exact = direct(&case.sources, &case.charges, targets);
     let abs_q: Vec<f64> = case.charges.iter().map(|q| q.abs()).collect();
-    let magnitude = norm(&direct(&case.sources, &abs_q, targets));
+    let magnitude = norm2(&direct(&case.sources, &abs_q, targets));
     let diff: Vec<f64> = values
         .iter()
         .zip(&exact)
         .map(|(v, e)| v.to_f64() - e)
         .collect();
-    let err = norm(&diff);
+    let err = norm2(&diff);
     prop_assert!(
         err <= tol::<f64>(ORDER) * magnitude,
         "error {err:.3e} > {:.1e} * {magnitude:.3e} (depth {}, {} sources)",

@@ -17,7 +17,8 @@ use std::path::{Path, PathBuf};
 use ferrofmm_field::{CACHE_FORMAT_VERSION, CacheStatus, M2lScheme, SvdM2l};
 use ferrofmm_fmm::{Fmm, FmmBuilder};
 use ferrofmm_kernels::Laplace3d;
-use stability_common::{TempDir, charges_in, potential_error, tol, uniform};
+use ferrofmm_testing::TempDir;
+use stability_common::{charges_in, potential_error, tol, uniform};
 
 const N: usize = 800;
 

@@ -101,7 +101,7 @@ pub fn check_inputs<T: Real>(
     Ok(())
 }
 
-fn check_lengths<T: Real>(
+pub(crate) fn check_lengths<T: Real>(
     mode: EvalMode,
     sources: &[T],
     charges: &[T],

@@ -71,9 +71,7 @@ impl LaneKernel for ModifiedHelmholtz3d {
         acc[0] = s.add(acc[0], qer);
         if GRAD {
             let c = s.mul(s.mul(qer, s.add(s.splat(T::ONE), kr)), s.mul(rinv, rinv));
-            acc[1] = s.mul_add(c, d[0], acc[1]);
-            acc[2] = s.mul_add(c, d[1], acc[2]);
-            acc[3] = s.mul_add(c, d[2], acc[3]);
+            lanes::add_radial_gradient(s, c, &d, acc);
         }
     }
 

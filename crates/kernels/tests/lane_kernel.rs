@@ -114,7 +114,7 @@ fn user_kernel_matches_its_definition_at_every_level() {
 }
 
 #[test]
-#[should_panic(expected = "tilted P2P: output length")]
+#[should_panic(expected = "tilted P2P: output has 2 values, expected 1")]
 fn lengths_are_checked() {
     let k = Tilted { a: [0.0; 3] };
     let mut out = [0.0f64; 2];

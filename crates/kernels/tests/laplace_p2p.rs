@@ -277,7 +277,7 @@ fn levels_are_clamped_and_trait_dispatches() {
 }
 
 #[test]
-#[should_panic(expected = "one charge per source")]
+#[should_panic(expected = "P2P: 2 sources but 1 charges")]
 fn mismatched_charges_panic() {
     let mut out = [0.0f64; 1];
     laplace_p2p_with(

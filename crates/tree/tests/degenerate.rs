@@ -52,7 +52,7 @@ fn two_coincident_groups_and_max_level() {
 
 #[test]
 fn coplanar_and_collinear() {
-    let mut r = rng(7);
+    let mut r = ferrofmm_testing::seeded(7);
     use rand::RngExt;
     let plane: Vec<f64> = (0..400)
         .flat_map(|_| [r.random::<f64>(), r.random::<f64>(), 0.25])
@@ -99,7 +99,7 @@ fn points_on_box_faces_and_corners() {
 
 #[test]
 fn two_tiny_clusters_far_apart() {
-    let mut r = rng(11);
+    let mut r = ferrofmm_testing::seeded(11);
     use rand::RngExt;
     let mut pts = Vec::new();
     for (c, s) in [([0.0, 0.0, 0.0], 1e-5), ([1.0, 1.0, 1.0], 1e-4)] {

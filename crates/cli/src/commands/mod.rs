@@ -7,11 +7,15 @@ pub mod sweep;
 
 use clap::{Args, ValueEnum};
 use ferrofmm_fmm::{Charges, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
+use serde::{Deserialize, Serialize};
 
 use crate::error::CliError;
 
-/// Float type of a run.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
+/// Float type of a run (in reports: `"f32"`, `"f64"`).
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum, Serialize, Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum PrecisionArg {
     /// Single precision (about 7 digits: errors level off near 1e-7 to 1e-6).
     F32,
@@ -33,8 +37,18 @@ impl PrecisionArg {
     }
 }
 
-/// M2L translation scheme.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum)]
+impl std::fmt::Display for PrecisionArg {
+    /// The name (width and alignment flags apply).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
+    }
+}
+
+/// M2L translation scheme (in reports: `"svd"`, `"dense"`, `"fft"`).
+#[derive(
+    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum, Serialize, Deserialize,
+)]
+#[serde(rename_all = "lowercase")]
 pub enum SchemeArg {
     /// Truncated SVD of the stacked M2L operators (Fong-Darve): fast.
     Svd,
@@ -59,6 +73,13 @@ impl SchemeArg {
             SchemeArg::Fft => "fft",
             SchemeArg::Auto => "auto",
         }
+    }
+}
+
+impl std::fmt::Display for SchemeArg {
+    /// The name (width and alignment flags apply).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.pad(self.name())
     }
 }
 

@@ -375,8 +375,8 @@ where
         }
         .to_string(),
         verification,
-        scheme: settings.scheme.name().to_string(),
-        precision: settings.precision.name().to_string(),
+        scheme: settings.scheme,
+        precision: settings.precision,
         gradients: settings.gradients,
         threads: rayon::current_num_threads(),
         cache: cache_summary(

@@ -381,7 +381,7 @@ mod tests {
     #[test]
     fn csv_rows_match_the_header() {
         let header_fields = CSV_HEADER.split(',').count();
-        let run = crate::charts::tests::fake_run("svd", "f64", 5, 64);
+        let run = crate::charts::tests::fake_run(SchemeArg::Svd, PrecisionArg::F64, 5, 64);
         assert_eq!(csv_row(&run).split(',').count(), header_fields);
         let mut no_check = run.clone();
         no_check.errors = None;

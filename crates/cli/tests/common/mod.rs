@@ -3,8 +3,10 @@
 
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::{Command, Output};
+
+pub use ferrofmm_testing::TempDir;
 
 /// Run `ferrofmm` with `args`; stderr is not a terminal, so no progress bars.
 pub fn ferrofmm(args: &[&str]) -> Output {
@@ -22,27 +24,19 @@ pub fn texts(out: &Output) -> (String, String) {
     )
 }
 
-/// A fresh, empty directory for one test.
-pub fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("ferrofmm-cli-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+/// A fresh, empty directory for one test, removed when dropped.
+pub fn scratch(name: &str) -> TempDir {
+    TempDir::new(&format!("cli-{name}"))
 }
 
 /// Deterministic pseudo-random points in the unit cube (interleaved).
 pub fn points(n: usize, seed: u64) -> Vec<f64> {
-    let mut state = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    (0..3 * n)
-        .map(|_| {
-            state = state
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        })
-        .collect()
+    ferrofmm_testing::points::uniform_cube(n, 0.0, 1.0, seed)
+}
+
+/// `n` charges uniform in `[0, 1)`.
+pub fn charges(n: usize, seed: u64) -> Vec<f64> {
+    ferrofmm_testing::charges::uniform_in(n, 0.0, 1.0, seed)
 }
 
 /// Write `values` as CSV, `columns` per line, with an optional header.
@@ -90,16 +84,4 @@ pub fn read_npy(path: &Path) -> (Vec<u64>, Vec<f64>) {
         other => panic!("unexpected dtype {other}"),
     };
     (shape, values)
-}
-
-/// Relative L2 error of column `c` (of `w`) of `got` against `want`.
-pub fn rel_error(got: &[f64], want: &[f64], w: usize, cols: std::ops::Range<usize>) -> f64 {
-    let (mut d, mut n) = (0.0, 0.0);
-    for (g, r) in got.chunks(w).zip(want.chunks(w)) {
-        for c in cols.clone() {
-            d += (g[c] - r[c]).powi(2);
-            n += r[c].powi(2);
-        }
-    }
-    (d / n).sqrt()
 }

@@ -4,8 +4,8 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
-    scatter_add,
+    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, for_each_vector_group, m2l_matrix,
+    planned_sets,
 };
 use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
 use crate::levels::LevelMap;
@@ -227,24 +227,19 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
         for_each_chunk(interactions, n, check, |chunk, out| {
-            let m = chunk.max_group_len();
-            let mut src = vec![T::ZERO; n * m];
-            let mut dst = vec![T::ZERO; n * m];
-            for g in chunk.groups() {
-                let len = g.sources.len();
-                gather(n, multipoles, g.sources, &mut src[..n * len]);
+            for_each_vector_group(&chunk, multipoles, n, out, n, |v, src, dst| {
+                let len = src.len() / n;
                 gemm_scaled(
                     n,
                     len,
                     n,
                     scale,
-                    self.matrix(set, g.vector),
-                    &src[..n * len],
-                    &mut dst[..n * len],
+                    self.matrix(set, v),
+                    src,
+                    dst,
                     Update::Overwrite,
                 );
-                scatter_add(n, &dst[..n * len], g.targets, out);
-            }
+            });
         });
     }
 

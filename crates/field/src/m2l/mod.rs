@@ -329,3 +329,55 @@ pub fn scatter_add<T: Real>(rows: usize, block: &[T], cols: &[u32], dst: &mut [T
         }
     }
 }
+
+/// The per-group loop of a chunk, for schemes whose M2L is one linear map
+/// `P_v` per transfer vector: for each group `g` of `chunk`,
+///
+/// ```text
+/// out[:, g.targets] += P_{g.vector} (columns[:, g.sources])
+/// ```
+///
+/// where `columns` has `rows_in` values per column (the multipoles, or a
+/// compressed form of them) and `out` is the chunk's own block with
+/// `rows_out` values per column (indexed by the chunk-relative target
+/// columns). The group's source columns are gathered into one contiguous
+/// `rows_in x len` block `src`; `product(v, src, dst)` must overwrite the
+/// `rows_out x len` block `dst` with `P_v src`; the result is scatter-added
+/// ([`gather`], [`scatter_add`]). The two blocks are allocated once per
+/// call, for the chunk's largest group. `product` runs sequentially, so it
+/// may keep its own scratch (an `FnMut`).
+///
+/// ```
+/// use ferrofmm_field::M2lInteractions;
+/// use ferrofmm_field::plumbing::{for_each_chunk, for_each_vector_group};
+/// // One target column, two source columns of 2 values; source 1 acts on target 0.
+/// let inter = M2lInteractions::new(1, 2, &[(0, 1, [2, 0, 0])]);
+/// let multipoles = [1.0, 2.0, 3.0, 4.0];
+/// let mut check = [0.5, 0.5];
+/// for_each_chunk(&inter, 2, &mut check, |chunk, out| {
+///     // P_v = 10 I for every v.
+///     for_each_vector_group(&chunk, &multipoles, 2, out, 2, |_, src, dst| {
+///         dst.iter_mut().zip(src).for_each(|(d, s)| *d = 10.0 * s);
+///     });
+/// });
+/// assert_eq!(check, [30.5, 40.5]);
+/// ```
+pub fn for_each_vector_group<T: Real>(
+    chunk: &ChunkView<'_>,
+    columns: &[T],
+    rows_in: usize,
+    out: &mut [T],
+    rows_out: usize,
+    mut product: impl FnMut(usize, &[T], &mut [T]),
+) {
+    let m = chunk.max_group_len();
+    let mut src = vec![T::ZERO; rows_in * m];
+    let mut dst = vec![T::ZERO; rows_out * m];
+    for g in chunk.groups() {
+        let len = g.sources.len();
+        let (src, dst) = (&mut src[..rows_in * len], &mut dst[..rows_out * len]);
+        gather(rows_in, columns, g.sources, src);
+        product(g.vector, src, dst);
+        scatter_add(rows_out, dst, g.targets, out);
+    }
+}

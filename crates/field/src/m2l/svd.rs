@@ -6,8 +6,8 @@ use ferrofmm_kernels::{Kernel, Precision, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, gather, m2l_matrix, planned_sets,
-    scatter_add,
+    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, for_each_vector_group, m2l_matrix,
+    planned_sets,
 };
 use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
 use crate::levels::LevelMap;
@@ -498,56 +498,27 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         let max_rank = ops.iter().map(|o| o.rank).max().unwrap_or(k);
         for_each_chunk(interactions, n, check, |chunk, out| {
             let nt = chunk.n_targets();
-            let m = chunk.max_group_len();
             let mut acc = vec![T::ZERO; k * nt];
-            let mut src = vec![T::ZERO; k * m];
-            let mut mid = vec![T::ZERO; max_rank * m];
-            let mut dst = vec![T::ZERO; k * m];
-            for g in chunk.groups() {
-                let len = g.sources.len();
-                gather(k, mc, g.sources, &mut src[..k * len]);
-                let VectorOp { offset, rank: r } = ops[g.vector];
+            let mut mid = vec![T::ZERO; max_rank * chunk.max_group_len()];
+            for_each_vector_group(&chunk, mc, k, &mut acc, k, |v, src, dst| {
+                let len = src.len() / k;
+                let VectorOp { offset, rank: r } = ops[v];
                 assert!(
                     r > 0,
-                    "M2L operator of transfer vector {} was not precomputed: \
-                     the interactions differ from the usage given to precompute_for",
-                    g.vector
+                    "M2L operator of transfer vector {v} was not precomputed: \
+                     the interactions differ from the usage given to precompute_for"
                 );
                 if r == k {
                     let cv = &store[offset..offset + k * k];
-                    gemm(
-                        k,
-                        len,
-                        k,
-                        cv,
-                        &src[..k * len],
-                        &mut dst[..k * len],
-                        Update::Overwrite,
-                    );
+                    gemm(k, len, k, cv, src, dst, Update::Overwrite);
                 } else {
                     // C_v = A_v B_v^T: mid = B_v^T src, dst = A_v mid.
                     let (av, bt) = store[offset..offset + 2 * k * r].split_at(k * r);
-                    gemm(
-                        r,
-                        len,
-                        k,
-                        bt,
-                        &src[..k * len],
-                        &mut mid[..r * len],
-                        Update::Overwrite,
-                    );
-                    gemm(
-                        k,
-                        len,
-                        r,
-                        av,
-                        &mid[..r * len],
-                        &mut dst[..k * len],
-                        Update::Overwrite,
-                    );
+                    let mid = &mut mid[..r * len];
+                    gemm(r, len, k, bt, src, mid, Update::Overwrite);
+                    gemm(k, len, r, av, mid, dst, Update::Overwrite);
                 }
-                scatter_add(k, &dst[..k * len], g.targets, &mut acc);
-            }
+            });
             gemm_scaled(n, nt, k, scale, u, &acc, out, Update::Accumulate);
         });
     }

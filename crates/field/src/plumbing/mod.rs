@@ -28,7 +28,8 @@
 //!   chunk's own columns of `check` (disjoint `&mut` slices, no locks).
 //! * [`gather`] copies a group's source columns into a contiguous block,
 //!   [`crate::gemm_scaled`] multiplies, [`scatter_add`] adds the result to
-//!   the group's target columns.
+//!   the group's target columns; [`for_each_vector_group`] is that loop
+//!   over a chunk's groups, with the product supplied by the scheme.
 //! * [`check_lengths`] asserts the slice lengths `apply` promises.
 //! * [`SiblingBlocks`] (from
 //!   [`M2lInteractions::sibling_blocks`](crate::M2lInteractions::sibling_blocks))
@@ -42,8 +43,9 @@
 //! * [`conformance::check_scheme`] compares a scheme with per-vector dense
 //!   products on two full levels; run it in your scheme's tests.
 //!
-//! A dense scheme is then, per chunk: `for g in chunk.groups() { gather;
-//! gemm_scaled(n, len, n, scale, K[g.vector], ..); scatter_add }` (see
+//! A dense scheme is then, per chunk: `for_each_vector_group(&chunk,
+//! multipoles, n, out, n, |v, src, dst| gemm_scaled(n, len, n, scale,
+//! K[v], src, dst, Update::Overwrite))` (see
 //! `examples/custom_m2l.rs` in the repository for a complete scheme
 //! written outside this crate, run through the FMM).
 //!
@@ -60,7 +62,8 @@ pub mod conformance;
 pub use crate::interactions::{ChunkView, GroupView};
 pub use crate::levels::{LevelMap, REFERENCE_HALF_WIDTH, half_width};
 pub use crate::m2l::{
-    FIRST_M2L_LEVEL, check_lengths, for_each_chunk, gather, m2l_matrix, scatter_add,
+    FIRST_M2L_LEVEL, check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix,
+    scatter_add,
 };
 pub use crate::siblings::{
     LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,

@@ -6,62 +6,10 @@
 use ferrofmm_field::{M2lInteractions, M2lScheme, Operators, SurfaceKind};
 use ferrofmm_kernels::{EvalMode, Kernel, Real};
 
-/// SplitMix64: tiny, deterministic, good enough for test geometry.
-pub struct Rng(pub u64);
-
-impl Rng {
-    pub fn next_u64(&mut self) -> u64 {
-        self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-        let mut z = self.0;
-        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-        z ^ (z >> 31)
-    }
-
-    /// Uniform in [0, 1).
-    pub fn uniform(&mut self) -> f64 {
-        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
-    }
-
-    /// Uniform in [a, b).
-    pub fn range(&mut self, a: f64, b: f64) -> f64 {
-        a + (b - a) * self.uniform()
-    }
-}
-
-/// `count` points uniform in the box of `center`, `half_width`.
-pub fn points_in_box(rng: &mut Rng, count: usize, center: [f64; 3], half_width: f64) -> Vec<f64> {
-    (0..3 * count)
-        .map(|i| center[i % 3] + rng.range(-half_width, half_width))
-        .collect()
-}
-
-/// `count` points in the cube shell `inner <= |x - center|_inf <= outer`.
-pub fn points_in_shell(
-    rng: &mut Rng,
-    count: usize,
-    center: [f64; 3],
-    inner: f64,
-    outer: f64,
-) -> Vec<f64> {
-    let mut out = Vec::with_capacity(3 * count);
-    while out.len() < 3 * count {
-        let p = [
-            rng.range(-outer, outer),
-            rng.range(-outer, outer),
-            rng.range(-outer, outer),
-        ];
-        if p.iter().map(|c| c.abs()).fold(0.0, f64::max) >= inner {
-            out.extend([center[0] + p[0], center[1] + p[1], center[2] + p[2]]);
-        }
-    }
-    out
-}
-
-/// Charges in [0, 1) (the benchmark convention: no cancellation tricks).
-pub fn charges(rng: &mut Rng, count: usize) -> Vec<f64> {
-    (0..count).map(|_| rng.uniform()).collect()
-}
+pub use ferrofmm_testing::SplitMix64;
+pub use ferrofmm_testing::charges::positive_from;
+pub use ferrofmm_testing::errors::relative_l2;
+pub use ferrofmm_testing::points::in_box;
 
 pub fn to_t<T: Real>(x: &[f64]) -> Vec<T> {
     x.iter().map(|&v| T::from_f64(v)).collect()
@@ -85,12 +33,27 @@ pub fn direct<K: Kernel>(kernel: &K, sources: &[f64], q: &[f64], targets: &[f64]
     out
 }
 
-/// Relative L2 error `|a - b| / |b|`.
-pub fn rel_err(a: &[f64], b: &[f64]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let den: f64 = b.iter().map(|y| y * y).sum();
-    (num / den).sqrt()
+/// Potential of charges `q` at `sources` on one of a box's check
+/// surfaces (`kind` = `UpwardCheck` for P2M, `DownwardCheck` for P2L).
+pub fn check_potential<T: Real, K: Kernel>(
+    kernel: &K,
+    ops: &Operators<T>,
+    kind: SurfaceKind,
+    level: u32,
+    center: [f64; 3],
+    sources: &[f64],
+    q: &[f64],
+) -> Vec<T> {
+    let pts = ops.surface_points(kind, level, center);
+    let mut check = vec![T::ZERO; ops.n_surface()];
+    kernel.evaluate(
+        EvalMode::Potential,
+        &to_t::<T>(sources),
+        &to_t::<T>(q),
+        &pts,
+        &mut check,
+    );
+    check
 }
 
 /// Driver P2M: sources -> upward check surface -> UC2E.
@@ -102,41 +65,18 @@ pub fn p2m<T: Real, K: Kernel>(
     sources: &[f64],
     q: &[f64],
 ) -> Vec<T> {
-    let n = ops.n_surface();
-    let check_pts = ops.surface_points(SurfaceKind::UpwardCheck, level, center);
-    let mut check = vec![T::ZERO; n];
-    kernel.evaluate(
-        EvalMode::Potential,
-        &to_t::<T>(sources),
-        &to_t::<T>(q),
-        &check_pts,
-        &mut check,
+    let check = check_potential(
+        kernel,
+        ops,
+        SurfaceKind::UpwardCheck,
+        level,
+        center,
+        sources,
+        q,
     );
-    let mut equiv = vec![T::ZERO; n];
+    let mut equiv = vec![T::ZERO; ops.n_surface()];
     ops.uc2e(level, &check, &mut equiv);
     equiv
-}
-
-/// Driver P2L (without DC2E): sources -> downward check potential.
-pub fn p2l_check<T: Real, K: Kernel>(
-    kernel: &K,
-    ops: &Operators<T>,
-    level: u32,
-    center: [f64; 3],
-    sources: &[f64],
-    q: &[f64],
-) -> Vec<T> {
-    let n = ops.n_surface();
-    let pts = ops.surface_points(SurfaceKind::DownwardCheck, level, center);
-    let mut check = vec![T::ZERO; n];
-    kernel.evaluate(
-        EvalMode::Potential,
-        &to_t::<T>(sources),
-        &to_t::<T>(q),
-        &pts,
-        &mut check,
-    );
-    check
 }
 
 /// Driver M2P / L2P: potential of a density on one of the box's surfaces.
@@ -246,8 +186,9 @@ pub const CHAIN_VECTORS: [[i32; 3]; 6] = [
 ];
 
 /// P2M -> M2L -> DC2E -> L2P at `level` for each of `CHAIN_VECTORS`,
-/// `count` sources and targets per box; returns the worst relative L2 error
-/// against direct summation.
+/// `count` sources and targets per box, M2L as the dense scheme defines it
+/// ([`m2l_eval`]); returns the worst relative L2 error against direct
+/// summation.
 pub fn chain_error<T: Real, K: Kernel>(
     kernel: &K,
     ops: &Operators<T>,
@@ -255,19 +196,45 @@ pub fn chain_error<T: Real, K: Kernel>(
     count: usize,
     seed: u64,
 ) -> f64 {
-    let mut rng = Rng(seed);
+    chain_error_with(
+        kernel,
+        ops,
+        level,
+        count,
+        seed,
+        &CHAIN_VECTORS,
+        |_, cs, ct, phi| m2l_eval(kernel, ops, level, cs, ct, phi),
+    )
+}
+
+/// P2M -> `m2l` -> DC2E -> L2P at `level` for each transfer vector of
+/// `vectors` (source box = target box + vector, target box `[3, 3, 3]`),
+/// `count` sources and targets per box drawn from `SplitMix64(seed)`;
+/// returns the worst relative L2 error against direct summation. `m2l`
+/// maps (vector, source centre, target centre, multipole) to the target's
+/// downward check potential.
+pub fn chain_error_with<T: Real, K: Kernel>(
+    kernel: &K,
+    ops: &Operators<T>,
+    level: u32,
+    count: usize,
+    seed: u64,
+    vectors: &[[i32; 3]],
+    m2l: impl Fn([i32; 3], [f64; 3], [f64; 3], &[T]) -> Vec<T>,
+) -> f64 {
+    let mut rng = SplitMix64(seed);
     let h = ops.half_width(level);
     let n = ops.n_surface();
     let t_idx = [3, 3, 3];
     let ct = box_center(level, t_idx);
     let mut worst: f64 = 0.0;
-    for v in CHAIN_VECTORS {
+    for &v in vectors {
         let cs = box_center(level, [t_idx[0] + v[0], t_idx[1] + v[1], t_idx[2] + v[2]]);
-        let src = points_in_box(&mut rng, count, cs, h);
-        let q = charges(&mut rng, count);
-        let tgt = points_in_box(&mut rng, count, ct, h);
+        let src = in_box(&mut rng, count, cs, h);
+        let q = positive_from(&mut rng, count);
+        let tgt = in_box(&mut rng, count, ct, h);
         let phi = p2m(kernel, ops, level, cs, &src, &q);
-        let check = m2l_eval(kernel, ops, level, cs, ct, &phi);
+        let check = m2l(v, cs, ct, &phi);
         let mut psi = vec![T::ZERO; n];
         ops.dc2e(level, &check, &mut psi);
         let approx = eval_density(
@@ -279,7 +246,7 @@ pub fn chain_error<T: Real, K: Kernel>(
             &psi,
             &tgt,
         );
-        worst = worst.max(rel_err(&approx, &direct(kernel, &src, &q, &tgt)));
+        worst = worst.max(relative_l2(&approx, &direct(kernel, &src, &q, &tgt)));
     }
     worst
 }
@@ -295,7 +262,7 @@ pub fn full_chain_error<T: Real, K: Kernel>(
     count: usize,
     seed: u64,
 ) -> f64 {
-    let mut rng = Rng(seed);
+    let mut rng = SplitMix64(seed);
     let h = ops.half_width(level);
     let hc = h / 2.0;
     let n = ops.n_surface();
@@ -321,9 +288,9 @@ pub fn full_chain_error<T: Real, K: Kernel>(
             ct[1] + hc * oto[1],
             ct[2] + hc * oto[2],
         ];
-        let src = points_in_box(&mut rng, count, csc, hc);
-        let q = charges(&mut rng, count);
-        let tgt = points_in_box(&mut rng, count, ctc, hc);
+        let src = in_box(&mut rng, count, csc, hc);
+        let q = positive_from(&mut rng, count);
+        let tgt = in_box(&mut rng, count, ctc, hc);
         let phi_c = p2m(kernel, ops, level + 1, csc, &src, &q);
         let mut phi = vec![T::ZERO; n];
         ops.m2m(level + 1, so, &phi_c, &mut phi);
@@ -341,7 +308,7 @@ pub fn full_chain_error<T: Real, K: Kernel>(
             &psi_c,
             &tgt,
         );
-        worst = worst.max(rel_err(&approx, &direct(kernel, &src, &q, &tgt)));
+        worst = worst.max(relative_l2(&approx, &direct(kernel, &src, &q, &tgt)));
     }
     worst
 }

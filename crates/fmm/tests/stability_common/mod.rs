@@ -18,13 +18,11 @@
 //! the terms the FMM approximates; [`cancellation`] measures that ratio.
 #![allow(dead_code)]
 
-use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicUsize, Ordering};
-
 use ferrofmm_fmm::{FmmBuilder, relative_errors, sample_indices};
 use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real, direct_sum};
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
+use ferrofmm_testing::errors::max_relative_diff;
+pub use ferrofmm_testing::errors::norm2;
+use ferrofmm_testing::{charges, points};
 
 /// Bound on the relative L2 potential error of an order-`p` FMM in `T`
 /// (see the module docs): `50 * 10^-p`, and at least `1e-5` in f32.
@@ -107,7 +105,6 @@ pub fn measure<T: Real>(
 
 /// Direct-sum potentials in f64 at all targets.
 pub fn direct<T: Real>(sources: &[T], charges: &[T], targets: &[T]) -> Vec<f64> {
-    let up = |v: &[T]| v.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
     let mut out = vec![0.0; targets.len() / 3];
     direct_sum(
         &Laplace3d,
@@ -128,68 +125,31 @@ pub fn cancellation<T: Real>(sources: &[T], charges: &[T], targets: &[T]) -> f64
     let abs_q: Vec<T> = charges.iter().map(|q| q.abs()).collect();
     let magnitude = direct(sources, &abs_q, targets);
     let phi = direct(sources, charges, targets);
-    norm(&magnitude) / norm(&phi)
+    norm2(&magnitude) / norm2(&phi)
 }
 
-/// Euclidean norm.
-pub fn norm(v: &[f64]) -> f64 {
-    v.iter().map(|x| x * x).sum::<f64>().sqrt()
-}
-
-/// Largest `|a - b|` over the largest `|b|` (max-norm relative difference).
+/// Max-norm relative difference of two outputs (see
+/// [`ferrofmm_testing::errors::max_relative_diff`]).
 pub fn max_rel_diff<T: Real>(a: &[T], b: &[T]) -> f64 {
-    assert_eq!(a.len(), b.len());
-    let scale = b.iter().map(|x| x.to_f64().abs()).fold(0.0, f64::max);
-    let diff = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| (x.to_f64() - y.to_f64()).abs())
-        .fold(0.0, f64::max);
-    if scale > 0.0 { diff / scale } else { diff }
+    max_relative_diff(&up(a), &up(b))
 }
 
 /// `n` points uniform in `[lo, lo + width)^3`.
 pub fn uniform<T: Real>(n: usize, lo: f64, width: f64, seed: u64) -> Vec<T> {
-    let mut rng = StdRng::seed_from_u64(seed);
-    (0..3 * n)
-        .map(|_| T::from_f64(lo + width * rng.random::<f64>()))
-        .collect()
+    down(&points::uniform_cube(n, lo, width, seed))
 }
 
 /// `n` charges uniform in `[lo, hi)`.
 pub fn charges_in<T: Real>(n: usize, lo: f64, hi: f64, seed: u64) -> Vec<T> {
-    let mut rng = StdRng::seed_from_u64(seed ^ 0x5eed);
-    (0..n)
-        .map(|_| T::from_f64(rng.random_range(lo..hi)))
-        .collect()
+    down(&charges::uniform_in(n, lo, hi, seed))
 }
 
-/// A fresh, empty directory under the system temp dir, removed on drop.
-pub struct TempDir(PathBuf);
-
-impl TempDir {
-    pub fn new(name: &str) -> TempDir {
-        static COUNTER: AtomicUsize = AtomicUsize::new(0);
-        let nanos = std::time::SystemTime::now()
-            .duration_since(std::time::UNIX_EPOCH)
-            .map(|d| d.as_nanos())
-            .unwrap_or(0);
-        let dir = std::env::temp_dir().join(format!(
-            "ferrofmm-stability-{name}-{}-{nanos}-{}",
-            std::process::id(),
-            COUNTER.fetch_add(1, Ordering::Relaxed)
-        ));
-        std::fs::create_dir_all(&dir).unwrap();
-        TempDir(dir)
-    }
-
-    pub fn path(&self) -> &Path {
-        &self.0
-    }
+/// `x` in f64.
+pub fn up<T: Real>(x: &[T]) -> Vec<f64> {
+    x.iter().map(|v| v.to_f64()).collect()
 }
 
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
+/// `x` rounded to `T`.
+pub fn down<T: Real>(x: &[f64]) -> Vec<T> {
+    x.iter().map(|&v| T::from_f64(v)).collect()
 }

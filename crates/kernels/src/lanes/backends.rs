@@ -128,6 +128,65 @@ mod x86 {
         };
     }
 
+    /// The [`Simd`] items whose intrinsics differ only in name between
+    /// the x86 instruction sets and float types: `V`, `LANES`, and
+    /// `splat, add, sub, mul, mul_add (fused), div, sqrt, min, max, load,
+    /// store`, each one intrinsic (the arguments, in that order).
+    macro_rules! x86_common {
+        ($t:ty, $v:ty, $lanes:literal,
+         $splat:ident, $add:ident, $sub:ident, $mul:ident, $fma:ident, $div:ident,
+         $sqrt:ident, $min:ident, $max:ident, $load:ident, $store:ident) => {
+            type V = $v;
+            const LANES: usize = $lanes;
+            #[inline(always)]
+            fn splat(self, x: $t) -> $v {
+                simd!($splat(x))
+            }
+            #[inline(always)]
+            fn add(self, a: $v, b: $v) -> $v {
+                simd!($add(a, b))
+            }
+            #[inline(always)]
+            fn sub(self, a: $v, b: $v) -> $v {
+                simd!($sub(a, b))
+            }
+            #[inline(always)]
+            fn mul(self, a: $v, b: $v) -> $v {
+                simd!($mul(a, b))
+            }
+            #[inline(always)]
+            fn mul_add(self, a: $v, b: $v, c: $v) -> $v {
+                simd!($fma(a, b, c))
+            }
+            #[inline(always)]
+            fn div(self, a: $v, b: $v) -> $v {
+                simd!($div(a, b))
+            }
+            #[inline(always)]
+            fn sqrt(self, a: $v) -> $v {
+                simd!($sqrt(a))
+            }
+            #[inline(always)]
+            fn min(self, a: $v, b: $v) -> $v {
+                simd!($min(a, b))
+            }
+            #[inline(always)]
+            fn max(self, a: $v, b: $v) -> $v {
+                simd!($max(a, b))
+            }
+            #[inline(always)]
+            fn load(self, a: &[$t]) -> $v {
+                let a = &a[..$lanes];
+                simd!($load(a.as_ptr()))
+            }
+            #[inline(always)]
+            fn store(self, v: $v, a: &mut [$t]) {
+                let a = &mut a[..$lanes];
+                simd!($store(a.as_mut_ptr(), v))
+            }
+        };
+    }
+
     /// The loop compiled for AVX-512F.
     #[target_feature(enable = "avx512f")]
     pub(in crate::lanes) fn run_avx512<T: LaneFloat, K: LaneKernel, const GRAD: bool>(
@@ -175,44 +234,22 @@ mod x86 {
     }
 
     impl Simd<f64> for Avx512 {
-        type V = __m512d;
-        const LANES: usize = 8;
-        #[inline(always)]
-        fn splat(self, x: f64) -> __m512d {
-            simd!(_mm512_set1_pd(x))
-        }
-        #[inline(always)]
-        fn add(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_add_pd(a, b))
-        }
-        #[inline(always)]
-        fn sub(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_sub_pd(a, b))
-        }
-        #[inline(always)]
-        fn mul(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_mul_pd(a, b))
-        }
-        #[inline(always)]
-        fn mul_add(self, a: __m512d, b: __m512d, c: __m512d) -> __m512d {
-            simd!(_mm512_fmadd_pd(a, b, c))
-        }
-        #[inline(always)]
-        fn div(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_div_pd(a, b))
-        }
-        #[inline(always)]
-        fn sqrt(self, a: __m512d) -> __m512d {
-            simd!(_mm512_sqrt_pd(a))
-        }
-        #[inline(always)]
-        fn min(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_min_pd(a, b))
-        }
-        #[inline(always)]
-        fn max(self, a: __m512d, b: __m512d) -> __m512d {
-            simd!(_mm512_max_pd(a, b))
-        }
+        x86_common!(
+            f64,
+            __m512d,
+            8,
+            _mm512_set1_pd,
+            _mm512_add_pd,
+            _mm512_sub_pd,
+            _mm512_mul_pd,
+            _mm512_fmadd_pd,
+            _mm512_div_pd,
+            _mm512_sqrt_pd,
+            _mm512_min_pd,
+            _mm512_max_pd,
+            _mm512_loadu_pd,
+            _mm512_storeu_pd
+        );
         #[inline(always)]
         fn rsqrt_or_zero(self, r2: __m512d) -> __m512d {
             simd!({
@@ -243,57 +280,25 @@ mod x86 {
                 _mm512_castsi512_pd(_mm512_slli_epi64::<52>(e))
             })
         }
-        #[inline(always)]
-        fn load(self, a: &[f64]) -> __m512d {
-            let a = &a[..8];
-            simd!(_mm512_loadu_pd(a.as_ptr()))
-        }
-        #[inline(always)]
-        fn store(self, v: __m512d, a: &mut [f64]) {
-            let a = &mut a[..8];
-            simd!(_mm512_storeu_pd(a.as_mut_ptr(), v))
-        }
     }
 
     impl Simd<f32> for Avx512 {
-        type V = __m512;
-        const LANES: usize = 16;
-        #[inline(always)]
-        fn splat(self, x: f32) -> __m512 {
-            simd!(_mm512_set1_ps(x))
-        }
-        #[inline(always)]
-        fn add(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_add_ps(a, b))
-        }
-        #[inline(always)]
-        fn sub(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_sub_ps(a, b))
-        }
-        #[inline(always)]
-        fn mul(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_mul_ps(a, b))
-        }
-        #[inline(always)]
-        fn mul_add(self, a: __m512, b: __m512, c: __m512) -> __m512 {
-            simd!(_mm512_fmadd_ps(a, b, c))
-        }
-        #[inline(always)]
-        fn div(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_div_ps(a, b))
-        }
-        #[inline(always)]
-        fn sqrt(self, a: __m512) -> __m512 {
-            simd!(_mm512_sqrt_ps(a))
-        }
-        #[inline(always)]
-        fn min(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_min_ps(a, b))
-        }
-        #[inline(always)]
-        fn max(self, a: __m512, b: __m512) -> __m512 {
-            simd!(_mm512_max_ps(a, b))
-        }
+        x86_common!(
+            f32,
+            __m512,
+            16,
+            _mm512_set1_ps,
+            _mm512_add_ps,
+            _mm512_sub_ps,
+            _mm512_mul_ps,
+            _mm512_fmadd_ps,
+            _mm512_div_ps,
+            _mm512_sqrt_ps,
+            _mm512_min_ps,
+            _mm512_max_ps,
+            _mm512_loadu_ps,
+            _mm512_storeu_ps
+        );
         #[inline(always)]
         fn rsqrt_or_zero(self, r2: __m512) -> __m512 {
             simd!({
@@ -322,57 +327,25 @@ mod x86 {
                 _mm512_castsi512_ps(_mm512_slli_epi32::<23>(e))
             })
         }
-        #[inline(always)]
-        fn load(self, a: &[f32]) -> __m512 {
-            let a = &a[..16];
-            simd!(_mm512_loadu_ps(a.as_ptr()))
-        }
-        #[inline(always)]
-        fn store(self, v: __m512, a: &mut [f32]) {
-            let a = &mut a[..16];
-            simd!(_mm512_storeu_ps(a.as_mut_ptr(), v))
-        }
     }
 
     impl Simd<f64> for Avx2 {
-        type V = __m256d;
-        const LANES: usize = 4;
-        #[inline(always)]
-        fn splat(self, x: f64) -> __m256d {
-            simd!(_mm256_set1_pd(x))
-        }
-        #[inline(always)]
-        fn add(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_add_pd(a, b))
-        }
-        #[inline(always)]
-        fn sub(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_sub_pd(a, b))
-        }
-        #[inline(always)]
-        fn mul(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_mul_pd(a, b))
-        }
-        #[inline(always)]
-        fn mul_add(self, a: __m256d, b: __m256d, c: __m256d) -> __m256d {
-            simd!(_mm256_fmadd_pd(a, b, c))
-        }
-        #[inline(always)]
-        fn div(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_div_pd(a, b))
-        }
-        #[inline(always)]
-        fn sqrt(self, a: __m256d) -> __m256d {
-            simd!(_mm256_sqrt_pd(a))
-        }
-        #[inline(always)]
-        fn min(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_min_pd(a, b))
-        }
-        #[inline(always)]
-        fn max(self, a: __m256d, b: __m256d) -> __m256d {
-            simd!(_mm256_max_pd(a, b))
-        }
+        x86_common!(
+            f64,
+            __m256d,
+            4,
+            _mm256_set1_pd,
+            _mm256_add_pd,
+            _mm256_sub_pd,
+            _mm256_mul_pd,
+            _mm256_fmadd_pd,
+            _mm256_div_pd,
+            _mm256_sqrt_pd,
+            _mm256_min_pd,
+            _mm256_max_pd,
+            _mm256_loadu_pd,
+            _mm256_storeu_pd
+        );
         #[inline(always)]
         fn rsqrt_or_zero(self, r2: __m256d) -> __m256d {
             simd!({
@@ -397,57 +370,25 @@ mod x86 {
                 _mm256_castsi256_pd(_mm256_slli_epi64::<52>(e))
             })
         }
-        #[inline(always)]
-        fn load(self, a: &[f64]) -> __m256d {
-            let a = &a[..4];
-            simd!(_mm256_loadu_pd(a.as_ptr()))
-        }
-        #[inline(always)]
-        fn store(self, v: __m256d, a: &mut [f64]) {
-            let a = &mut a[..4];
-            simd!(_mm256_storeu_pd(a.as_mut_ptr(), v))
-        }
     }
 
     impl Simd<f32> for Avx2 {
-        type V = __m256;
-        const LANES: usize = 8;
-        #[inline(always)]
-        fn splat(self, x: f32) -> __m256 {
-            simd!(_mm256_set1_ps(x))
-        }
-        #[inline(always)]
-        fn add(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_add_ps(a, b))
-        }
-        #[inline(always)]
-        fn sub(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_sub_ps(a, b))
-        }
-        #[inline(always)]
-        fn mul(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_mul_ps(a, b))
-        }
-        #[inline(always)]
-        fn mul_add(self, a: __m256, b: __m256, c: __m256) -> __m256 {
-            simd!(_mm256_fmadd_ps(a, b, c))
-        }
-        #[inline(always)]
-        fn div(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_div_ps(a, b))
-        }
-        #[inline(always)]
-        fn sqrt(self, a: __m256) -> __m256 {
-            simd!(_mm256_sqrt_ps(a))
-        }
-        #[inline(always)]
-        fn min(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_min_ps(a, b))
-        }
-        #[inline(always)]
-        fn max(self, a: __m256, b: __m256) -> __m256 {
-            simd!(_mm256_max_ps(a, b))
-        }
+        x86_common!(
+            f32,
+            __m256,
+            8,
+            _mm256_set1_ps,
+            _mm256_add_ps,
+            _mm256_sub_ps,
+            _mm256_mul_ps,
+            _mm256_fmadd_ps,
+            _mm256_div_ps,
+            _mm256_sqrt_ps,
+            _mm256_min_ps,
+            _mm256_max_ps,
+            _mm256_loadu_ps,
+            _mm256_storeu_ps
+        );
         #[inline(always)]
         fn rsqrt_or_zero(self, r2: __m256) -> __m256 {
             simd!({
@@ -474,16 +415,6 @@ mod x86 {
                 let e = _mm256_add_epi32(n, _mm256_set1_epi32(127));
                 _mm256_castsi256_ps(_mm256_slli_epi32::<23>(e))
             })
-        }
-        #[inline(always)]
-        fn load(self, a: &[f32]) -> __m256 {
-            let a = &a[..8];
-            simd!(_mm256_loadu_ps(a.as_ptr()))
-        }
-        #[inline(always)]
-        fn store(self, v: __m256, a: &mut [f32]) {
-            let a = &mut a[..8];
-            simd!(_mm256_storeu_ps(a.as_mut_ptr(), v))
         }
     }
 }

@@ -209,6 +209,22 @@ pub trait LaneKernel: Kernel {
     }
 }
 
+/// `acc[1 + k] += c d[k]` for `k = 0, 1, 2`: the gradient step of a radial
+/// kernel `K(r)`, whose `q grad_y K = c (x - y)` with `c = -q K'(r) / r`
+/// (for `1/r`: `c = q / r^3`). Three fused multiply-adds; the micro-kernels
+/// of [`LaneKernel::pair`] call it under `if GRAD`.
+#[inline(always)]
+pub fn add_radial_gradient<T: LaneFloat, S: Simd<T>>(
+    s: S,
+    c: S::V,
+    d: &[S::V; 3],
+    acc: &mut [S::V; 4],
+) {
+    acc[1] = s.mul_add(c, d[0], acc[1]);
+    acc[2] = s.mul_add(c, d[1], acc[2]);
+    acc[3] = s.mul_add(c, d[2], acc[3]);
+}
+
 /// Vectorised work other than P2P (an FFT scheme's frequency products, a
 /// user's own loop) on the same instruction-set tokens: [`run_task`] picks
 /// the token for the CPU and calls [`SimdTask::run`] inside a function
@@ -330,21 +346,9 @@ pub fn evaluate_with<K: LaneKernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    let name = kernel.name();
-    assert!(
-        sources.len().is_multiple_of(3) && targets.len().is_multiple_of(3),
-        "{name} P2P: coordinate slices must hold interleaved xyz triples"
-    );
-    assert_eq!(
-        charges.len(),
-        sources.len() / 3,
-        "{name} P2P: one charge per source"
-    );
-    assert_eq!(
-        out.len(),
-        mode.values_per_target() * (targets.len() / 3),
-        "{name} P2P: output length"
-    );
+    if let Err(e) = crate::direct::check_lengths(mode, sources, charges, targets, out) {
+        panic!("{} P2P: {e}", kernel.name());
+    }
     if sources.is_empty() || targets.is_empty() {
         return;
     }

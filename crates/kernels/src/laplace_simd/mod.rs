@@ -134,9 +134,7 @@ impl LaneKernel for Laplace3d {
         acc[0] = s.add(acc[0], qr);
         if GRAD {
             let qr3 = s.mul(qr, s.mul(rinv, rinv));
-            acc[1] = s.mul_add(qr3, d[0], acc[1]);
-            acc[2] = s.mul_add(qr3, d[1], acc[2]);
-            acc[3] = s.mul_add(qr3, d[2], acc[3]);
+            lanes::add_radial_gradient(s, qr3, &d, acc);
         }
     }
 

@@ -2,19 +2,18 @@
 #![allow(dead_code)]
 
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real, SimdLevel, laplace_p2p_with, reference};
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
+use ferrofmm_testing::{charges, points};
 
 /// `n` points uniform in `[-1, 1)^3`, interleaved, plus `n` charges in `[-1, 1)`.
 pub fn random_points<T: Real>(seed: u64, n: usize) -> (Vec<T>, Vec<T>) {
-    let mut rng = StdRng::seed_from_u64(seed);
-    let p = (0..3 * n)
-        .map(|_| T::from_f64(rng.random_range(-1.0..1.0)))
-        .collect();
-    let q = (0..n)
-        .map(|_| T::from_f64(rng.random_range(-1.0..1.0)))
-        .collect();
-    (p, q)
+    let p = points::uniform_cube(n, -1.0, 2.0, seed);
+    let q = charges::uniform_in(n, -1.0, 1.0, seed);
+    (to_t(&p), to_t(&q))
+}
+
+/// `x` converted to `T`.
+pub fn to_t<T: Real>(x: &[f64]) -> Vec<T> {
+    x.iter().map(|&v| T::from_f64(v)).collect()
 }
 
 /// The levels this CPU can run (always includes `Scalar`).

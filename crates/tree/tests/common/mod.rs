@@ -5,56 +5,12 @@
 use std::collections::HashMap;
 
 use ferrofmm_tree::{DEEPEST_LEVEL, MortonKey, Octree, TreeOptions};
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
 
-pub fn rng(seed: u64) -> StdRng {
-    StdRng::seed_from_u64(seed)
-}
+pub use ferrofmm_testing::points::clustered;
 
+/// `n` points uniform in the unit cube.
 pub fn uniform(n: usize, seed: u64) -> Vec<f64> {
-    let mut r = rng(seed);
-    (0..3 * n).map(|_| r.random::<f64>()).collect()
-}
-
-/// `n` points in `clusters` clusters of random centre and size
-/// `10^-(0..max_exp)`, some flattened to planes or lines, plus a few
-/// background points.
-pub fn clustered(n: usize, clusters: usize, max_exp: f64, seed: u64) -> Vec<f64> {
-    let mut r = rng(seed);
-    let specs: Vec<([f64; 3], [f64; 3])> = (0..clusters.max(1))
-        .map(|_| {
-            let c = [r.random::<f64>(), r.random::<f64>(), r.random::<f64>()];
-            let s = 10f64.powf(-r.random_range(0.0..max_exp));
-            let mut scale = [s; 3];
-            // Flatten some clusters to planes or lines.
-            match r.random_range(0..4) {
-                0 => scale[r.random_range(0..3)] = 0.0,
-                1 => {
-                    let keep = r.random_range(0..3);
-                    for (i, v) in scale.iter_mut().enumerate() {
-                        if i != keep {
-                            *v = 0.0;
-                        }
-                    }
-                }
-                _ => {}
-            }
-            (c, scale)
-        })
-        .collect();
-    let mut out = Vec::with_capacity(3 * n);
-    for _ in 0..n {
-        if r.random::<f64>() < 0.05 {
-            out.extend((0..3).map(|_| r.random::<f64>()));
-            continue;
-        }
-        let (c, s) = specs[r.random_range(0..specs.len())];
-        for i in 0..3 {
-            out.push(c[i] + s[i] * (r.random::<f64>() - 0.5));
-        }
-    }
-    out
+    ferrofmm_testing::points::uniform_cube(n, 0.0, 1.0, seed)
 }
 
 pub fn point(p: &[f64], i: usize) -> [f64; 3] {
