@@ -103,6 +103,23 @@ pub fn measure<T: Real>(
     e
 }
 
+/// [`measure`], then assert that the error is within [`tol`] of the order.
+#[allow(clippy::too_many_arguments)]
+pub fn measure_within_tol<T: Real>(
+    case: &str,
+    sources: &[T],
+    targets: Option<&[T]>,
+    charges: &[T],
+    order: usize,
+    leaf_size: usize,
+    scheme: Scheme,
+) -> f64 {
+    let e = measure(case, sources, targets, charges, order, leaf_size, scheme);
+    let bound = tol::<T>(order);
+    assert!(e <= bound, "{case}: error {e:.2e} > {bound:.1e}");
+    e
+}
+
 /// Direct-sum potentials in f64 at all targets.
 pub fn direct<T: Real>(sources: &[T], charges: &[T], targets: &[T]) -> Vec<f64> {
     let mut out = vec![0.0; targets.len() / 3];

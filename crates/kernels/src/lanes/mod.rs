@@ -66,9 +66,7 @@
 //!         if GRAD {
 //!             // grad_y K = (x - y) / rho^3 = d rinv^3
 //!             let c = s.mul(qr, s.mul(rinv, rinv));
-//!             for k in 0..3 {
-//!                 acc[k + 1] = s.mul_add(c, d[k], acc[k + 1]);
-//!             }
+//!             lanes::add_radial_gradient(s, c, &d, acc);
 //!         }
 //!     }
 //!     fn lane_scale(&self) -> f64 { 0.25 / std::f64::consts::PI }
