@@ -43,16 +43,19 @@
 #![warn(missing_docs)]
 
 pub mod balance;
+pub mod dfmm;
 pub mod error;
 mod exchange;
 pub mod ghosts;
 pub mod inputs;
+pub mod npy;
 pub mod partition;
 pub mod sort;
 pub mod stats;
 mod tree;
 
-pub use error::{DistError, InputProblem};
+pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
+pub use error::{DistError, InputProblem, agree_message};
 pub use ghosts::{Ghost, GhostLayer};
 pub use inputs::Geometry;
 pub use sort::LocalPoints;
