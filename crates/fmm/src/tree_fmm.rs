@@ -58,7 +58,14 @@ pub struct LocalTree<'a> {
     pub usage: &'a M2lUsage,
 }
 
-/// The FMM passes over a caller's tree (see the [module docs](self)).
+/// The FMM passes over a caller's tree, one at a time: [`TreeFmm::upward`]
+/// (P2M, M2M), then whatever the caller does to the multipoles (a
+/// distributed driver fills in ghost boxes and sums shared ones),
+/// [`TreeFmm::downward`] (M2L, P2L, L2L, with a callback on each level's
+/// check potentials) and [`TreeFmm::leaf_passes`] (L2P, M2P, P2P). Every
+/// pass is linear in the charges, multipoles and check potentials, so
+/// partial results of several processes add up. The same functions run
+/// [`crate::Fmm::evaluate`].
 pub struct TreeFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     kernel: K,
     mode: EvalMode,

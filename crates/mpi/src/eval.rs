@@ -229,8 +229,9 @@ fn write_out(
 /// Figures of one rank, gathered on all: points, ghost points, boxes of the
 /// local tree, send and receive partners, tree phase seconds (6) and bytes
 /// (6), FMM setup seconds (3) and bytes, evaluation phase seconds (8) and
-/// bytes (8), and operator seconds (8: P2M .. P2P).
-const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8;
+/// bytes (8), operator seconds (8: P2M .. P2P), and the CPU seconds of
+/// the compute phases ([`EvalStats::compute_cpu_seconds`]).
+const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
 
 fn figures<S: M2lScheme<f64>>(
     dtree: &DistributedTree,
@@ -319,7 +320,8 @@ fn eval<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(
         let total: u64 = dtree.input_counts.iter().sum();
         write_out(world, out, &values, mode.values_per_target(), first, total)?;
     }
-    let mine = figures(&dtree, &dfmm, &stats);
+    let mut mine = figures(&dtree, &dfmm, &stats);
+    mine.push(stats.compute_cpu_seconds);
     let mut all = vec![0.0f64; FIGURES * size];
     world.all_gather_into(&mine[..], &mut all[..]);
     if me == 0 {
@@ -370,6 +372,7 @@ fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64) {
                 "eval_total_seconds": eval_s(x),
                 "eval_total_bytes_sent": x[29..37].iter().sum::<f64>(),
                 "operator_seconds": named(&op_names, &x[37..45]),
+                "compute_cpu_seconds": x[45],
             })
         })
         .collect();
@@ -388,6 +391,8 @@ fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64) {
             "imbalance_points": points_imb,
             "imbalance_eval_seconds": time_imb,
             "eval_seconds_max": rows.iter().map(|r| eval_s(r)).fold(0.0, f64::max),
+            "compute_cpu_seconds_max": rows.iter().map(|r| r[45]).fold(0.0, f64::max),
+            "compute_cpu_seconds_total": rows.iter().map(|r| r[45]).sum::<f64>(),
             "per_rank": per_rank,
         });
         println!("{j}");

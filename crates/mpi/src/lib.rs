@@ -31,6 +31,16 @@
 //!
 //! Bad input on any rank is the same [`DistError`] on every rank.
 //!
+//! ## The distributed FMM ([`DistributedFmm`])
+//!
+//! On such a tree, [`DistributedFmm::build`] makes each rank's locally
+//! essential tree and runs the single-machine passes of `ferrofmm-fmm` on
+//! it ([`ferrofmm_fmm::TreeFmm`]), exchanging only ghost multipoles and
+//! charges (point to point, with the ranks that need them) and the coarse
+//! tree's sums; [`DistributedFmm::evaluate`] can be called for any number
+//! of charge vectors and equals the single-machine FMM on the same tree
+//! (see [`dfmm`]).
+//!
 //! ```no_run
 //! use ferrofmm_mpi::{DistOptions, DistributedTree};
 //! let universe = mpi::initialize().unwrap();

@@ -1,6 +1,7 @@
-//! `ferrofmm-mpi`: build a distributed octree under `mpirun` and report
-//! per-rank figures (`tree`), or check it against the single-machine tree
-//! (`check`, `bad`; what the tests run).
+//! `ferrofmm-mpi`: under `mpirun`, evaluate the distributed FMM (`eval`),
+//! build a distributed octree and report per-rank figures (`tree`), or
+//! check them against the single machine (`check`, `bad`, `fmm-check`;
+//! what the tests run).
 
 mod check;
 mod check_fmm;

@@ -14,9 +14,10 @@
 //! * a coarse box `C`: the part of its V and X rows this rank can compute,
 //!   the boxes of this rank in `V(C)` and `X(C)` (the skeleton holds all of
 //!   them, and the rows on a skeleton are exact for entries that are
-//!   present), plus, on rank 0 only, the coarse boxes in `V(C)` (all of
-//!   them are on every rank). Summed over ranks, these partial check
-//!   potentials are those of the global tree;
+//!   present), plus, on one rank (coarse boxes dealt round robin in key
+//!   order), the coarse boxes in `V(C)` (all of them are on every rank).
+//!   Summed over ranks, these partial check potentials are those of the
+//!   global tree;
 //! * every other box: no rows (its data come from its owner).
 
 use std::ops::Range;
@@ -55,13 +56,26 @@ pub(crate) fn kinds(dtree: &DistributedTree) -> Vec<Kind> {
 }
 
 /// The rows of the locally essential tree (see the [module docs](self)).
-pub(crate) fn rows(dtree: &DistributedTree, kinds: &[Kind], me: usize) -> InteractionLists {
+pub(crate) fn rows(
+    dtree: &DistributedTree,
+    kinds: &[Kind],
+    me: usize,
+    size: usize,
+) -> InteractionLists {
     let l = &dtree.ghosts.lists;
-    // Whether row `list` (0 U, 1 V, 2 W, 3 X) of a box of kind `row` keeps
-    // an entry of kind `entry`.
-    let keeps = |row: Kind, list: usize, entry: Kind| match (row, list) {
+    // The rank that adds the coarse-to-coarse part of coarse box `b`'s V
+    // row: coarse boxes dealt round robin in key order.
+    let turn = |b: usize| {
+        dtree
+            .coarse
+            .binary_search(&dtree.ghosts.skeleton[b])
+            .map_or(usize::MAX, |i| i % size)
+    };
+    // Whether row `list` (0 U, 1 V, 2 W, 3 X) of box `b` of kind `row`
+    // keeps an entry of kind `entry`.
+    let keeps = |b: usize, row: Kind, list: usize, entry: Kind| match (row, list) {
         (Kind::Own, _) => true,
-        (Kind::Coarse, 1) => entry == Kind::Own || (me == 0 && entry == Kind::Coarse),
+        (Kind::Coarse, 1) => entry == Kind::Own || (entry == Kind::Coarse && turn(b) == me),
         (Kind::Coarse, 3) => entry == Kind::Own,
         _ => false,
     };
@@ -77,7 +91,7 @@ pub(crate) fn rows(dtree: &DistributedTree, kinds: &[Kind], me: usize) -> Intera
                     csr.get(b)
                         .iter()
                         .copied()
-                        .filter(|&a| keeps(kind, list, kinds[a]))
+                        .filter(|&a| keeps(b, kind, list, kinds[a]))
                         .collect()
                 })
                 .collect();

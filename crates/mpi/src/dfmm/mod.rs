@@ -6,14 +6,14 @@
 //!
 //! With `n` equivalent points per box and every pass linear in its inputs:
 //!
-//! 1. **Charges to owners** ([`route`]): each rank's charges, given in its
+//! 1. **Charges to owners** (`dfmm/route.rs`): each rank's charges, given in its
 //!    input order, go to the ranks that hold the points (skipped by
 //!    [`DistributedFmm::evaluate_sorted`]).
 //! 2. **Upward** (P2M, M2M) on the rank's tree with the ghost points'
 //!    charges set to zero: the multipoles of the rank's own boxes are
 //!    complete (all their points are here); those of the coarse boxes (which
 //!    straddle cuts) are this rank's share.
-//! 3. **Ghost exchange** ([`ghost_plan`]): each rank sends the multipoles
+//! 3. **Ghost exchange** (`dfmm/ghost_plan.rs`): each rank sends the multipoles
 //!    of the boxes that others' V and W lists reference and the charges of
 //!    the leaves that others' U and X lists reference, point to point, only
 //!    to the ranks that asked when the FMM was built.
@@ -22,8 +22,8 @@
 //!    linear, so every rank holds the multipoles of the whole coarse tree.
 //! 5. **Downward** (M2L, P2L, L2L), level by level: a coarse box's check
 //!    potential `c_C` is summed from V- and X-list entries of all ranks, so
-//!    each rank adds the part from its own boxes (and rank 0 the
-//!    coarse-to-coarse part), and an `all_reduce` (sum) of the coarse
+//!    each rank adds the part from its own boxes (and one rank, in turn,
+//!    the coarse-to-coarse part), and an `all_reduce` (sum) of the coarse
 //!    boxes' checks of the level makes them whole before
 //!    `d_C = DC2E c_C + L2L d_parent` (replicated on every rank: the coarse
 //!    tree is small; see docs/distributed.md for why not gathered on one
@@ -127,7 +127,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         setup.seconds[0] = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let lists = local_tree::rows(dtree, &kinds, me);
+        let lists = local_tree::rows(dtree, &kinds, me, comm.size() as usize);
         let own_codes = &dtree.points.codes;
         let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
         let tree = local_tree::octree(dtree, lists, &codes, own_codes);
@@ -246,11 +246,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         }
         let mut timings = EvalTimings::default();
         let t = Instant::now();
+        let c = stats::cpu_seconds();
         let mut multipoles = self
             .fmm
             .upward(&q, &mut timings)
             .expect("charge vector sized for the local tree");
         stats.add(1, t, 0);
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c;
 
         let t = Instant::now();
         let mut ghost_q = vec![T::ZERO; self.ghost_pos.len()];
@@ -267,6 +269,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         stats.add(3, t, bytes);
 
         let t = Instant::now();
+        let c = stats::cpu_seconds();
+        let mut coarse_cpu = 0.0;
         let mut coarse_seconds = 0.0;
         let mut coarse_bytes = 0;
         let mut next = 0;
@@ -274,6 +278,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
             .fmm
             .downward(&q, &multipoles, &mut timings, |_, range, checks| {
                 let t = Instant::now();
+                let c = stats::cpu_seconds();
                 while next < self.coarse.len() && self.coarse[next] < range.start {
                     next += 1;
                 }
@@ -289,18 +294,22 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
                     coarse_bytes += sum_columns(comm, n, &here, checks);
                 }
                 coarse_seconds += t.elapsed().as_secs_f64();
+                coarse_cpu += stats::cpu_seconds() - c;
             })
             .expect("vectors sized for the local tree");
         stats.seconds[4] += t.elapsed().as_secs_f64() - coarse_seconds;
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c - coarse_cpu;
         stats.seconds[5] += coarse_seconds;
         stats.bytes_sent[5] += coarse_bytes;
 
         let t = Instant::now();
+        let c = stats::cpu_seconds();
         let values = self
             .fmm
             .leaf_passes(&q, &multipoles, &locals, &mut timings)
             .expect("vectors sized for the local tree");
         stats.add(6, t, 0);
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c;
         stats.passes = timings;
         (values, stats)
     }

@@ -32,6 +32,25 @@ pub struct EvalStats {
     pub bytes_sent: [u64; 8],
     /// Time per operator (P2M, M2M, M2L, ...) on this rank.
     pub passes: EvalTimings,
+    /// CPU time (user + system, all threads of the process) of the
+    /// compute phases (upward, downward without its `all_reduce`s, leaf
+    /// passes): the work, whatever else shares the cores (0 where
+    /// `/proc/self/stat` cannot be read).
+    pub compute_cpu_seconds: f64,
+}
+
+/// CPU time of this process (user + system, all threads), seconds, from
+/// `/proc/self/stat` (in ticks of 1/100 s); 0 where it cannot be read.
+pub(crate) fn cpu_seconds() -> f64 {
+    let Ok(stat) = std::fs::read_to_string("/proc/self/stat") else {
+        return 0.0;
+    };
+    // The fields after the command name (which may hold spaces) follow ')';
+    // utime and stime (fields 14 and 15 of the line) are 11 and 12 there.
+    let rest = stat.rsplit_once(')').map_or("", |(_, r)| r);
+    let f: Vec<&str> = rest.split_whitespace().collect();
+    let ticks = |i: usize| f.get(i).and_then(|x| x.parse::<f64>().ok()).unwrap_or(0.0);
+    (ticks(11) + ticks(12)) / 100.0
 }
 
 impl EvalStats {
@@ -46,6 +65,7 @@ impl EvalStats {
             self.bytes_sent[i] += other.bytes_sent[i];
         }
         self.passes.accumulate(&other.passes);
+        self.compute_cpu_seconds += other.compute_cpu_seconds;
     }
 
     /// Total time, seconds.
