@@ -128,3 +128,64 @@ fn distributed_fmm_with_empty_ranks_and_a_single_leaf() {
         }
     }
 }
+
+/// `eval` with files: the result of 3 ranks (each reading its rows of a
+/// `.npy` file, writing its rows of the output) equals that of 1 rank
+/// (reading `.csv`), in the input order; charges that do not match the
+/// points are one error on every rank, not a hang.
+#[test]
+fn eval_command_reads_slices_and_writes_the_input_order() {
+    use ferrofmm_mpi::npy;
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-eval-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let n = 900;
+    let pts: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.618_034).fract()).collect();
+    let q: Vec<f64> = (0..n)
+        .map(|i| ((i * 37) % 101) as f64 / 101.0 - 0.5)
+        .collect();
+    let csv = |rows: &mut dyn Iterator<Item = String>| rows.collect::<Vec<_>>().join("\n");
+    let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    std::fs::write(
+        path("s.csv"),
+        csv(&mut pts.chunks(3).map(|p| format!("{},{},{}", p[0], p[1], p[2]))),
+    )
+    .unwrap();
+    std::fs::write(path("q.csv"), csv(&mut q.iter().map(|x| x.to_string()))).unwrap();
+    std::fs::write(
+        path("short.csv"),
+        csv(&mut q[1..].iter().map(|x| x.to_string())),
+    )
+    .unwrap();
+    for (name, values, cols) in [("s.npy", &pts, 3), ("q.npy", &q, 1)] {
+        let start = npy::create(std::path::Path::new(&path(name)), n as u64, cols).unwrap();
+        npy::write_rows(std::path::Path::new(&path(name)), start, cols, 0, values).unwrap();
+    }
+    let common = ["--gradients", "--order", "4", "--leaf-size", "20"];
+    let run = |ranks: usize, s: &str, c: &str, out: &str| {
+        let mut args = vec!["eval", "--sources", s, "--charges", c, "--out", out];
+        args.extend(common);
+        mpirun(ranks, &args)
+    };
+    let (ok, text) = run(1, &path("s.csv"), &path("q.csv"), &path("o1.npy"));
+    assert!(ok, "{text}");
+    let (ok, text) = run(3, &path("s.npy"), &path("q.npy"), &path("o3.npy"));
+    assert!(ok, "{text}");
+    let read = |name: &str| {
+        let p = std::path::PathBuf::from(path(name));
+        let h = npy::header(&p).unwrap();
+        assert_eq!((h.rows, h.columns), (n as u64, 4));
+        npy::read_rows(&p, &h, 0..h.rows).unwrap()
+    };
+    let (a, b) = (read("o1.npy"), read("o3.npy"));
+    let num: f64 = a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum();
+    let den: f64 = a.iter().map(|x| x * x).sum();
+    assert!(
+        (num / den).sqrt() <= 1e-12,
+        "R = 3 differs: {}",
+        (num / den).sqrt()
+    );
+    let (ok, text) = run(2, &path("s.csv"), &path("short.csv"), &path("bad.npy"));
+    assert!(!ok && text.contains("charges"), "{text}");
+    assert!(!std::path::Path::new(&path("bad.npy")).exists());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
