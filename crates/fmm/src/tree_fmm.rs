@@ -28,7 +28,7 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use ferrofmm_field::{M2lScheme, M2lUsage, OperatorParams};
+use ferrofmm_field::{M2lScheme, M2lUsage, MAX_ORDER, MIN_ORDER, OperatorParams};
 use ferrofmm_kernels::{EvalMode, Kernel, Real};
 use ferrofmm_tree::Octree;
 
@@ -80,7 +80,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     /// the domain's coordinate origin, as [`crate::Fmm`] does.
     ///
     /// # Errors
-    /// A point count that does not match the tree's ranges, a domain the
+    /// An order outside `MIN_ORDER..=MAX_ORDER`, a point count that does
+    /// not match the tree's ranges, a domain the
     /// float type cannot resolve at this depth, ill-conditioned operators,
     /// or a precomputation that does not fit in memory (as
     /// [`crate::FmmBuilder`]).
@@ -92,6 +93,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         local: LocalTree<'_>,
     ) -> Result<Self, FmmError> {
         let t0 = Instant::now();
+        if !(MIN_ORDER..=MAX_ORDER).contains(&params.order) {
+            return Err(FmmError::InvalidOrder {
+                order: params.order,
+                min: MIN_ORDER,
+                max: MAX_ORDER,
+            });
+        }
         let tree = local.tree;
         let depth = local.depth.max(tree.depth());
         let reach = |len: usize, r: &dyn Fn(usize) -> Range<usize>| {

@@ -97,3 +97,26 @@ fn wrong_lengths_are_errors() {
     assert!(t.downward(&q, &m[1..], &mut timings, |_, _, _| {}).is_err());
     assert!(t.leaf_passes(&q, &m, &m[1..], &mut timings).is_err());
 }
+
+#[test]
+fn an_order_out_of_range_is_an_error() {
+    let (_, _, tree) = setup();
+    let usage = m2l_usage(&tree);
+    let sources = tree.sorted_sources().to_vec();
+    let depth = tree.depth();
+    let local = LocalTree {
+        tree,
+        sources: &sources,
+        targets: None,
+        depth,
+        usage: &usage,
+    };
+    let r = TreeFmm::<f64, _, SvdM2l<f64>>::new(
+        Laplace3d,
+        EvalMode::Potential,
+        &OperatorParams::new(1),
+        &SvdConfig::default(),
+        local,
+    );
+    assert!(matches!(r, Err(FmmError::InvalidOrder { order: 1, .. })));
+}
