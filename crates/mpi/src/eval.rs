@@ -7,11 +7,12 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
-use ferrofmm_kernels::{EvalMode, Laplace3d};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d};
 use ferrofmm_mpi::{
     DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, Geometry,
     PHASES, agree_message, npy,
 };
+use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rand::rngs::StdRng;
@@ -57,6 +58,11 @@ pub struct EvalArgs {
     /// last one's.
     #[arg(long, default_value_t = 1)]
     repeats: usize,
+    /// Compare this many sampled points with direct summation over all
+    /// points (relative L2 error of the potential and the gradient; 0: no
+    /// check).
+    #[arg(long, default_value_t = 0, value_name = "TARGETS")]
+    check: usize,
     /// Print one JSON object with per-rank figures (rank 0, last line of
     /// stdout) instead of the table.
     #[arg(long)]
@@ -295,7 +301,6 @@ fn eval<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(
     let read_s = t0.elapsed().as_secs_f64();
     let dtree = DistributedTree::build(world, &points, &DistOptions::adaptive(a.leaf_size))
         .map_err(|e| e.to_string())?;
-    drop(points);
     let mode = if a.gradients {
         EvalMode::PotentialGradient
     } else {
@@ -320,14 +325,67 @@ fn eval<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(
         let total: u64 = dtree.input_counts.iter().sum();
         write_out(world, out, &values, mode.values_per_target(), first, total)?;
     }
+    let errors = (a.check > 0).then(|| {
+        let first: u64 = dtree.input_counts[..me].iter().sum();
+        let total: u64 = dtree.input_counts.iter().sum();
+        check_direct(world, &points, &q, &values, mode, first, total, a.check)
+    });
+    drop(points);
     let mut mine = figures(&dtree, &dfmm, &stats);
     mine.push(stats.compute_cpu_seconds);
     let mut all = vec![0.0f64; FIGURES * size];
     world.all_gather_into(&mine[..], &mut all[..]);
     if me == 0 {
-        report(a, &all, size, read_s);
+        report(a, &all, size, read_s, errors);
     }
     Ok(())
+}
+
+/// Relative L2 errors `[potential, gradient]` of `values` (this rank's
+/// input points, `w` values each) at `k` points sampled evenly over the
+/// global input order, against direct summation over all points (a
+/// collective: each rank sums its own points' field at the sample, then
+/// one `all_reduce`). The gradient error is 0 without gradients.
+#[allow(clippy::too_many_arguments)]
+fn check_direct(
+    world: &SimpleCommunicator,
+    points: &[f64],
+    q: &[f64],
+    values: &[f64],
+    mode: EvalMode,
+    first: u64,
+    total: u64,
+    k: usize,
+) -> [f64; 2] {
+    let w = mode.values_per_target();
+    let k = k.min(total as usize);
+    let ids: Vec<u64> = (0..k as u64).map(|j| j * total / k as u64).collect();
+    // Sample coordinates and FMM values, from their owners to all.
+    let mut mine = vec![0.0; (3 + w) * k];
+    for (j, &id) in ids.iter().enumerate() {
+        if id >= first && id < first + (q.len() as u64) {
+            let i = (id - first) as usize;
+            mine[3 * j..3 * j + 3].copy_from_slice(&points[3 * i..3 * i + 3]);
+            mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&values[w * i..w * (i + 1)]);
+        }
+    }
+    let mut shared = vec![0.0; mine.len()];
+    world.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
+    let (sample, fmm) = shared.split_at(3 * k);
+    let mut direct = vec![0.0; w * k];
+    Laplace3d.evaluate(mode, points, q, sample, &mut direct);
+    let mut sum = vec![0.0; w * k];
+    world.all_reduce_into(&direct[..], &mut sum[..], SystemOperation::sum());
+    let mut s = [0.0f64; 4];
+    for (f, d) in fmm.chunks_exact(w).zip(sum.chunks_exact(w)) {
+        for c in 0..w {
+            let g = usize::from(c > 0);
+            s[2 * g] += (f[c] - d[c]) * (f[c] - d[c]);
+            s[2 * g + 1] += d[c] * d[c];
+        }
+    }
+    let rel = |num: f64, den: f64| if den > 0.0 { (num / den).sqrt() } else { 0.0 };
+    [rel(s[0], s[1]), rel(s[2], s[3])]
 }
 
 /// Max over mean of column `i` of the per-rank figures.
@@ -338,7 +396,7 @@ fn imbalance(rows: &[&[f64]], f: impl Fn(&[f64]) -> f64) -> f64 {
     if mean > 0.0 { max / mean } else { 1.0 }
 }
 
-fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64) {
+fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64, errors: Option<[f64; 2]>) {
     let rows: Vec<&[f64]> = all.chunks_exact(FIGURES).collect();
     let eval_s = |r: &[f64]| r[21..29].iter().sum::<f64>();
     let points_imb = imbalance(&rows, |r| r[0]);
@@ -393,6 +451,11 @@ fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64) {
             "eval_seconds_max": rows.iter().map(|r| eval_s(r)).fold(0.0, f64::max),
             "compute_cpu_seconds_max": rows.iter().map(|r| r[45]).fold(0.0, f64::max),
             "compute_cpu_seconds_total": rows.iter().map(|r| r[45]).sum::<f64>(),
+            "check": errors.map(|e| serde_json::json!({
+                "samples": a.check,
+                "potential_error": e[0],
+                "gradient_error": if a.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
+            })),
             "per_rank": per_rank,
         });
         println!("{j}");
@@ -402,6 +465,18 @@ fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64) {
         "{size} ranks, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
         a.order, a.leaf_size, a.scheme
     );
+    if let Some(e) = errors {
+        println!(
+            "check against direct summation at {} points: potential error {:.3e}{}",
+            a.check,
+            e[0],
+            if a.gradients {
+                format!(", gradient error {:.3e}", e[1])
+            } else {
+                String::new()
+            }
+        );
+    }
     println!("rank   points   ghosts  eval s   MB sent  (ghosts, coarse, routing)  setup s");
     for (r, x) in rows.iter().enumerate() {
         println!(
