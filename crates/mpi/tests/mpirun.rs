@@ -131,8 +131,9 @@ fn distributed_fmm_with_empty_ranks_and_a_single_leaf() {
 
 /// `eval` with files: the result of 3 ranks (each reading its rows of a
 /// `.npy` file, writing its rows of the output) equals that of 1 rank
-/// (reading `.csv`), in the input order; charges that do not match the
-/// points are one error on every rank, not a hang.
+/// (reading `.csv`), in the input order; `--check` reports a small error
+/// against direct summation; charges that do not match the points are one
+/// error on every rank, not a hang.
 #[test]
 fn eval_command_reads_slices_and_writes_the_input_order() {
     use ferrofmm_mpi::npy;
@@ -184,6 +185,28 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
         "R = 3 differs: {}",
         (num / den).sqrt()
     );
+    // --check: the error against direct summation at a sample, as JSON.
+    let (ok, text) = mpirun(
+        2,
+        &[
+            "eval",
+            "--sources",
+            &path("s.csv"),
+            "--charges",
+            &path("q.csv"),
+            "--order",
+            "5",
+            "--check",
+            "150",
+            "--json",
+        ],
+    );
+    let err = text
+        .split("\"potential_error\":")
+        .nth(1)
+        .and_then(|t| t.split([',', '}']).next())
+        .and_then(|t| t.parse::<f64>().ok());
+    assert!(ok && err.is_some_and(|e| e < 1e-3), "{err:?}\n{text}");
     let (ok, text) = run(2, &path("s.csv"), &path("short.csv"), &path("bad.npy"));
     assert!(!ok && text.contains("charges"), "{text}");
     assert!(!std::path::Path::new(&path("bad.npy")).exists());
