@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_mpi::{
     DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, Geometry,
     PHASES, agree_message, npy,
@@ -51,6 +51,10 @@ pub struct EvalArgs {
     /// M2L scheme: svd, dense or fft.
     #[arg(long, default_value = "svd")]
     scheme: String,
+    /// Float type of the run: f64 or f32 (inputs are read as f64 and
+    /// rounded; the output is written as float64 either way).
+    #[arg(long, default_value = "f64")]
+    precision: String,
     /// Also evaluate the gradient.
     #[arg(long)]
     gradients: bool,
@@ -239,9 +243,9 @@ fn write_out(
 /// the compute phases ([`EvalStats::compute_cpu_seconds`]).
 const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
 
-fn figures<S: M2lScheme<f64>>(
+fn figures<T: Real, S: M2lScheme<T>>(
     dtree: &DistributedTree,
-    dfmm: &DistributedFmm<f64, Laplace3d, S>,
+    dfmm: &DistributedFmm<T, Laplace3d, S>,
     stats: &EvalStats,
 ) -> Vec<f64> {
     let s = dfmm.setup_stats();
@@ -268,21 +272,24 @@ fn figures<S: M2lScheme<f64>>(
 
 /// Runs `eval` (a collective); returns the exit status.
 pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
-    match a.scheme.as_str() {
-        "svd" => run_with::<SvdM2l<f64>>(world, a),
-        "dense" => run_with::<DenseM2l<f64>>(world, a),
-        "fft" => run_with::<FftM2l<f64>>(world, a),
-        other => {
+    match (a.precision.as_str(), a.scheme.as_str()) {
+        ("f64", "svd") => run_with::<f64, SvdM2l<f64>>(world, a),
+        ("f64", "dense") => run_with::<f64, DenseM2l<f64>>(world, a),
+        ("f64", "fft") => run_with::<f64, FftM2l<f64>>(world, a),
+        ("f32", "svd") => run_with::<f32, SvdM2l<f32>>(world, a),
+        ("f32", "dense") => run_with::<f32, DenseM2l<f32>>(world, a),
+        ("f32", "fft") => run_with::<f32, FftM2l<f32>>(world, a),
+        (p, s) => {
             if world.rank() == 0 {
-                eprintln!("unknown --scheme {other}: svd, dense or fft");
+                eprintln!("unknown --precision {p} or --scheme {s}: f64 or f32; svd, dense or fft");
             }
             2
         }
     }
 }
 
-fn run_with<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
-    match eval::<S>(world, a) {
+fn run_with<T: Real, S: M2lScheme<T>>(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
+    match eval::<T, S>(world, a) {
         Ok(()) => 0,
         Err(e) => {
             if world.rank() == 0 {
@@ -293,7 +300,7 @@ fn run_with<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> i32 
     }
 }
 
-fn eval<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(), String> {
+fn eval<T: Real, S: M2lScheme<T>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(), String> {
     let me = world.rank() as usize;
     let size = world.size() as usize;
     let t0 = std::time::Instant::now();
@@ -311,15 +318,17 @@ fn eval<S: M2lScheme<f64>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(
         mode,
     };
     let dfmm =
-        DistributedFmm::<f64, _, S>::build(world, &dtree, Laplace3d, &Default::default(), &options)
+        DistributedFmm::<T, _, S>::build(world, &dtree, Laplace3d, &Default::default(), &options)
             .map_err(|e| e.to_string())?;
+    let q_t: Vec<T> = q.iter().map(|&x| T::from_f64(x)).collect();
     let mut last = None;
     for _ in 0..a.repeats.max(1) {
-        last = Some(dfmm.evaluate(world, &q).map_err(|e| e.to_string())?);
+        last = Some(dfmm.evaluate(world, &q_t).map_err(|e| e.to_string())?);
     }
     let Some((values, stats)) = last else {
         return Err("no evaluation".into());
     };
+    let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
     if let Some(out) = &a.out {
         let first: u64 = dtree.input_counts[..me].iter().sum();
         let total: u64 = dtree.input_counts.iter().sum();
@@ -442,6 +451,7 @@ fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64, errors: Option<[f
             "order": a.order,
             "leaf_size": a.leaf_size,
             "scheme": a.scheme,
+            "precision": a.precision,
             "gradients": a.gradients,
             "input": a.generate.clone().unwrap_or_else(|| "files".into()),
             "threads_per_rank": rayon_threads(),

@@ -185,6 +185,35 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
         "R = 3 differs: {}",
         (num / den).sqrt()
     );
+    // f32 on 2 ranks: the f64 result to the accuracy of order 4 in f32.
+    let (ok, text) = mpirun(
+        2,
+        &[
+            "eval",
+            "--sources",
+            &path("s.npy"),
+            "--charges",
+            &path("q.npy"),
+            "--out",
+            &path("o32.npy"),
+            "--precision",
+            "f32",
+            "--gradients",
+            "--order",
+            "4",
+            "--leaf-size",
+            "20",
+        ],
+    );
+    assert!(ok, "{text}");
+    let c = read("o32.npy");
+    let num: f64 = a.iter().zip(&c).map(|(x, y)| (x - y) * (x - y)).sum();
+    // (f32 has its own pseudo-inverse cutoff, so its operators differ too.)
+    assert!(
+        (num / den).sqrt() <= 1e-3,
+        "f32 differs: {}",
+        (num / den).sqrt()
+    );
     // --check: the error against direct summation at a sample, as JSON.
     let (ok, text) = mpirun(
         2,
