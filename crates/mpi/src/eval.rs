@@ -2,17 +2,19 @@
 //! files (each rank reads its rows of a `.npy` file) or generated, the
 //! result written in the input order, and per-rank figures.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
 use ferrofmm_mpi::{
-    DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, Geometry,
-    PHASES, agree_message, npy,
+    DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry, agree_message,
 };
 use mpi::collective::SystemOperation;
+
+use crate::eval_io::{my_rows, read_slice, write_out};
+use crate::eval_report::{FIGURES, figures, report};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 use rand::rngs::StdRng;
@@ -25,120 +27,52 @@ pub struct EvalArgs {
     /// C order; each rank reads only its rows) or .csv (x,y,z per line;
     /// every rank reads the file and keeps its rows).
     #[arg(long, value_name = "FILE", required_unless_present = "generate")]
-    sources: Option<PathBuf>,
+    pub(crate) sources: Option<PathBuf>,
     /// Charges, one per source: .npy (N) or .csv (one per line).
     #[arg(long, value_name = "FILE", required_unless_present = "generate")]
-    charges: Option<PathBuf>,
+    pub(crate) charges: Option<PathBuf>,
     /// Output file, .npy or .csv: one potential per point, or potential and
     /// gradient (N x 4) with --gradients, float64, in the input order.
     /// Written to a temporary name and renamed once complete.
     #[arg(long, value_name = "FILE")]
-    out: Option<PathBuf>,
+    pub(crate) out: Option<PathBuf>,
     /// Instead of files: N points of this geometry (uniform, sphere,
     /// plummer, two-clusters; each rank generates its share) with zero-mean
     /// charges uniform in [-0.5, 0.5).
     #[arg(long, value_name = "GEOMETRY", conflicts_with_all = ["sources", "charges"])]
-    generate: Option<String>,
+    pub(crate) generate: Option<String>,
     /// Number of points with --generate (all ranks together).
     #[arg(long, default_value_t = 1_000_000)]
-    n: usize,
+    pub(crate) n: usize,
     /// Expansion order p.
     #[arg(long, short = 'p', default_value_t = DEFAULT_ORDER)]
-    order: usize,
+    pub(crate) order: usize,
     /// Largest number of points in a leaf box.
     #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
-    leaf_size: usize,
+    pub(crate) leaf_size: usize,
     /// M2L scheme: svd, dense or fft.
     #[arg(long, default_value = "svd")]
-    scheme: String,
+    pub(crate) scheme: String,
     /// Float type of the run: f64 or f32 (inputs are read as f64 and
     /// rounded; the output is written as float64 either way).
     #[arg(long, default_value = "f64")]
-    precision: String,
+    pub(crate) precision: String,
     /// Also evaluate the gradient.
     #[arg(long)]
-    gradients: bool,
+    pub(crate) gradients: bool,
     /// Evaluations on one build (the same charges): the figures are the
     /// last one's.
     #[arg(long, default_value_t = 1)]
-    repeats: usize,
+    pub(crate) repeats: usize,
     /// Compare this many sampled points with direct summation over all
     /// points (relative L2 error of the potential and the gradient; 0: no
     /// check).
     #[arg(long, default_value_t = 0, value_name = "TARGETS")]
-    check: usize,
+    pub(crate) check: usize,
     /// Print one JSON object with per-rank figures (rank 0, last line of
     /// stdout) instead of the table.
     #[arg(long)]
-    json: bool,
-}
-
-/// This rank's rows `[N r / R, N (r + 1) / R)`.
-fn my_rows(n: u64, me: usize, size: usize) -> std::ops::Range<u64> {
-    let at = |r: usize| (n as u128 * r as u128 / size as u128) as u64;
-    at(me)..at(me + 1)
-}
-
-/// Values of a .csv file: numbers separated by commas or spaces, `#`
-/// comments and blank lines skipped; every row must have `columns`.
-fn read_csv(path: &Path, columns: usize) -> Result<Vec<f64>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let row: Vec<f64> = line
-            .split([',', ' ', '\t'])
-            .filter(|s| !s.is_empty())
-            .map(str::parse)
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("{}: line {}: {e}", path.display(), i + 1))?;
-        if row.len() != columns {
-            return Err(format!(
-                "{}: line {}: {} values, expected {columns}",
-                path.display(),
-                i + 1,
-                row.len()
-            ));
-        }
-        out.extend(row);
-    }
-    Ok(out)
-}
-
-fn is_npy(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-}
-
-/// This rank's rows of `path` (`columns` values per row) and the total
-/// number of rows.
-fn read_slice(
-    path: &Path,
-    columns: u64,
-    me: usize,
-    size: usize,
-) -> Result<(Vec<f64>, u64), String> {
-    if is_npy(path) {
-        let h = npy::header(path)?;
-        if h.columns != columns {
-            return Err(format!(
-                "{}: {} values per row, expected {columns}",
-                path.display(),
-                h.columns
-            ));
-        }
-        let rows = my_rows(h.rows, me, size);
-        Ok((npy::read_rows(path, &h, rows)?, h.rows))
-    } else {
-        let all = read_csv(path, columns as usize)?;
-        let n = (all.len() as u64) / columns;
-        let r = my_rows(n, me, size);
-        let c = columns as usize;
-        Ok((all[r.start as usize * c..r.end as usize * c].to_vec(), n))
-    }
+    pub(crate) json: bool,
 }
 
 /// This rank's points and charges.
@@ -170,104 +104,6 @@ fn inputs(a: &EvalArgs, me: usize, size: usize) -> Result<(Vec<f64>, Vec<f64>), 
         ));
     }
     Ok((points, q))
-}
-
-/// Writes the values (`w` per point, this rank's input rows from
-/// `first_row`) to `out`, through a temporary file renamed at the end.
-fn write_out(
-    world: &SimpleCommunicator,
-    out: &Path,
-    values: &[f64],
-    w: usize,
-    first_row: u64,
-    total: u64,
-) -> Result<(), String> {
-    let me = world.rank();
-    let tmp = out.with_extension(format!(
-        "{}.part",
-        out.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    let result = if is_npy(out) {
-        let start = if me == 0 {
-            npy::create(&tmp, total, w as u64)
-        } else {
-            Ok(0)
-        };
-        let start = agree_message(world, start).map_err(|e| e.to_string())?;
-        let mut s = start;
-        world.process_at_rank(0).broadcast_into(&mut s);
-        npy::write_rows(&tmp, s, w as u64, first_row, values)
-    } else {
-        // Ranks append their rows in turn.
-        let mut r = Ok(());
-        for turn in 0..world.size() {
-            if turn == me {
-                let text: String = values
-                    .chunks_exact(w)
-                    .map(|row| {
-                        row.iter()
-                            .map(|x| format!("{x:e}"))
-                            .collect::<Vec<_>>()
-                            .join(",")
-                            + "\n"
-                    })
-                    .collect();
-                r = std::fs::OpenOptions::new()
-                    .create(true)
-                    .append(true)
-                    .truncate(false)
-                    .open(&tmp)
-                    .and_then(|mut f| {
-                        if me == 0 {
-                            f.set_len(0)?;
-                        }
-                        std::io::Write::write_all(&mut f, text.as_bytes())
-                    })
-                    .map_err(|e| format!("{}: {e}", tmp.display()));
-            }
-            world.barrier();
-        }
-        r
-    };
-    agree_message(world, result).map_err(|e| e.to_string())?;
-    if me == 0 {
-        std::fs::rename(&tmp, out).map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    Ok(())
-}
-
-/// Figures of one rank, gathered on all: points, ghost points, boxes of the
-/// local tree, send and receive partners, tree phase seconds (6) and bytes
-/// (6), FMM setup seconds (3) and bytes, evaluation phase seconds (8) and
-/// bytes (8), operator seconds (8: P2M .. P2P), and the CPU seconds of
-/// the compute phases ([`EvalStats::compute_cpu_seconds`]).
-const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
-
-fn figures<T: Real, S: M2lScheme<T>>(
-    dtree: &DistributedTree,
-    dfmm: &DistributedFmm<T, Laplace3d, S>,
-    stats: &EvalStats,
-) -> Vec<f64> {
-    let s = dfmm.setup_stats();
-    let mut v = vec![
-        dtree.points.len() as f64,
-        s.ghost_points as f64,
-        s.boxes as f64,
-        s.send_partners as f64,
-        s.recv_partners as f64,
-    ];
-    v.extend(dtree.stats.seconds);
-    v.extend(dtree.stats.bytes_sent.map(|b| b as f64));
-    v.extend(s.seconds);
-    v.push(s.bytes_sent as f64);
-    v.extend(stats.seconds);
-    v.extend(stats.bytes_sent.map(|b| b as f64));
-    v.extend(
-        stats.passes.operators()[..8]
-            .iter()
-            .map(|o| o.1.as_secs_f64()),
-    );
-    v
 }
 
 /// Runs `eval` (a collective); returns the exit status.
@@ -395,117 +231,4 @@ fn check_direct(
     }
     let rel = |num: f64, den: f64| if den > 0.0 { (num / den).sqrt() } else { 0.0 };
     [rel(s[0], s[1]), rel(s[2], s[3])]
-}
-
-/// Max over mean of column `i` of the per-rank figures.
-fn imbalance(rows: &[&[f64]], f: impl Fn(&[f64]) -> f64) -> f64 {
-    let v: Vec<f64> = rows.iter().map(|r| f(r)).collect();
-    let mean = v.iter().sum::<f64>() / v.len() as f64;
-    let max = v.iter().copied().fold(0.0, f64::max);
-    if mean > 0.0 { max / mean } else { 1.0 }
-}
-
-fn report(a: &EvalArgs, all: &[f64], size: usize, read_s: f64, errors: Option<[f64; 2]>) {
-    let rows: Vec<&[f64]> = all.chunks_exact(FIGURES).collect();
-    let eval_s = |r: &[f64]| r[21..29].iter().sum::<f64>();
-    let points_imb = imbalance(&rows, |r| r[0]);
-    let time_imb = imbalance(&rows, eval_s);
-    let op_names = ["P2M", "M2M", "M2L", "P2L", "L2L", "L2P", "M2P", "P2P"];
-    let per_rank: Vec<serde_json::Value> = rows
-        .iter()
-        .enumerate()
-        .map(|(r, x)| {
-            let named =
-                |names: &[&str], vals: &[f64]| -> serde_json::Map<String, serde_json::Value> {
-                    names
-                        .iter()
-                        .zip(vals)
-                        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
-                        .collect()
-                };
-            serde_json::json!({
-                "rank": r,
-                "points": x[0],
-                "ghost_points": x[1],
-                "local_tree_boxes": x[2],
-                "send_partners": x[3],
-                "recv_partners": x[4],
-                "tree_seconds": named(&PHASES, &x[5..11]),
-                "tree_bytes_sent": named(&PHASES, &x[11..17]),
-                "fmm_setup_seconds": named(&["plans", "local tree", "operators"], &x[17..20]),
-                "fmm_setup_bytes_sent": x[20],
-                "eval_seconds": named(&EVAL_PHASES, &x[21..29]),
-                "eval_bytes_sent": named(&EVAL_PHASES, &x[29..37]),
-                "eval_total_seconds": eval_s(x),
-                "eval_total_bytes_sent": x[29..37].iter().sum::<f64>(),
-                "operator_seconds": named(&op_names, &x[37..45]),
-                "compute_cpu_seconds": x[45],
-            })
-        })
-        .collect();
-    if a.json {
-        let j = serde_json::json!({
-            "command": "eval",
-            "ranks": size,
-            "n": rows.iter().map(|r| r[0]).sum::<f64>(),
-            "order": a.order,
-            "leaf_size": a.leaf_size,
-            "scheme": a.scheme,
-            "precision": a.precision,
-            "gradients": a.gradients,
-            "input": a.generate.clone().unwrap_or_else(|| "files".into()),
-            "threads_per_rank": rayon_threads(),
-            "read_seconds": read_s,
-            "imbalance_points": points_imb,
-            "imbalance_eval_seconds": time_imb,
-            "eval_seconds_max": rows.iter().map(|r| eval_s(r)).fold(0.0, f64::max),
-            "compute_cpu_seconds_max": rows.iter().map(|r| r[45]).fold(0.0, f64::max),
-            "compute_cpu_seconds_total": rows.iter().map(|r| r[45]).sum::<f64>(),
-            "check": errors.map(|e| serde_json::json!({
-                "samples": a.check,
-                "potential_error": e[0],
-                "gradient_error": if a.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
-            })),
-            "per_rank": per_rank,
-        });
-        println!("{j}");
-        return;
-    }
-    println!(
-        "{size} ranks, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
-        a.order, a.leaf_size, a.scheme
-    );
-    if let Some(e) = errors {
-        println!(
-            "check against direct summation at {} points: potential error {:.3e}{}",
-            a.check,
-            e[0],
-            if a.gradients {
-                format!(", gradient error {:.3e}", e[1])
-            } else {
-                String::new()
-            }
-        );
-    }
-    println!("rank   points   ghosts  eval s   MB sent  (ghosts, coarse, routing)  setup s");
-    for (r, x) in rows.iter().enumerate() {
-        println!(
-            "{r:>4} {:>8} {:>8} {:>7.3} {:>9.3}  ({:.3}, {:.3}, {:.3})  {:.3}",
-            x[0],
-            x[1],
-            eval_s(x),
-            x[29..37].iter().sum::<f64>() / 1e6,
-            x[31] / 1e6,
-            (x[32] + x[34]) / 1e6,
-            (x[29] + x[36]) / 1e6,
-            x[17..20].iter().sum::<f64>()
-        );
-    }
-}
-
-fn rayon_threads() -> usize {
-    std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }

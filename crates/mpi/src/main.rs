@@ -6,6 +6,8 @@
 mod check;
 mod check_fmm;
 mod eval;
+mod eval_io;
+mod eval_report;
 mod report;
 
 use clap::{Parser, Subcommand};
