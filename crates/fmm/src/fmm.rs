@@ -299,6 +299,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         Ok(())
     }
 
+    /// What the passes read besides a tree part.
+    pub(crate) fn ctx(&self) -> passes::Ctx<'_, K> {
+        passes::Ctx {
+            kernel: &self.kernel,
+            mode: self.mode,
+            unit_surface: &self.unit_surface,
+        }
+    }
+
     /// The largest cluster's tree part (part 0 always has a tree).
     pub(crate) fn main(&self) -> &TreePart<T, S> {
         self.parts[0]
@@ -485,12 +494,32 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     tree: &Octree,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
-    let t = Instant::now();
-    let width = tree.domain().width;
-    let depth = tree.depth();
     // Only what the tree needs, and only when it fits (issue 18).
     let usage = crate::precompute::m2l_usage(tree);
-    crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, &usage)?;
+    operators_for(
+        kernel,
+        params,
+        config,
+        tree.domain().width,
+        tree.depth(),
+        &usage,
+        setup,
+    )
+}
+
+/// [`build_operators`] for a domain `width`, levels `0..=depth` and the
+/// transfer vectors `usage` (which may come from more than one tree).
+pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
+    kernel: &K,
+    params: &OperatorParams,
+    config: &S::Config,
+    width: f64,
+    depth: u32,
+    usage: &ferrofmm_field::M2lUsage,
+    setup: &mut SetupTimings,
+) -> Result<(Operators<T>, S), FmmError> {
+    let t = Instant::now();
+    crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, usage)?;
     let operators = Operators::<T>::new(kernel, params, width, depth)?;
     let diagnostics = operators.diagnostics();
     if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
@@ -504,14 +533,14 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     }
     setup.operators = t.elapsed();
     let t = Instant::now();
-    let m2l = S::precompute_for(kernel, params, config, width, depth, &usage)?;
+    let m2l = S::precompute_for(kernel, params, config, width, depth, usage)?;
     setup.m2l_precompute = t.elapsed();
     Ok((operators, m2l))
 }
 
 /// The V-list pairs of a level (`(target column, source column, transfer
 /// vector)`, columns counted from the level's first box), grouped for M2L.
-fn level_interactions(
+pub(crate) fn level_interactions(
     tree: &Octree,
     level: u32,
 ) -> Result<M2lInteractions, ferrofmm_field::FieldError> {
@@ -706,7 +735,7 @@ fn points_part<T: Real>(input: &PartInput<'_, T>) -> PointsPart<T> {
 /// Points in the tree's sorted order, relative to `centre`:
 /// `out[k] = points[perm[k]] - centre` (the difference in f64, then rounded
 /// to `T`).
-fn permute_points<T: Real>(points: &[T], perm: &[usize], centre: [f64; 3]) -> Vec<T> {
+pub(crate) fn permute_points<T: Real>(points: &[T], perm: &[usize], centre: [f64; 3]) -> Vec<T> {
     perm.iter()
         .flat_map(|&i| {
             std::array::from_fn::<T, 3, _>(|c| T::from_f64(points[3 * i + c].to_f64() - centre[c]))

@@ -22,6 +22,9 @@
 //! points of a cube surface. The eight operators (see the `passes` module
 //! docs): P2M, M2M, M2L over V lists, P2L over X lists, L2L, L2P, M2P over
 //! W lists, P2P over U lists.
+//!
+//! [`TreeFmm`] runs the same passes one at a time over a tree the caller
+//! supplies (a distributed driver's piece of a global tree).
 
 pub mod accuracy;
 mod batch;
@@ -35,6 +38,7 @@ mod part;
 mod passes;
 mod precompute;
 mod timings;
+mod tree_fmm;
 pub mod tuning;
 pub mod verify;
 
@@ -45,6 +49,8 @@ pub use error::FmmError;
 pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::MemoryReport;
+pub use precompute::m2l_usage;
 pub use timings::{EvalTimings, SetupTimings};
+pub use tree_fmm::{LocalTree, TreeFmm};
 pub use tuning::{ChosenParameters, f32_reaches};
 pub use verify::{Evaluation, Verification, VerificationAttempt};

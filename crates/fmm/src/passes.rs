@@ -29,6 +29,14 @@ use crate::timings::EvalTimings;
 use crate::{Fmm, coupling};
 use ferrofmm_tree::Octree;
 
+/// What every pass reads besides the tree part: the kernel, what is
+/// evaluated, and the unit-cube surface grid (interleaved, `f64`).
+pub(crate) struct Ctx<'a, K> {
+    pub(crate) kernel: &'a K,
+    pub(crate) mode: EvalMode,
+    pub(crate) unit_surface: &'a [f64],
+}
+
 /// One full evaluation for one charge vector (already validated): every
 /// cluster's upward pass, the clusters' coupling ([`crate::coupling`]), then
 /// every cluster's downward and leaf passes.
@@ -41,13 +49,14 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     let n = fmm.unit_surface.len() / 3;
     let w = fmm.mode.values_per_target();
 
+    let cx = fmm.ctx();
     let local_q: Vec<Vec<T>> = fmm.parts.iter().map(|p| p.local_charges(charges)).collect();
     let multipoles: Vec<Vec<T>> = fmm
         .parts
         .iter()
         .zip(&local_q)
         .map(|(part, q)| match part.tree_part() {
-            Some(tp) if tp.has_sources => upward(fmm, tp, q, &mut timings),
+            Some(tp) if tp.has_sources => upward(&cx, tp, q, &mut timings),
             _ => Vec::new(),
         })
         .collect();
@@ -77,16 +86,17 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                 let mut locals = vec![T::ZERO; n * tp.tree.n_boxes()];
                 let root = (!root_checks[k].is_empty()).then_some(&root_checks[k][..]);
                 downward(
-                    fmm,
+                    &cx,
                     tp,
                     &local_q[k],
                     &multipoles[k],
                     root,
                     &mut locals,
                     &mut timings,
+                    |_, _, _| {},
                 );
                 leaf_passes(
-                    fmm,
+                    &cx,
                     tp,
                     &local_q[k],
                     &multipoles[k],
@@ -123,8 +133,8 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
 }
 
 /// P2M and M2M of one tree part: its multipoles.
-fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
+pub(crate) fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
     q: &[T],
     timings: &mut EvalTimings,
@@ -132,7 +142,7 @@ fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
     let n = part.operators.n_surface();
     let mut multipoles = vec![T::ZERO; n * part.tree.n_boxes()];
     let t = Instant::now();
-    p2m(fmm, part, q, &mut multipoles);
+    p2m(cx, part, q, &mut multipoles);
     timings.p2m += t.elapsed();
     let t = Instant::now();
     m2m(part, &mut multipoles);
@@ -187,7 +197,7 @@ fn source_slices<'a, T: Real, S: M2lScheme<T>>(
 
 /// Leaves' sources to their upward check surfaces, then check-to-equivalent per level.
 fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
+    cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
     q: &[T],
     multipoles: &mut [T],
@@ -205,10 +215,9 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
             if !tree.is_leaf(b) || r.is_empty() {
                 return;
             }
-            part.surface_of(&fmm.unit_surface, b, radius, surface);
+            part.surface_of(cx.unit_surface, b, radius, surface);
             let (x, qb) = source_slices(part, q, r);
-            fmm.kernel
-                .evaluate(EvalMode::Potential, x, qb, surface, col);
+            cx.kernel.evaluate(EvalMode::Potential, x, qb, surface, col);
         });
     for level in 0..=tree.depth() {
         let r = tree.level_range(level);
@@ -252,14 +261,16 @@ fn octant_pairs(tree: &Octree, level: Range<usize>) -> [Vec<(usize, usize)>; 8] 
 /// M2L, P2L and L2L level by level, top down. With `root_check` (the
 /// far clusters' potentials on the root's downward check surface) the
 /// root gets a local expansion too, and L2L starts at level 1.
-fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
     q: &[T],
     multipoles: &[T],
     root_check: Option<&[T]>,
     locals: &mut [T],
     timings: &mut EvalTimings,
+    mut on_checks: impl FnMut(u32, Range<usize>, &mut [T]),
 ) {
     let tree = &part.tree;
     let ops = &part.operators;
@@ -300,14 +311,14 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
                 if xs.is_empty() || !part.has_sources {
                     return;
                 }
-                part.surface_of(&fmm.unit_surface, b, radius, surface);
+                part.surface_of(cx.unit_surface, b, radius, surface);
                 for &a in xs {
                     let (x, qa) = source_slices(part, q, tree.source_range(a));
-                    fmm.kernel
-                        .evaluate(EvalMode::Potential, x, qa, surface, col);
+                    cx.kernel.evaluate(EvalMode::Potential, x, qa, surface, col);
                 }
             });
         timings.p2l += t.elapsed();
+        on_checks(level, r.clone(), &mut check);
 
         let t = Instant::now();
         let (parents, level_locals) = locals.split_at_mut(n * r.start);
@@ -326,8 +337,8 @@ fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
 }
 
 /// L2P, M2P and P2P, each parallel over the target leaves.
-fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
-    fmm: &Fmm<T, K, S>,
+pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
     q: &[T],
     multipoles: &[T],
@@ -338,8 +349,8 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     let tree = &part.tree;
     let ops = &part.operators;
     let n = ops.n_surface();
-    let w = fmm.mode.values_per_target();
-    let mode = fmm.mode;
+    let w = cx.mode.values_per_target();
+    let mode = cx.mode;
     let mut slices = leaf_output_slices(tree, w, sorted);
     let targets_of = |b: usize| {
         let r = tree.target_range(b);
@@ -351,9 +362,9 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     slices
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
-            part.surface_of(&fmm.unit_surface, *b, down_equiv, surface);
+            part.surface_of(cx.unit_surface, *b, down_equiv, surface);
             let d = &locals[n * *b..n * (*b + 1)];
-            fmm.kernel.evaluate(mode, surface, d, targets_of(*b), out);
+            cx.kernel.evaluate(mode, surface, d, targets_of(*b), out);
         });
     timings.l2p += t.elapsed();
     if !part.has_sources {
@@ -366,9 +377,9 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
             for &a in tree.w_list(*b) {
-                part.surface_of(&fmm.unit_surface, a, up_equiv, surface);
+                part.surface_of(cx.unit_surface, a, up_equiv, surface);
                 let u = &multipoles[n * a..n * (a + 1)];
-                fmm.kernel.evaluate(mode, surface, u, targets_of(*b), out);
+                cx.kernel.evaluate(mode, surface, u, targets_of(*b), out);
             }
         });
     timings.m2p += t.elapsed();
@@ -378,7 +389,7 @@ fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
         let y = targets_of(*b);
         for &a in tree.u_list(*b) {
             let (x, qa) = source_slices(part, q, tree.source_range(a));
-            fmm.kernel.evaluate(mode, x, qa, y, out);
+            cx.kernel.evaluate(mode, x, qa, y, out);
         }
     });
     timings.p2p += t.elapsed();

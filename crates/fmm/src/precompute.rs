@@ -11,8 +11,11 @@ use ferrofmm_tree::Octree;
 use crate::FmmError;
 
 /// The transfer vectors each level's V lists use (none when the tree has
-/// no V list, e.g. a single leaf level at depth 0 or 1).
-pub(crate) fn m2l_usage(tree: &Octree) -> M2lUsage {
+/// no V list, e.g. a single leaf level at depth 0 or 1): what the M2L
+/// operators are precomputed for. Pieces of one tree (the processes of a
+/// distributed FMM) mark the union of their pieces' usages to get the
+/// operators of the whole tree.
+pub fn m2l_usage(tree: &Octree) -> M2lUsage {
     let mut usage = M2lUsage::none();
     for level in 0..=tree.depth() {
         for b in tree.level_range(level) {

@@ -43,7 +43,7 @@ const LAYOUTS: [&str; 7] = [
 ];
 
 /// The original indices of the points each rank holds under `layout`.
-fn shares(layout: &str, n: usize, size: usize) -> Vec<Vec<usize>> {
+pub(crate) fn shares(layout: &str, n: usize, size: usize) -> Vec<Vec<usize>> {
     let contiguous = |w: &dyn Fn(usize) -> f64| -> Vec<Vec<usize>> {
         let total: f64 = (0..size).map(w).sum();
         let mut start = 0;
@@ -71,7 +71,7 @@ fn shares(layout: &str, n: usize, size: usize) -> Vec<Vec<usize>> {
     }
 }
 
-fn list(spec: &str, all: &[&str]) -> Vec<String> {
+pub(crate) fn list(spec: &str, all: &[&str]) -> Vec<String> {
     if spec == "all" {
         all.iter().map(|s| s.to_string()).collect()
     } else {

@@ -23,6 +23,8 @@ pub enum InputProblem {
     MismatchedOptions,
     /// Point weights: not one per point, or negative / not finite.
     BadWeights,
+    /// Charges: not one per input point of the rank, or not finite.
+    BadCharges,
     /// Any other failure of the tree crate on that rank.
     Other,
 }
@@ -36,6 +38,7 @@ impl InputProblem {
             InputProblem::MismatchedOptions => 4,
             InputProblem::BadWeights => 5,
             InputProblem::Other => 6,
+            InputProblem::BadCharges => 7,
         }
     }
 
@@ -46,6 +49,7 @@ impl InputProblem {
             3 => InputProblem::ZeroLeafSize,
             4 => InputProblem::MismatchedOptions,
             5 => InputProblem::BadWeights,
+            7 => InputProblem::BadCharges,
             _ => InputProblem::Other,
         }
     }
@@ -60,6 +64,7 @@ impl std::fmt::Display for InputProblem {
             InputProblem::MismatchedOptions => "ranks were given different options",
             InputProblem::BadWeights => "weights: not one finite, non-negative value per point",
             InputProblem::Other => "invalid input",
+            InputProblem::BadCharges => "charges: not one finite value per input point",
         })
     }
 }
@@ -86,6 +91,15 @@ pub enum DistError {
         rank: i32,
         /// The error.
         source: TreeError,
+    },
+    /// The FMM setup failed on some rank (operators, memory, domain): the
+    /// message of the lowest failing rank.
+    #[error("FMM error on rank {rank}: {message}")]
+    Fmm {
+        /// Lowest rank that failed.
+        rank: i32,
+        /// Its error, as text.
+        message: String,
     },
 }
 
@@ -124,4 +138,36 @@ pub(crate) fn agree<C: Communicator, T>(
             problem,
         }),
     }
+}
+
+/// Agreement on a local outcome with an error message: `Ok` on every rank
+/// only if it is `Ok` on every rank; otherwise every rank gets
+/// [`DistError::Fmm`] with the lowest failing rank's message (broadcast
+/// from it). A collective: every rank must call it.
+pub fn agree_message<C: Communicator, T>(
+    comm: &C,
+    local: Result<T, String>,
+) -> Result<T, DistError> {
+    let failed = u32::from(local.is_err());
+    let mut all = vec![0u32; comm.size() as usize];
+    comm.all_gather_into(&failed, &mut all[..]);
+    let Some(rank) = all.iter().position(|&c| c != 0) else {
+        return local.map_err(|message| DistError::Fmm {
+            rank: comm.rank(),
+            message,
+        });
+    };
+    let mut text = match &local {
+        Err(m) if rank == comm.rank() as usize => m.clone().into_bytes(),
+        _ => Vec::new(),
+    };
+    let mut len = text.len() as u64;
+    let root = comm.process_at_rank(rank as i32);
+    root.broadcast_into(&mut len);
+    text.resize(len as usize, 0);
+    root.broadcast_into(&mut text[..]);
+    Err(DistError::Fmm {
+        rank: rank as i32,
+        message: String::from_utf8_lossy(&text).into_owned(),
+    })
 }

@@ -100,3 +100,37 @@ pub(crate) fn sparse_exchange<C: Communicator>(
     let bytes = send.iter().map(|(_, w)| 8 * w.len() as u64).sum();
     (received, bytes)
 }
+
+/// Point-to-point exchange whose pattern both sides already know (a plan
+/// made once): `send` holds `(rank, words)` for the ranks this one sends
+/// to, `from` the ranks that send here. Returns `(rank, words)` in the
+/// order of `from`, and the bytes sent. Not a collective: only the ranks
+/// in the plan talk, and no counts are exchanged.
+pub(crate) fn planned_exchange<C: Communicator>(
+    comm: &C,
+    send: &[(usize, Vec<u64>)],
+    from: &[usize],
+    tag: i32,
+) -> (Vec<(usize, Vec<u64>)>, u64) {
+    let mut received = Vec::with_capacity(from.len());
+    scope(|sc| {
+        let requests: Vec<_> = send
+            .iter()
+            .map(|(r, w)| {
+                comm.process_at_rank(*r as i32)
+                    .immediate_send_with_tag(sc, &w[..], tag)
+            })
+            .collect();
+        for &r in from {
+            let (words, _) = comm
+                .process_at_rank(r as i32)
+                .receive_vec_with_tag::<u64>(tag);
+            received.push((r, words));
+        }
+        for q in requests {
+            q.wait();
+        }
+    });
+    let bytes = send.iter().map(|(_, w)| 8 * w.len() as u64).sum();
+    (received, bytes)
+}

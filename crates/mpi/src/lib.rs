@@ -31,6 +31,16 @@
 //!
 //! Bad input on any rank is the same [`DistError`] on every rank.
 //!
+//! ## The distributed FMM ([`DistributedFmm`])
+//!
+//! On such a tree, [`DistributedFmm::build`] makes each rank's locally
+//! essential tree and runs the single-machine passes of `ferrofmm-fmm` on
+//! it ([`ferrofmm_fmm::TreeFmm`]), exchanging only ghost multipoles and
+//! charges (point to point, with the ranks that need them) and the coarse
+//! tree's sums; [`DistributedFmm::evaluate`] can be called for any number
+//! of charge vectors and equals the single-machine FMM on the same tree
+//! (see [`dfmm`]).
+//!
 //! ```no_run
 //! use ferrofmm_mpi::{DistOptions, DistributedTree};
 //! let universe = mpi::initialize().unwrap();
@@ -43,16 +53,19 @@
 #![warn(missing_docs)]
 
 pub mod balance;
+pub mod dfmm;
 pub mod error;
 mod exchange;
 pub mod ghosts;
 pub mod inputs;
+pub mod npy;
 pub mod partition;
 pub mod sort;
 pub mod stats;
 mod tree;
 
-pub use error::{DistError, InputProblem};
+pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
+pub use error::{DistError, InputProblem, agree_message};
 pub use ghosts::{Ghost, GhostLayer};
 pub use inputs::Geometry;
 pub use sort::LocalPoints;

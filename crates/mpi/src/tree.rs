@@ -50,6 +50,10 @@ pub struct DistributedTree {
     pub ghosts: GhostLayer,
     /// Phase times and bytes sent.
     pub stats: BuildStats,
+    /// The number of points every rank passed to the build (rank order):
+    /// global id `i` is point `i - sum(input_counts[..r])` of rank `r`'s
+    /// input.
+    pub input_counts: Vec<u64>,
     shape: TreeShape,
     rank: usize,
 }
@@ -199,9 +203,15 @@ impl DistributedTree {
             coarse,
             ghosts,
             stats,
+            input_counts: counts,
             shape,
             rank: me,
         })
+    }
+
+    /// This rank's number in the communicator the tree was built on.
+    pub fn rank(&self) -> usize {
+        self.rank
     }
 
     /// This rank's leaves (keys, sorted).

@@ -52,6 +52,28 @@ impl Csr {
             .unwrap_or(0)
     }
 
+    /// A CSR array from rows given one after another (row `b` is
+    /// `rows[b]`), for lists computed elsewhere.
+    ///
+    /// ```
+    /// use ferrofmm_tree::Csr;
+    /// let c = Csr::from_rows(&[vec![1, 2], vec![], vec![0]]);
+    /// assert_eq!(c.n_rows(), 3);
+    /// assert_eq!(c.get(0), &[1, 2]);
+    /// assert!(c.get(1).is_empty());
+    /// assert_eq!(c.offsets(), &[0, 2, 2, 3]);
+    /// ```
+    pub fn from_rows(rows: &[Vec<usize>]) -> Self {
+        let mut offsets = Vec::with_capacity(rows.len() + 1);
+        offsets.push(0);
+        let mut indices = Vec::with_capacity(rows.iter().map(Vec::len).sum());
+        for r in rows {
+            indices.extend_from_slice(r);
+            offsets.push(indices.len());
+        }
+        Csr { offsets, indices }
+    }
+
     /// Builds `n` rows in parallel; `row(b, out)` appends row `b` to `out`.
     pub(crate) fn build<F>(n: usize, row: F) -> Self
     where

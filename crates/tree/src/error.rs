@@ -86,6 +86,13 @@ pub enum TreeError {
         /// Width as given.
         width: f64,
     },
+    /// Parts given to [`Octree::from_parts`](crate::Octree::from_parts)
+    /// that do not form a tree.
+    #[error("invalid tree parts: {reason}")]
+    InvalidParts {
+        /// What is wrong.
+        reason: &'static str,
+    },
     /// A finest-level Morton code outside the grid (`>= 8^D`), given to
     /// [`MortonCodes::from_codes`](crate::MortonCodes::from_codes).
     #[error("code {index} ({code:#x}) is not a finest-level Morton code")]

@@ -208,6 +208,93 @@ impl Octree {
         tree
     }
 
+    /// A tree from parts computed elsewhere: the domain, the boxes with the
+    /// ranges of their points (`(key, sources, targets)`, sorted by level,
+    /// then Morton order, the root first, every box's parent among them)
+    /// and the four interaction lists (one row per box, entries indexing
+    /// `boxes`). The ranges index the caller's own point arrays, sorted
+    /// along the Morton curve so that each box's points are contiguous; no
+    /// coordinates or permutations are stored ([`Octree::sorted_sources`]
+    /// and [`Octree::source_permutation`] are empty, and
+    /// [`Octree::n_sources`] is 0).
+    ///
+    /// What it is for: one process of a distributed FMM holds a piece of
+    /// the global tree (its own boxes, the coarse tree above them and the
+    /// ghost boxes its lists reference), with lists it chose itself (for
+    /// instance only the rows of its own boxes), and runs the
+    /// single-machine passes on it.
+    ///
+    /// A box with no child among `boxes` is a leaf of this tree.
+    ///
+    /// ```
+    /// use ferrofmm_tree::{Octree, TreeOptions};
+    /// let pts: Vec<f64> = (0..600).map(|i| (i as f64 * 0.618_034).fract()).collect();
+    /// let tree = Octree::new(&pts, None, &TreeOptions::adaptive(10)).unwrap();
+    /// let boxes: Vec<_> = (0..tree.n_boxes())
+    ///     .map(|b| (tree.key(b), tree.source_range(b), tree.target_range(b)))
+    ///     .collect();
+    /// let copy = Octree::from_parts(*tree.domain(), &boxes, tree.interaction_lists().clone()).unwrap();
+    /// assert_eq!(copy.keys(), tree.keys());
+    /// assert_eq!(copy.leaves(), tree.leaves());
+    /// assert_eq!(copy.v_list(5), tree.v_list(5));
+    /// ```
+    ///
+    /// # Errors
+    /// [`TreeError::InvalidParts`]: no boxes, boxes out of order or
+    /// repeated, a box whose parent is missing, a reversed range, or lists
+    /// whose row count or entries do not match the boxes.
+    pub fn from_parts(
+        domain: Domain,
+        boxes: &[(MortonKey, Range<usize>, Range<usize>)],
+        lists: InteractionLists,
+    ) -> Result<Self, TreeError> {
+        let bad = |reason| Err(TreeError::InvalidParts { reason });
+        if boxes.first().map(|b| b.0) != Some(MortonKey::ROOT) {
+            return bad("the first box must be the root");
+        }
+        let order = |k: MortonKey| (k.level(), k);
+        if boxes.windows(2).any(|w| order(w[0].0) >= order(w[1].0)) {
+            return bad("boxes not sorted by (level, key) or repeated");
+        }
+        if boxes
+            .iter()
+            .any(|b| b.1.start > b.1.end || b.2.start > b.2.end)
+        {
+            return bad("a reversed point range");
+        }
+        let n = boxes.len();
+        let present = |k: MortonKey| {
+            boxes
+                .binary_search_by_key(&order(k), |b| order(b.0))
+                .is_ok()
+        };
+        if boxes[1..].iter().any(|b| !present(b.0.parent())) {
+            return bad("a box whose parent is missing");
+        }
+        for csr in [&lists.u, &lists.v, &lists.w, &lists.x] {
+            if csr.n_rows() != n {
+                return bad("lists do not have one row per box");
+            }
+            if csr.indices().iter().any(|&a| a >= n) {
+                return bad("a list entry out of range");
+            }
+        }
+        let depth = boxes[n - 1].0.level() as usize;
+        let mut levels: Vec<Vec<Node>> = vec![Vec::new(); depth + 1];
+        for (key, s, t) in boxes {
+            levels[key.level() as usize].push(Node {
+                key: *key,
+                src: [s.start, s.end],
+                tgt: [t.start, t.end],
+                leaf: false,
+            });
+        }
+        let mut tree = Self::flatten(domain, &levels);
+        tree.colleagues = ColleagueTable::build(&tree);
+        tree.lists = lists;
+        Ok(tree)
+    }
+
     /// Flat arrays from the per-level boxes.
     fn flatten(domain: Domain, levels: &[Vec<Node>]) -> Self {
         let n: usize = levels.iter().map(Vec::len).sum();

@@ -1,0 +1,122 @@
+//! `TreeFmm` (the passes one at a time over a caller's tree) on the whole
+//! tree equals `Fmm::evaluate` on the same points: the public pass-level
+//! API a distributed driver uses runs the same passes and operators.
+//! Also: the callback sees every level's check potentials, and what it
+//! does to them reaches the result; wrong lengths are errors.
+
+use ferrofmm_field::{OperatorParams, SvdConfig, SvdM2l};
+use ferrofmm_fmm::{EvalTimings, FmmBuilder, FmmError, Geometry, LocalTree, TreeFmm, m2l_usage};
+use ferrofmm_kernels::{EvalMode, Laplace3d};
+use ferrofmm_tree::{Octree, TreeOptions};
+
+fn setup() -> (Vec<f64>, Vec<f64>, Octree) {
+    let points: Vec<f64> = Geometry::Plummer.points(3000, 4);
+    let q: Vec<f64> = (0..3000)
+        .map(|i| ((i * 37) % 101) as f64 / 101.0 - 0.5)
+        .collect();
+    let tree = Octree::new(&points, None, &TreeOptions::adaptive(40)).unwrap();
+    (points, q, tree)
+}
+
+fn tree_fmm(tree: Octree) -> TreeFmm<f64, Laplace3d, SvdM2l<f64>> {
+    let usage = m2l_usage(&tree);
+    let sources = tree.sorted_sources().to_vec();
+    let depth = tree.depth();
+    let local = LocalTree {
+        tree,
+        sources: &sources,
+        targets: None,
+        depth,
+        usage: &usage,
+    };
+    TreeFmm::new(
+        Laplace3d,
+        EvalMode::PotentialGradient,
+        &OperatorParams::new(5),
+        &SvdConfig::default(),
+        local,
+    )
+    .unwrap()
+}
+
+#[test]
+fn passes_one_at_a_time_equal_fmm_evaluate() {
+    let (points, q, tree) = setup();
+    let perm = tree.source_permutation().to_vec();
+    let fmm = FmmBuilder::new(&points)
+        .domain(*tree.domain())
+        .order(5)
+        .leaf_size(40)
+        .mode(EvalMode::PotentialGradient)
+        .build_svd()
+        .unwrap();
+    let want = fmm.evaluate(&q).unwrap();
+
+    let t = tree_fmm(tree);
+    let sorted_q: Vec<f64> = perm.iter().map(|&i| q[i]).collect();
+    let mut timings = EvalTimings::default();
+    let m = t.upward(&sorted_q, &mut timings).unwrap();
+    let mut levels = Vec::new();
+    let l = t
+        .downward(&sorted_q, &m, &mut timings, |level, range, checks| {
+            assert_eq!(checks.len(), t.n_surface() * range.len());
+            levels.push(level);
+        })
+        .unwrap();
+    assert_eq!(levels, (1..=t.tree().depth()).collect::<Vec<_>>());
+    let got = t.leaf_passes(&sorted_q, &m, &l, &mut timings).unwrap();
+    for (k, &i) in perm.iter().enumerate() {
+        for c in 0..4 {
+            let (g, w) = (got[4 * k + c], want[4 * i + c]);
+            assert!(
+                (g - w).abs() <= 1e-13 * w.abs().max(1.0),
+                "point {i}: {g} vs {w}"
+            );
+        }
+    }
+
+    // What the callback does to the checks reaches the result.
+    let l2 = t
+        .downward(&sorted_q, &m, &mut timings, |_, _, checks| {
+            checks.iter_mut().for_each(|x| *x *= 2.0)
+        })
+        .unwrap();
+    assert_ne!(l, l2);
+}
+
+#[test]
+fn wrong_lengths_are_errors() {
+    let (_, q, tree) = setup();
+    let t = tree_fmm(tree);
+    let mut timings = EvalTimings::default();
+    assert!(matches!(
+        t.upward(&q[1..], &mut timings),
+        Err(FmmError::ChargeCount { .. })
+    ));
+    let m = t.upward(&q, &mut timings).unwrap();
+    assert!(t.downward(&q, &m[1..], &mut timings, |_, _, _| {}).is_err());
+    assert!(t.leaf_passes(&q, &m, &m[1..], &mut timings).is_err());
+}
+
+#[test]
+fn an_order_out_of_range_is_an_error() {
+    let (_, _, tree) = setup();
+    let usage = m2l_usage(&tree);
+    let sources = tree.sorted_sources().to_vec();
+    let depth = tree.depth();
+    let local = LocalTree {
+        tree,
+        sources: &sources,
+        targets: None,
+        depth,
+        usage: &usage,
+    };
+    let r = TreeFmm::<f64, _, SvdM2l<f64>>::new(
+        Laplace3d,
+        EvalMode::Potential,
+        &OperatorParams::new(1),
+        &SvdConfig::default(),
+        local,
+    );
+    assert!(matches!(r, Err(FmmError::InvalidOrder { order: 1, .. })));
+}

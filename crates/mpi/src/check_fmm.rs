@@ -1,0 +1,270 @@
+//! The `fmm-check` subcommand: the distributed FMM against the
+//! single-machine FMM on the same tree and operators, for several
+//! geometries, kernels, M2L schemes and layouts of the points over the
+//! ranks; two charge vectors on one build; bad charges on one rank.
+
+use clap::Args;
+use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
+use ferrofmm_fmm::FmmBuilder;
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d};
+use ferrofmm_mpi::{
+    DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry, InputProblem,
+};
+use mpi::collective::SystemOperation;
+use mpi::topology::SimpleCommunicator;
+use mpi::traits::*;
+use rand::rngs::StdRng;
+use rand::{RngExt, SeedableRng};
+
+use crate::check::{list, shares};
+
+/// Arguments of `fmm-check`.
+#[derive(Args)]
+pub struct FmmCheckArgs {
+    /// Geometries (comma-separated) or `all`.
+    #[arg(long, default_value = "all")]
+    geometry: String,
+    /// Kernel and scheme pairs (comma-separated) or `all`: laplace-svd,
+    /// laplace-dense, laplace-fft, helmholtz-svd, helmholtz-fft.
+    #[arg(long, default_value = "all")]
+    method: String,
+    /// Layouts of the input points over the ranks (see `check`).
+    #[arg(long, default_value = "even,first-empty")]
+    layout: String,
+    /// Number of points (all ranks together).
+    #[arg(long, default_value_t = 3000)]
+    n: usize,
+    /// Leaf size (small, so that the coarse tree has V lists of its own).
+    #[arg(long, default_value_t = 10)]
+    leaf_size: usize,
+    /// Expansion order.
+    #[arg(long, default_value_t = 4)]
+    order: usize,
+    /// Largest relative L2 difference allowed (potential and gradient).
+    #[arg(long, default_value_t = 1e-12)]
+    tolerance: f64,
+    /// Seed of the points and charges.
+    #[arg(long, default_value_t = 11)]
+    seed: u64,
+}
+
+const METHODS: [&str; 5] = [
+    "laplace-svd",
+    "laplace-dense",
+    "laplace-fft",
+    "helmholtz-svd",
+    "helmholtz-fft",
+];
+
+/// Zero-mean charges, uniform in `[-0.5, 0.5)`.
+fn charges(n: usize, seed: u64) -> Vec<f64> {
+    let mut rng = StdRng::seed_from_u64(seed);
+    (0..n).map(|_| rng.random::<f64>() - 0.5).collect()
+}
+
+/// Relative L2 differences (potential, gradient) over all ranks, of
+/// `got[i]` (4 values per point) against `want[ids[i]]`.
+fn differences(world: &SimpleCommunicator, got: &[f64], want: &[f64], ids: &[usize]) -> [f64; 2] {
+    let mut s = [0.0f64; 4];
+    for (i, &id) in ids.iter().enumerate() {
+        for c in 0..4 {
+            let (g, w) = (got[4 * i + c], want[4 * id + c]);
+            let k = usize::from(c > 0);
+            s[2 * k] += (g - w) * (g - w);
+            s[2 * k + 1] += w * w;
+        }
+    }
+    let mut all = [0.0f64; 4];
+    world.all_reduce_into(&s[..], &mut all[..], SystemOperation::sum());
+    [
+        (all[0] / all[1].max(f64::MIN_POSITIVE)).sqrt(),
+        (all[2] / all[3].max(f64::MIN_POSITIVE)).sqrt(),
+    ]
+}
+
+/// One case: returns the worst difference over the evaluations, or why
+/// it failed.
+fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
+    world: &SimpleCommunicator,
+    all: &[f64],
+    layout: &str,
+    a: &FmmCheckArgs,
+    kernel: K,
+    config: S::Config,
+) -> Result<f64, String> {
+    let n = all.len() / 3;
+    let all_shares = shares(layout, n, world.size() as usize);
+    let share = &all_shares[world.rank() as usize];
+    let mine: Vec<f64> = share
+        .iter()
+        .flat_map(|&i| all[3 * i..3 * i + 3].to_vec())
+        .collect();
+    let dtree = DistributedTree::build(world, &mine, &DistOptions::adaptive(a.leaf_size))
+        .map_err(|e| e.to_string())?;
+    let options = DistFmmOptions {
+        order: a.order,
+        mode: EvalMode::PotentialGradient,
+    };
+    let dfmm = DistributedFmm::<f64, K, S>::build(world, &dtree, kernel.clone(), &config, &options)
+        .map_err(|e| e.to_string())?;
+    let single = FmmBuilder::new(all)
+        .kernel(kernel)
+        .domain(dtree.domain)
+        .leaf_size(a.leaf_size)
+        .order(a.order)
+        .mode(EvalMode::PotentialGradient)
+        .build_with::<S>(config)
+        .map_err(|e| e.to_string())?;
+    if single.n_clusters() != 1 {
+        return Err("the single-machine FMM split the points".into());
+    }
+    let mut worst = 0.0f64;
+    // Two charge vectors on one build, in input order; then one in tree order.
+    for (k, seed) in [a.seed + 100, a.seed + 200].into_iter().enumerate() {
+        let q = charges(n, seed);
+        let want = single.evaluate(&q).map_err(|e| e.to_string())?;
+        let my_q: Vec<f64> = share.iter().map(|&i| q[i]).collect();
+        let (got, _) = dfmm.evaluate(world, &my_q).map_err(|e| e.to_string())?;
+        let d = differences(world, &got, &want, share);
+        worst = worst.max(d[0]).max(d[1]);
+        if k == 1 {
+            // Tree order: global ids index the concatenation of the shares.
+            let order: Vec<usize> = all_shares.concat();
+            let ids: Vec<usize> = dtree
+                .points
+                .ids
+                .iter()
+                .map(|&id| order[id as usize])
+                .collect();
+            let q_sorted: Vec<f64> = ids.iter().map(|&i| q[i]).collect();
+            let (got, _) = dfmm
+                .evaluate_sorted(world, &q_sorted)
+                .map_err(|e| e.to_string())?;
+            let d = differences(world, &got, &want, &ids);
+            worst = worst.max(d[0]).max(d[1]);
+        }
+    }
+    Ok(worst)
+}
+
+/// Runs every case; prints `FMM CHECK PASSED` (rank 0) when all agree.
+pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
+    let me = world.rank() as usize;
+    let size = world.size() as usize;
+    let geoms = list(&a.geometry, &Geometry::ALL.map(Geometry::name));
+    let methods = list(&a.method, &METHODS);
+    let layouts = list(&a.layout, &["even", "first-empty"]);
+    let mut failures = 0;
+    for g in &geoms {
+        let Some(geom) = Geometry::from_name(g) else {
+            eprintln!("unknown geometry {g}");
+            return 2;
+        };
+        let all = geom.points(a.n, a.seed);
+        for layout in &layouts {
+            for m in &methods {
+                let helmholtz = ModifiedHelmholtz3d::new(3.0).expect("a valid wavenumber");
+                let r = match m.as_str() {
+                    "laplace-svd" => case::<_, SvdM2l<f64>>(
+                        world,
+                        &all,
+                        layout,
+                        a,
+                        Laplace3d,
+                        Default::default(),
+                    ),
+                    "laplace-dense" => case::<_, DenseM2l<f64>>(
+                        world,
+                        &all,
+                        layout,
+                        a,
+                        Laplace3d,
+                        Default::default(),
+                    ),
+                    "laplace-fft" => case::<_, FftM2l<f64>>(
+                        world,
+                        &all,
+                        layout,
+                        a,
+                        Laplace3d,
+                        Default::default(),
+                    ),
+                    "helmholtz-svd" => case::<_, SvdM2l<f64>>(
+                        world,
+                        &all,
+                        layout,
+                        a,
+                        helmholtz,
+                        Default::default(),
+                    ),
+                    "helmholtz-fft" => case::<_, FftM2l<f64>>(
+                        world,
+                        &all,
+                        layout,
+                        a,
+                        helmholtz,
+                        Default::default(),
+                    ),
+                    other => Err(format!("unknown method {other}")),
+                };
+                let ok = matches!(r, Ok(d) if d <= a.tolerance);
+                failures += usize::from(!ok);
+                if me == 0 {
+                    println!(
+                        "{} {g} {layout} {m} n={} R={size}: {r:?}",
+                        if ok { "ok  " } else { "FAIL" },
+                        a.n
+                    );
+                }
+            }
+        }
+    }
+    // Bad charges on the last rank: the same error everywhere.
+    {
+        let all = Geometry::Uniform.points(a.n, a.seed);
+        let share = &shares("even", a.n, size)[me];
+        let mine: Vec<f64> = share
+            .iter()
+            .flat_map(|&i| all[3 * i..3 * i + 3].to_vec())
+            .collect();
+        let bad = DistributedTree::build(world, &mine, &DistOptions::adaptive(a.leaf_size))
+            .map_err(|e| e.to_string())
+            .and_then(|t| {
+                let f = DistributedFmm::<f64, _, SvdM2l<f64>>::build(
+                    world,
+                    &t,
+                    Laplace3d,
+                    &Default::default(),
+                    &DistFmmOptions {
+                        order: a.order,
+                        mode: EvalMode::Potential,
+                    },
+                )
+                .map_err(|e| e.to_string())?;
+                let mut q = vec![0.1; share.len()];
+                if me + 1 == size {
+                    q.push(1.0);
+                }
+                Ok(f.evaluate(world, &q).err())
+            });
+        let want = DistError::BadInput {
+            rank: size as i32 - 1,
+            problem: InputProblem::BadCharges,
+        };
+        let ok = matches!(&bad, Ok(Some(e)) if *e == want);
+        let mut all_ok = 0u32;
+        world.all_reduce_into(&u32::from(!ok), &mut all_ok, SystemOperation::sum());
+        if all_ok != 0 {
+            failures += 1;
+            eprintln!("rank {me}: bad charges gave {bad:?}");
+        }
+    }
+    if me == 0 {
+        if failures == 0 {
+            println!("FMM CHECK PASSED");
+        } else {
+            println!("FMM CHECK FAILED ({failures} cases)");
+        }
+    }
+    i32::from(failures != 0)
+}

@@ -1,0 +1,377 @@
+//! The distributed FMM: the single-machine passes of `ferrofmm-fmm`
+//! ([`TreeFmm`]) run on each rank's locally essential tree, with the
+//! communication between them.
+//!
+//! # One evaluation
+//!
+//! With `n` equivalent points per box and every pass linear in its inputs:
+//!
+//! 1. **Charges to owners** (`dfmm/route.rs`): each rank's charges, given in its
+//!    input order, go to the ranks that hold the points (skipped by
+//!    [`DistributedFmm::evaluate_sorted`]).
+//! 2. **Upward** (P2M, M2M) on the rank's tree with the ghost points'
+//!    charges set to zero: the multipoles of the rank's own boxes are
+//!    complete (all their points are here); those of the coarse boxes (which
+//!    straddle cuts) are this rank's share.
+//! 3. **Ghost exchange** (`dfmm/ghost_plan.rs`): each rank sends the multipoles
+//!    of the boxes that others' V and W lists reference and the charges of
+//!    the leaves that others' U and X lists reference, point to point, only
+//!    to the ranks that asked when the FMM was built.
+//! 4. **Coarse multipoles**: one `all_reduce` (sum) of the coarse boxes'
+//!    multipoles (`n` values each): `u_C = sum_r u_C^(r)` because M2M is
+//!    linear, so every rank holds the multipoles of the whole coarse tree.
+//! 5. **Downward** (M2L, P2L, L2L), level by level: a coarse box's check
+//!    potential `c_C` is summed from V- and X-list entries of all ranks, so
+//!    each rank adds the part from its own boxes (and one rank, in turn,
+//!    the coarse-to-coarse part), and an `all_reduce` (sum) of the coarse
+//!    boxes' checks of the level makes them whole before
+//!    `d_C = DC2E c_C + L2L d_parent` (replicated on every rank: the coarse
+//!    tree is small; see docs/distributed.md for why not gathered on one
+//!    rank). The rank's own boxes then get their locals from whole parents.
+//! 6. **Leaf passes** (L2P, M2P, P2P) at the rank's leaves.
+//! 7. **Values back** to the ranks that gave the points, in their order.
+//!
+//! The tree, the ghost points, the plans and the operators are made once
+//! ([`DistributedFmm::build`]); each evaluation only moves multipoles,
+//! charges and check potentials. The result equals the single-machine
+//! [`ferrofmm_fmm::Fmm`] on the same tree (built with the same domain,
+//! which keeps it one tree: the distributed FMM does not split
+//! far-separated clusters into separate trees) up to rounding.
+
+mod ghost_plan;
+mod local_tree;
+mod route;
+mod stats;
+
+use std::time::Instant;
+
+use ferrofmm_field::{M2lScheme, M2lUsage, N_TRANSFER_VECTORS, OperatorParams};
+use ferrofmm_fmm::{EvalTimings, LocalTree, TreeFmm, m2l_usage};
+use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use mpi::collective::SystemOperation;
+use mpi::traits::*;
+
+use crate::DistributedTree;
+use crate::error::{DistError, InputProblem, agree, agree_message};
+use ghost_plan::GhostPlan;
+use local_tree::Kind;
+use route::Route;
+pub use stats::{EVAL_PHASES, EvalStats, SetupStats};
+
+/// Parameters of a distributed FMM (the same on every rank).
+#[derive(Clone, Debug)]
+pub struct DistFmmOptions {
+    /// Expansion order `p`.
+    pub order: usize,
+    /// Potentials, or potentials and gradients.
+    pub mode: EvalMode,
+}
+
+/// One rank's part of a distributed FMM, built once for fixed points and
+/// evaluated for any number of charge vectors (see the [module docs](self)).
+pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
+    fmm: TreeFmm<T, K, S>,
+    plan: GhostPlan,
+    route: Route,
+    /// Merged source position of each of this rank's points (tree order).
+    own_pos: Vec<usize>,
+    /// Merged source position of each ghost point.
+    ghost_pos: Vec<usize>,
+    /// Indices of the coarse boxes in the local tree, in key order (the
+    /// same sequence on every rank).
+    coarse: Vec<usize>,
+    n_owned: usize,
+    setup: SetupStats,
+}
+
+impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
+    /// Builds the FMM on a distributed tree (a collective): the ghost
+    /// points and exchange plans, the routing of charges and values, this
+    /// rank's locally essential tree, and the operators of the global tree
+    /// (every rank precomputes the same ones: the same domain, depth and
+    /// transfer vectors, agreed by two `all_reduce`s).
+    ///
+    /// # Errors
+    /// The same [`DistError`] on every rank: options that differ between
+    /// ranks, or an FMM setup error on any rank (order out of range,
+    /// ill-conditioned operators, not enough memory).
+    pub fn build<C: Communicator>(
+        comm: &C,
+        dtree: &DistributedTree,
+        kernel: K,
+        config: &S::Config,
+        options: &DistFmmOptions,
+    ) -> Result<Self, DistError> {
+        let me = comm.rank() as usize;
+        let mut setup = SetupStats::default();
+        let mine = [
+            options.order as u64,
+            options.mode.values_per_target() as u64,
+        ];
+        let mut all = vec![0u64; 2 * comm.size() as usize];
+        comm.all_gather_into(&mine[..], &mut all[..]);
+        let mismatch = all.chunks_exact(2).position(|o| o != mine);
+        agree(
+            comm,
+            mismatch.map_or(Ok(()), |_| Err(InputProblem::MismatchedOptions)),
+        )?;
+
+        let t = Instant::now();
+        let kinds = local_tree::kinds(dtree);
+        let plan = GhostPlan::make(comm, dtree, &kinds);
+        let route = Route::make(comm, dtree);
+        let plan = agree_message(comm, plan)?;
+        setup.bytes_sent = plan.setup_bytes + route.setup_bytes;
+        setup.ghost_points = plan.n_points();
+        (setup.send_partners, setup.recv_partners) = plan.partners();
+        setup.seconds[0] = t.elapsed().as_secs_f64();
+
+        let t = Instant::now();
+        let lists = local_tree::rows(dtree, &kinds, me, comm.size() as usize);
+        let own_codes = &dtree.points.codes;
+        let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
+        let tree = local_tree::octree(dtree, lists, &codes, own_codes);
+        let tree = agree_message(comm, tree)?;
+        let mut sources = vec![0.0; 3 * codes.len()];
+        for (k, &p) in own_pos.iter().enumerate() {
+            sources[3 * p..3 * p + 3].copy_from_slice(&dtree.points.coords[3 * k..3 * k + 3]);
+        }
+        for (g, &p) in ghost_pos.iter().enumerate() {
+            sources[3 * p..3 * p + 3].copy_from_slice(&plan.coords[3 * g..3 * g + 3]);
+        }
+        let coarse: Vec<usize> = (0..kinds.len())
+            .filter(|&b| kinds[b] == Kind::Coarse)
+            .collect();
+        setup.boxes = tree.n_boxes();
+        setup.seconds[1] = t.elapsed().as_secs_f64();
+
+        // The global tree's depth and M2L usage: every rank builds the
+        // operators of the whole tree.
+        let t = Instant::now();
+        let (depth, usage) = global_usage(comm, &tree);
+        let params = OperatorParams::new(options.order);
+        let local = LocalTree {
+            tree,
+            sources: &sources,
+            targets: Some(&dtree.points.coords),
+            depth,
+            usage: &usage,
+        };
+        let fmm = TreeFmm::new(kernel, options.mode, &params, config, local);
+        let fmm = agree_message(comm, fmm.map_err(|e| e.to_string()))?;
+        setup.seconds[2] = t.elapsed().as_secs_f64();
+        Ok(DistributedFmm {
+            fmm,
+            plan,
+            route,
+            own_pos,
+            ghost_pos,
+            coarse,
+            n_owned: dtree.points.len(),
+            setup,
+        })
+    }
+
+    /// Potentials (and gradients) at this rank's input points, in its input
+    /// order, for one charge per input point (a collective: every rank
+    /// passes its own charges). `values_per_target` values per point, as
+    /// [`ferrofmm_fmm::Fmm::evaluate`].
+    ///
+    /// # Errors
+    /// [`DistError::BadInput`] with [`InputProblem::BadCharges`] on every
+    /// rank when some rank's charges are not one finite value per input
+    /// point.
+    pub fn evaluate<C: Communicator>(
+        &self,
+        comm: &C,
+        charges: &[T],
+    ) -> Result<(Vec<T>, EvalStats), DistError> {
+        let ok = charges.len() == self.route.n_input && charges.iter().all(|q| q.is_finite());
+        agree(
+            comm,
+            if ok {
+                Ok(())
+            } else {
+                Err(InputProblem::BadCharges)
+            },
+        )?;
+        let mut stats = EvalStats::default();
+        let t = Instant::now();
+        let (own, bytes) = self.route.charges_in(comm, charges, self.n_owned);
+        stats.add(0, t, bytes);
+        let (values, inner) = self.evaluate_sorted_unchecked(comm, &own);
+        stats.merge(&inner);
+        let t = Instant::now();
+        let (out, bytes) =
+            self.route
+                .values_out(comm, &values, self.fmm.mode().values_per_target());
+        stats.add(7, t, bytes);
+        Ok((out, stats))
+    }
+
+    /// As [`DistributedFmm::evaluate`] with charges and values in the
+    /// order of this rank's points in the tree (`dtree.points`): no routing,
+    /// only the FMM's own communication (what an iterative solver that keeps
+    /// its vectors distributed along the tree needs).
+    ///
+    /// # Errors
+    /// As [`DistributedFmm::evaluate`], for one charge per tree point.
+    pub fn evaluate_sorted<C: Communicator>(
+        &self,
+        comm: &C,
+        charges: &[T],
+    ) -> Result<(Vec<T>, EvalStats), DistError> {
+        let ok = charges.len() == self.n_owned && charges.iter().all(|q| q.is_finite());
+        agree(
+            comm,
+            if ok {
+                Ok(())
+            } else {
+                Err(InputProblem::BadCharges)
+            },
+        )?;
+        Ok(self.evaluate_sorted_unchecked(comm, charges))
+    }
+
+    fn evaluate_sorted_unchecked<C: Communicator>(
+        &self,
+        comm: &C,
+        own: &[T],
+    ) -> (Vec<T>, EvalStats) {
+        let mut stats = EvalStats::default();
+        let n = self.fmm.n_surface();
+        let mut q = vec![T::ZERO; self.own_pos.len() + self.ghost_pos.len()];
+        for (&p, &x) in self.own_pos.iter().zip(own) {
+            q[p] = x;
+        }
+        let mut timings = EvalTimings::default();
+        let t = Instant::now();
+        let c = stats::cpu_seconds();
+        let mut multipoles = self
+            .fmm
+            .upward(&q, &mut timings)
+            .expect("charge vector sized for the local tree");
+        stats.add(1, t, 0);
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c;
+
+        let t = Instant::now();
+        let mut ghost_q = vec![T::ZERO; self.ghost_pos.len()];
+        let bytes = self
+            .plan
+            .exchange(comm, n, &mut multipoles, own, &mut ghost_q);
+        for (&p, &x) in self.ghost_pos.iter().zip(&ghost_q) {
+            q[p] = x;
+        }
+        stats.add(2, t, bytes);
+
+        let t = Instant::now();
+        let bytes = sum_columns(comm, n, &self.coarse, &mut multipoles);
+        stats.add(3, t, bytes);
+
+        let t = Instant::now();
+        let c = stats::cpu_seconds();
+        let mut coarse_cpu = 0.0;
+        let mut coarse_seconds = 0.0;
+        let mut coarse_bytes = 0;
+        let mut next = 0;
+        let locals = self
+            .fmm
+            .downward(&q, &multipoles, &mut timings, |_, range, checks| {
+                let t = Instant::now();
+                let c = stats::cpu_seconds();
+                while next < self.coarse.len() && self.coarse[next] < range.start {
+                    next += 1;
+                }
+                let start = next;
+                while next < self.coarse.len() && range.contains(&self.coarse[next]) {
+                    next += 1;
+                }
+                let here: Vec<usize> = self.coarse[start..next]
+                    .iter()
+                    .map(|&b| b - range.start)
+                    .collect();
+                if !here.is_empty() {
+                    coarse_bytes += sum_columns(comm, n, &here, checks);
+                }
+                coarse_seconds += t.elapsed().as_secs_f64();
+                coarse_cpu += stats::cpu_seconds() - c;
+            })
+            .expect("vectors sized for the local tree");
+        stats.seconds[4] += t.elapsed().as_secs_f64() - coarse_seconds;
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c - coarse_cpu;
+        stats.seconds[5] += coarse_seconds;
+        stats.bytes_sent[5] += coarse_bytes;
+
+        let t = Instant::now();
+        let c = stats::cpu_seconds();
+        let values = self
+            .fmm
+            .leaf_passes(&q, &multipoles, &locals, &mut timings)
+            .expect("vectors sized for the local tree");
+        stats.add(6, t, 0);
+        stats.compute_cpu_seconds += stats::cpu_seconds() - c;
+        stats.passes = timings;
+        (values, stats)
+    }
+
+    /// Setup figures of this rank.
+    pub fn setup_stats(&self) -> &SetupStats {
+        &self.setup
+    }
+
+    /// The single-machine passes and operators this rank runs.
+    pub fn local(&self) -> &TreeFmm<T, K, S> {
+        &self.fmm
+    }
+
+    /// Number of points this rank holds in the tree.
+    pub fn n_owned(&self) -> usize {
+        self.n_owned
+    }
+}
+
+/// Sums the columns `cols` (`n` values each) of `data` over all ranks, in
+/// place (one `all_reduce`); returns the bytes this rank contributed.
+fn sum_columns<C: Communicator, T: Real>(
+    comm: &C,
+    n: usize,
+    cols: &[usize],
+    data: &mut [T],
+) -> u64 {
+    if cols.is_empty() || comm.size() == 1 {
+        return 0;
+    }
+    let mine: Vec<f64> = cols
+        .iter()
+        .flat_map(|&b| data[n * b..n * (b + 1)].iter().map(|x| x.to_f64()))
+        .collect();
+    let mut sum = vec![0.0f64; mine.len()];
+    comm.all_reduce_into(&mine[..], &mut sum[..], SystemOperation::sum());
+    for (&b, col) in cols.iter().zip(sum.chunks_exact(n)) {
+        for (x, &s) in data[n * b..n * (b + 1)].iter_mut().zip(col) {
+            *x = T::from_f64(s);
+        }
+    }
+    8 * mine.len() as u64
+}
+
+/// The global tree's depth and the union of all ranks' M2L usage.
+fn global_usage<C: Communicator>(comm: &C, tree: &ferrofmm_tree::Octree) -> (u32, M2lUsage) {
+    let mut depth = 0u32;
+    comm.all_reduce_into(&tree.depth(), &mut depth, SystemOperation::max());
+    let local = m2l_usage(tree);
+    let levels = depth as usize + 1;
+    let flags: Vec<u8> = (0..levels)
+        .flat_map(|l| (0..N_TRANSFER_VECTORS).map(move |v| (l, v)))
+        .map(|(l, v)| u8::from(local.is_used(l as u32, v)))
+        .collect();
+    let mut all = vec![0u8; flags.len()];
+    comm.all_reduce_into(&flags[..], &mut all[..], SystemOperation::max());
+    let mut usage = M2lUsage::none();
+    for (i, &f) in all.iter().enumerate() {
+        if f != 0 {
+            usage.mark((i / N_TRANSFER_VECTORS) as u32, i % N_TRANSFER_VECTORS);
+        }
+    }
+    (depth, usage)
+}

@@ -1,0 +1,161 @@
+//! Per-rank figures of the `eval` command, gathered on every rank, and
+//! their report (a table, or one JSON object) on rank 0.
+
+use ferrofmm_field::M2lScheme;
+use ferrofmm_kernels::{Laplace3d, Real};
+use ferrofmm_mpi::{DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, PHASES};
+
+use crate::eval::EvalArgs;
+
+/// Figures of one rank, gathered on all: points, ghost points, boxes of the
+/// local tree, send and receive partners, tree phase seconds (6) and bytes
+/// (6), FMM setup seconds (3) and bytes, evaluation phase seconds (8) and
+/// bytes (8), operator seconds (8: P2M .. P2P), and the CPU seconds of
+/// the compute phases ([`EvalStats::compute_cpu_seconds`]).
+pub(crate) const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
+
+pub(crate) fn figures<T: Real, S: M2lScheme<T>>(
+    dtree: &DistributedTree,
+    dfmm: &DistributedFmm<T, Laplace3d, S>,
+    stats: &EvalStats,
+) -> Vec<f64> {
+    let s = dfmm.setup_stats();
+    let mut v = vec![
+        dtree.points.len() as f64,
+        s.ghost_points as f64,
+        s.boxes as f64,
+        s.send_partners as f64,
+        s.recv_partners as f64,
+    ];
+    v.extend(dtree.stats.seconds);
+    v.extend(dtree.stats.bytes_sent.map(|b| b as f64));
+    v.extend(s.seconds);
+    v.push(s.bytes_sent as f64);
+    v.extend(stats.seconds);
+    v.extend(stats.bytes_sent.map(|b| b as f64));
+    v.extend(
+        stats.passes.operators()[..8]
+            .iter()
+            .map(|o| o.1.as_secs_f64()),
+    );
+    v
+}
+
+/// Max over mean of column `i` of the per-rank figures.
+fn imbalance(rows: &[&[f64]], f: impl Fn(&[f64]) -> f64) -> f64 {
+    let v: Vec<f64> = rows.iter().map(|r| f(r)).collect();
+    let mean = v.iter().sum::<f64>() / v.len() as f64;
+    let max = v.iter().copied().fold(0.0, f64::max);
+    if mean > 0.0 { max / mean } else { 1.0 }
+}
+
+pub(crate) fn report(
+    a: &EvalArgs,
+    all: &[f64],
+    size: usize,
+    read_s: f64,
+    errors: Option<[f64; 2]>,
+) {
+    let rows: Vec<&[f64]> = all.chunks_exact(FIGURES).collect();
+    let eval_s = |r: &[f64]| r[21..29].iter().sum::<f64>();
+    let points_imb = imbalance(&rows, |r| r[0]);
+    let time_imb = imbalance(&rows, eval_s);
+    let op_names = ["P2M", "M2M", "M2L", "P2L", "L2L", "L2P", "M2P", "P2P"];
+    let per_rank: Vec<serde_json::Value> = rows
+        .iter()
+        .enumerate()
+        .map(|(r, x)| {
+            let named =
+                |names: &[&str], vals: &[f64]| -> serde_json::Map<String, serde_json::Value> {
+                    names
+                        .iter()
+                        .zip(vals)
+                        .map(|(n, v)| (n.to_string(), serde_json::json!(v)))
+                        .collect()
+                };
+            serde_json::json!({
+                "rank": r,
+                "points": x[0],
+                "ghost_points": x[1],
+                "local_tree_boxes": x[2],
+                "send_partners": x[3],
+                "recv_partners": x[4],
+                "tree_seconds": named(&PHASES, &x[5..11]),
+                "tree_bytes_sent": named(&PHASES, &x[11..17]),
+                "fmm_setup_seconds": named(&["plans", "local tree", "operators"], &x[17..20]),
+                "fmm_setup_bytes_sent": x[20],
+                "eval_seconds": named(&EVAL_PHASES, &x[21..29]),
+                "eval_bytes_sent": named(&EVAL_PHASES, &x[29..37]),
+                "eval_total_seconds": eval_s(x),
+                "eval_total_bytes_sent": x[29..37].iter().sum::<f64>(),
+                "operator_seconds": named(&op_names, &x[37..45]),
+                "compute_cpu_seconds": x[45],
+            })
+        })
+        .collect();
+    if a.json {
+        let j = serde_json::json!({
+            "command": "eval",
+            "ranks": size,
+            "n": rows.iter().map(|r| r[0]).sum::<f64>(),
+            "order": a.order,
+            "leaf_size": a.leaf_size,
+            "scheme": a.scheme,
+            "precision": a.precision,
+            "gradients": a.gradients,
+            "input": a.generate.clone().unwrap_or_else(|| "files".into()),
+            "threads_per_rank": rayon_threads(),
+            "read_seconds": read_s,
+            "imbalance_points": points_imb,
+            "imbalance_eval_seconds": time_imb,
+            "eval_seconds_max": rows.iter().map(|r| eval_s(r)).fold(0.0, f64::max),
+            "compute_cpu_seconds_max": rows.iter().map(|r| r[45]).fold(0.0, f64::max),
+            "compute_cpu_seconds_total": rows.iter().map(|r| r[45]).sum::<f64>(),
+            "check": errors.map(|e| serde_json::json!({
+                "samples": a.check,
+                "potential_error": e[0],
+                "gradient_error": if a.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
+            })),
+            "per_rank": per_rank,
+        });
+        println!("{j}");
+        return;
+    }
+    println!(
+        "{size} ranks, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
+        a.order, a.leaf_size, a.scheme
+    );
+    if let Some(e) = errors {
+        println!(
+            "check against direct summation at {} points: potential error {:.3e}{}",
+            a.check,
+            e[0],
+            if a.gradients {
+                format!(", gradient error {:.3e}", e[1])
+            } else {
+                String::new()
+            }
+        );
+    }
+    println!("rank   points   ghosts  eval s   MB sent  (ghosts, coarse, routing)  setup s");
+    for (r, x) in rows.iter().enumerate() {
+        println!(
+            "{r:>4} {:>8} {:>8} {:>7.3} {:>9.3}  ({:.3}, {:.3}, {:.3})  {:.3}",
+            x[0],
+            x[1],
+            eval_s(x),
+            x[29..37].iter().sum::<f64>() / 1e6,
+            x[31] / 1e6,
+            (x[32] + x[34]) / 1e6,
+            (x[29] + x[36]) / 1e6,
+            x[17..20].iter().sum::<f64>()
+        );
+    }
+}
+
+fn rayon_threads() -> usize {
+    std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
+}
