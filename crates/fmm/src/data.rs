@@ -59,10 +59,11 @@ impl Geometry {
         }
     }
 
-    /// Parse a name given by [`Geometry::name`] (`clustered` is accepted for Plummer).
+    /// Parse a name given by [`Geometry::name`] (`uniform` is accepted for
+    /// the cube, `clustered` for Plummer).
     pub fn from_name(name: &str) -> Option<Geometry> {
         match name {
-            "cube" => Some(Geometry::Cube),
+            "cube" | "uniform" => Some(Geometry::Cube),
             "sphere" => Some(Geometry::Sphere),
             "plummer" | "clustered" => Some(Geometry::Plummer),
             "two-clusters" | "twoclusters" => Some(Geometry::TwoClusters),

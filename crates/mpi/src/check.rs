@@ -4,7 +4,9 @@
 use std::collections::BTreeSet;
 
 use clap::Args;
-use ferrofmm_mpi::{DistError, DistOptions, DistributedTree, Geometry, InputProblem};
+use ferrofmm_mpi::{
+    CHECK_GEOMETRIES, DistError, DistOptions, DistributedTree, Geometry, InputProblem,
+};
 use ferrofmm_tree::{MortonKey, Octree, TreeOptions};
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
@@ -207,7 +209,7 @@ fn compare(
 pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
     let me = world.rank() as usize;
     let size = world.size() as usize;
-    let geoms: Vec<String> = list(&a.geometry, &Geometry::ALL.map(Geometry::name));
+    let geoms: Vec<String> = list(&a.geometry, &CHECK_GEOMETRIES.map(Geometry::name));
     let layouts = list(&a.layout, &LAYOUTS);
     let mut failures = 0u32;
     for gname in &geoms {
@@ -216,7 +218,7 @@ pub fn run(world: &SimpleCommunicator, a: &CheckArgs) -> i32 {
             return 2;
         };
         for layout in &layouts {
-            let mut points = geom.points(a.n, a.seed);
+            let mut points = geom.points::<f64>(a.n, a.seed);
             if layout == "duplicates" {
                 // Every point four times (whole leaves of one cell).
                 let base = points[..3 * (a.n / 4).max(1).min(a.n)].to_vec();
@@ -325,7 +327,7 @@ pub fn run_bad(world: &SimpleCommunicator, a: &BadArgs) -> i32 {
     let me = world.rank() as usize;
     let size = world.size() as usize;
     let last = me + 1 == size;
-    let mut points = Geometry::Uniform.points(1000, 3 + me as u64);
+    let mut points = Geometry::Cube.points::<f64>(1000, 3 + me as u64);
     let mut leaf = 16;
     let expected = match a.case.as_str() {
         "nan" => {

@@ -8,13 +8,12 @@ use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::FmmBuilder;
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d};
 use ferrofmm_mpi::{
-    DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry, InputProblem,
+    CHECK_GEOMETRIES, DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree,
+    Geometry, InputProblem,
 };
 use mpi::collective::SystemOperation;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
 
 use crate::check::{list, shares};
 
@@ -56,10 +55,9 @@ const METHODS: [&str; 5] = [
     "helmholtz-fft",
 ];
 
-/// Zero-mean charges, uniform in `[-0.5, 0.5)`.
+/// Zero-mean charges, uniform in `[-0.5, 0.5)` (`ferrofmm_fmm::charges`).
 fn charges(n: usize, seed: u64) -> Vec<f64> {
-    let mut rng = StdRng::seed_from_u64(seed);
-    (0..n).map(|_| rng.random::<f64>() - 0.5).collect()
+    ferrofmm_fmm::charges(n, seed)
 }
 
 /// Relative L2 differences (potential, gradient) over all ranks, of
@@ -151,7 +149,7 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
 pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
     let me = world.rank() as usize;
     let size = world.size() as usize;
-    let geoms = list(&a.geometry, &Geometry::ALL.map(Geometry::name));
+    let geoms = list(&a.geometry, &CHECK_GEOMETRIES.map(Geometry::name));
     let methods = list(&a.method, &METHODS);
     let layouts = list(&a.layout, &["even", "first-empty"]);
     let mut failures = 0;
@@ -160,7 +158,7 @@ pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
             eprintln!("unknown geometry {g}");
             return 2;
         };
-        let all = geom.points(a.n, a.seed);
+        let all = geom.points::<f64>(a.n, a.seed);
         for layout in &layouts {
             for m in &methods {
                 let helmholtz = ModifiedHelmholtz3d::new(3.0).expect("a valid wavenumber");
@@ -221,7 +219,7 @@ pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
     }
     // Bad charges on the last rank: the same error everywhere.
     {
-        let all = Geometry::Uniform.points(a.n, a.seed);
+        let all = Geometry::Cube.points::<f64>(a.n, a.seed);
         let share = &shares("even", a.n, size)[me];
         let mine: Vec<f64> = share
             .iter()

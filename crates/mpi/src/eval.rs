@@ -17,8 +17,6 @@ use crate::eval_io::{my_rows, read_slice, write_out};
 use crate::eval_report::{FIGURES, figures, report};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
-use rand::rngs::StdRng;
-use rand::{RngExt, SeedableRng};
 
 /// Arguments of `eval`.
 #[derive(Args)]
@@ -81,9 +79,8 @@ fn inputs(a: &EvalArgs, me: usize, size: usize) -> Result<(Vec<f64>, Vec<f64>), 
         let geom = Geometry::from_name(g).ok_or_else(|| format!("unknown geometry {g}"))?;
         let r = my_rows(a.n as u64, me, size);
         let n = (r.end - r.start) as usize;
-        let points = geom.points(n, 1000 + me as u64);
-        let mut rng = StdRng::seed_from_u64(2000 + me as u64);
-        let q = (0..n).map(|_| rng.random::<f64>() - 0.5).collect();
+        let points = geom.points::<f64>(n, 1000 + me as u64);
+        let q = ferrofmm_fmm::charges(n, 2000 + me as u64);
         return Ok((points, q));
     }
     let (Some(s), Some(c)) = (&a.sources, &a.charges) else {

@@ -76,29 +76,8 @@ pub(crate) fn sparse_exchange<C: Communicator>(
     }
     let mut incoming = vec![0u64; size];
     comm.all_to_all_into(&counts[..], &mut incoming[..]);
-    let mut received = Vec::new();
-    scope(|sc| {
-        let requests: Vec<_> = send
-            .iter()
-            .map(|(r, w)| {
-                comm.process_at_rank(*r as i32)
-                    .immediate_send_with_tag(sc, &w[..], tag)
-            })
-            .collect();
-        for (r, &n) in incoming.iter().enumerate() {
-            if n > 0 {
-                let (words, _) = comm
-                    .process_at_rank(r as i32)
-                    .receive_vec_with_tag::<u64>(tag);
-                received.push((r, words));
-            }
-        }
-        for q in requests {
-            q.wait();
-        }
-    });
-    let bytes = send.iter().map(|(_, w)| 8 * w.len() as u64).sum();
-    (received, bytes)
+    let from: Vec<usize> = (0..size).filter(|&r| incoming[r] > 0).collect();
+    planned_exchange(comm, send, &from, tag)
 }
 
 /// Point-to-point exchange whose pattern both sides already know (a plan

@@ -67,7 +67,7 @@ mod tree;
 pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
 pub use error::{DistError, InputProblem, agree_message};
 pub use ghosts::{Ghost, GhostLayer};
-pub use inputs::Geometry;
+pub use inputs::{CHECK_GEOMETRIES, Geometry};
 pub use sort::LocalPoints;
 pub use stats::{BuildStats, PHASES};
 pub use tree::{DistOptions, DistributedTree};

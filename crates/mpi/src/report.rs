@@ -75,7 +75,7 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
         (None, Some(g)) => match Geometry::from_name(g) {
             Some(g) => {
                 let n = (me + 1) * a.n / size - me * a.n / size;
-                g.points(n, 1000 + me as u64)
+                g.points::<f64>(n, 1000 + me as u64)
             }
             None => {
                 eprintln!("unknown geometry {g}");

@@ -186,15 +186,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         comm: &C,
         charges: &[T],
     ) -> Result<(Vec<T>, EvalStats), DistError> {
-        let ok = charges.len() == self.route.n_input && charges.iter().all(|q| q.is_finite());
-        agree(
-            comm,
-            if ok {
-                Ok(())
-            } else {
-                Err(InputProblem::BadCharges)
-            },
-        )?;
+        agree_on_charges(comm, charges, self.route.n_input)?;
         let mut stats = EvalStats::default();
         let t = Instant::now();
         let (own, bytes) = self.route.charges_in(comm, charges, self.n_owned);
@@ -221,15 +213,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         comm: &C,
         charges: &[T],
     ) -> Result<(Vec<T>, EvalStats), DistError> {
-        let ok = charges.len() == self.n_owned && charges.iter().all(|q| q.is_finite());
-        agree(
-            comm,
-            if ok {
-                Ok(())
-            } else {
-                Err(InputProblem::BadCharges)
-            },
-        )?;
+        agree_on_charges(comm, charges, self.n_owned)?;
         Ok(self.evaluate_sorted_unchecked(comm, charges))
     }
 
@@ -374,4 +358,23 @@ fn global_usage<C: Communicator>(comm: &C, tree: &ferrofmm_tree::Octree) -> (u32
         }
     }
     (depth, usage)
+}
+
+/// One charge per point (`expected` of them), all finite, on every rank:
+/// agreed across ranks, so that bad charges on one rank are
+/// [`InputProblem::BadCharges`] on all of them and no rank goes on alone.
+fn agree_on_charges<C: Communicator, T: Real>(
+    comm: &C,
+    charges: &[T],
+    expected: usize,
+) -> Result<(), DistError> {
+    let ok = charges.len() == expected && charges.iter().all(|q| q.is_finite());
+    agree(
+        comm,
+        if ok {
+            Ok(())
+        } else {
+            Err(InputProblem::BadCharges)
+        },
+    )
 }
