@@ -495,8 +495,10 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
     // Only what the tree needs, and only when it fits (issue 18).
+    let t = Instant::now();
     let usage = crate::precompute::m2l_usage(tree);
-    operators_for(
+    let usage_time = t.elapsed();
+    let built = operators_for(
         kernel,
         params,
         config,
@@ -504,7 +506,11 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
         tree.depth(),
         &usage,
         setup,
-    )
+    );
+    // Finding the used transfer vectors counts as operator setup, as it did
+    // before `operators_for` was split out.
+    setup.operators += usage_time;
+    built
 }
 
 /// [`build_operators`] for a domain `width`, levels `0..=depth` and the

@@ -10,7 +10,8 @@ pub struct SetupTimings {
     pub tuning: Duration,
     /// Octree: sort, refine, 2:1 balance, interaction lists.
     pub tree: Duration,
-    /// Check/equivalent pseudo-inverses and M2M/L2L operators.
+    /// Check/equivalent pseudo-inverses and M2M/L2L operators, and finding
+    /// the transfer vectors the tree's V lists use.
     pub operators: Duration,
     /// M2L scheme precomputation (or cache load).
     pub m2l_precompute: Duration,
