@@ -18,7 +18,11 @@ fn setup() -> (Vec<f64>, Vec<f64>, Octree) {
     (points, q, tree)
 }
 
-fn tree_fmm(tree: Octree) -> TreeFmm<f64, Laplace3d, SvdM2l<f64>> {
+/// `TreeFmm` on the whole of `tree` (sources = targets) at `order`.
+fn try_tree_fmm(
+    tree: Octree,
+    order: usize,
+) -> Result<TreeFmm<f64, Laplace3d, SvdM2l<f64>>, FmmError> {
     let usage = m2l_usage(&tree);
     let sources = tree.sorted_sources().to_vec();
     let depth = tree.depth();
@@ -32,11 +36,14 @@ fn tree_fmm(tree: Octree) -> TreeFmm<f64, Laplace3d, SvdM2l<f64>> {
     TreeFmm::new(
         Laplace3d,
         EvalMode::PotentialGradient,
-        &OperatorParams::new(5),
+        &OperatorParams::new(order),
         &SvdConfig::default(),
         local,
     )
-    .unwrap()
+}
+
+fn tree_fmm(tree: Octree) -> TreeFmm<f64, Laplace3d, SvdM2l<f64>> {
+    try_tree_fmm(tree, 5).unwrap()
 }
 
 #[test]
@@ -101,22 +108,6 @@ fn wrong_lengths_are_errors() {
 #[test]
 fn an_order_out_of_range_is_an_error() {
     let (_, _, tree) = setup();
-    let usage = m2l_usage(&tree);
-    let sources = tree.sorted_sources().to_vec();
-    let depth = tree.depth();
-    let local = LocalTree {
-        tree,
-        sources: &sources,
-        targets: None,
-        depth,
-        usage: &usage,
-    };
-    let r = TreeFmm::<f64, _, SvdM2l<f64>>::new(
-        Laplace3d,
-        EvalMode::Potential,
-        &OperatorParams::new(1),
-        &SvdConfig::default(),
-        local,
-    );
+    let r = try_tree_fmm(tree, 1);
     assert!(matches!(r, Err(FmmError::InvalidOrder { order: 1, .. })));
 }
