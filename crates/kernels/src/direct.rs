@@ -3,7 +3,7 @@
 
 use rayon::prelude::*;
 
-use crate::{EvalMode, Kernel, KernelError, Real};
+use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};
 
 /// Targets per rayon task in [`direct_sum`].
 pub const DIRECT_SUM_BLOCK: usize = 256;
@@ -37,14 +37,96 @@ pub fn direct_sum<K: Kernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) = check_lengths(mode, sources, charges, targets, out) {
+    direct_sum_sources(
+        kernel,
+        SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets,
+        out,
+    );
+}
+
+/// [`direct_sum`] for sources of any [`SourceKind`] (charges, dipoles or
+/// both; `densities` interleaved, [`SourceKind::values_per_source`] per
+/// source) through [`Kernel::evaluate_sources`]:
+///
+/// ```text
+/// out_j += sum_i D_y^m [ q_i K(x_i, y_j) + n_i . grad_x K(x_i, y_j) ]
+/// ```
+///
+/// # Panics
+/// When lengths are inconsistent or the kernel does not
+/// [support](Kernel::supports) `(kind, mode)`;
+/// [`direct_sum_sources_checked`] reports both as errors instead.
+///
+/// ```
+/// use ferrofmm_kernels::{direct_sum_sources, EvalMode, Laplace3d, SourceKind};
+/// // A unit dipole along z at the origin, seen from (0, 0, 2).
+/// let mut out = [0.0f64; 10]; // [u, grad u, H11, H22, H33, H12, H13, H23]
+/// direct_sum_sources(&Laplace3d, SourceKind::Dipole, EvalMode::PotentialGradientHessian,
+///     &[0.0; 3], &[0.0, 0.0, 1.0], &[0.0, 0.0, 2.0], &mut out);
+/// let k = 1.0 / (4.0 * std::f64::consts::PI);
+/// assert!((out[0] - k / 4.0).abs() < 1e-16); // n . (y - x) / (4 pi r^3) = 1 / (4 pi z^2)
+/// assert!((out[3] + k / 4.0).abs() < 1e-16); // d/dz: -2 / (4 pi z^3)
+/// assert!((out[6] - 3.0 * k / 8.0).abs() < 1e-16); // d2/dz2: 6 / (4 pi z^4)
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn direct_sum_sources<K: Kernel, T: Real>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &mut [T],
+) {
+    if let Err(e) = check_lengths(kind, mode, sources, densities, targets, out) {
         panic!("direct_sum: {e}");
     }
+    assert!(
+        kernel.supports(kind, mode),
+        "direct_sum: {}",
+        KernelError::Unsupported {
+            kernel: kernel.name(),
+            kind: kind.name(),
+            mode: mode.name(),
+        }
+    );
     let w = mode.values_per_target();
     targets
         .par_chunks(3 * DIRECT_SUM_BLOCK)
         .zip(out.par_chunks_mut(w * DIRECT_SUM_BLOCK))
-        .for_each(|(t, o)| kernel.evaluate(mode, sources, charges, t, o));
+        .for_each(|(t, o)| kernel.evaluate_sources(kind, mode, sources, densities, t, o));
+}
+
+/// [`direct_sum_sources`] after [`check_source_inputs`] and
+/// [`Kernel::supports`].
+///
+/// # Errors
+/// See [`check_source_inputs`], and [`KernelError::Unsupported`]; `out` is
+/// untouched on error.
+#[allow(clippy::too_many_arguments)]
+pub fn direct_sum_sources_checked<K: Kernel, T: Real>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &mut [T],
+) -> Result<(), KernelError> {
+    check_source_inputs(kind, mode, sources, densities, targets, out)?;
+    if !kernel.supports(kind, mode) {
+        return Err(KernelError::Unsupported {
+            kernel: kernel.name(),
+            kind: kind.name(),
+            mode: mode.name(),
+        });
+    }
+    direct_sum_sources(kernel, kind, mode, sources, densities, targets, out);
+    Ok(())
 }
 
 /// [`direct_sum`] after [`check_inputs`].
@@ -66,9 +148,15 @@ pub fn direct_sum_checked<K: Kernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) -> Result<(), KernelError> {
-    check_inputs(mode, sources, charges, targets, out)?;
-    direct_sum(kernel, mode, sources, charges, targets, out);
-    Ok(())
+    direct_sum_sources_checked(
+        kernel,
+        SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets,
+        out,
+    )
 }
 
 /// Validate an evaluation's inputs: coordinate lengths are multiples of 3,
@@ -84,10 +172,31 @@ pub fn check_inputs<T: Real>(
     targets: &[T],
     out: &[T],
 ) -> Result<(), KernelError> {
-    check_lengths(mode, sources, charges, targets, out)?;
+    check_source_inputs(SourceKind::Charge, mode, sources, charges, targets, out)
+}
+
+/// [`check_inputs`] for sources of any [`SourceKind`]:
+/// `kind.values_per_source()` densities per source.
+///
+/// # Errors
+/// The first problem found, as a [`KernelError`].
+pub fn check_source_inputs<T: Real>(
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &[T],
+) -> Result<(), KernelError> {
+    check_lengths(kind, mode, sources, densities, targets, out)?;
+    let densities_name = match kind {
+        SourceKind::Charge => "charges",
+        SourceKind::Dipole => "dipoles",
+        SourceKind::ChargeDipole => "densities",
+    };
     for (what, values) in [
         ("sources", sources),
-        ("charges", charges),
+        (densities_name, densities),
         ("targets", targets),
     ] {
         if let Some((index, v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
@@ -102,9 +211,10 @@ pub fn check_inputs<T: Real>(
 }
 
 pub(crate) fn check_lengths<T: Real>(
+    kind: SourceKind,
     mode: EvalMode,
     sources: &[T],
-    charges: &[T],
+    densities: &[T],
     targets: &[T],
     out: &[T],
 ) -> Result<(), KernelError> {
@@ -113,10 +223,20 @@ pub(crate) fn check_lengths<T: Real>(
             return Err(KernelError::NotMultipleOf3 { what, len: p.len() });
         }
     }
-    if charges.len() != sources.len() / 3 {
+    let n_sources = sources.len() / 3;
+    if kind == SourceKind::Charge && densities.len() != n_sources {
         return Err(KernelError::ChargesLength {
-            n_sources: sources.len() / 3,
-            n_charges: charges.len(),
+            n_sources,
+            n_charges: densities.len(),
+        });
+    }
+    let per_source = kind.values_per_source();
+    if densities.len() != per_source * n_sources {
+        return Err(KernelError::DensitiesLength {
+            n_sources,
+            kind: kind.name(),
+            per_source,
+            found: densities.len(),
         });
     }
     let w = mode.values_per_target();

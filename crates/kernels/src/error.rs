@@ -25,6 +25,30 @@ pub enum KernelError {
         /// `charges.len()`.
         n_charges: usize,
     },
+    /// The densities of sources with dipoles do not match the number of
+    /// sources (`per_source` values each, interleaved).
+    #[error("{n_sources} sources with {kind} densities need {per_source} values each ({expected} in all), found {found}", expected = per_source * n_sources)]
+    DensitiesLength {
+        /// `sources.len() / 3`.
+        n_sources: usize,
+        /// The source kind's name, e.g. `"dipole"`.
+        kind: &'static str,
+        /// Values per source: 3 for dipoles, 4 for charge + dipole.
+        per_source: usize,
+        /// `densities.len()`.
+        found: usize,
+    },
+    /// The kernel does not evaluate this source kind with these outputs
+    /// (see `Kernel::supports`).
+    #[error("kernel {kernel} does not support {kind} sources with {mode} outputs")]
+    Unsupported {
+        /// The kernel's name.
+        kernel: String,
+        /// The source kind's name.
+        kind: &'static str,
+        /// The evaluation mode's name.
+        mode: &'static str,
+    },
     /// `out.len()` differs from `values_per_target * n_targets`.
     #[error("output has {found} values, expected {expected} ({values_per_target} per target)")]
     OutputLength {
@@ -32,7 +56,7 @@ pub enum KernelError {
         expected: usize,
         /// `out.len()`.
         found: usize,
-        /// 1 (potential) or 4 (potential + gradient).
+        /// 1 (potential), 4 (+ gradient) or 10 (+ Hessian).
         values_per_target: usize,
     },
     /// A coordinate or charge is NaN or infinite.

@@ -1,7 +1,10 @@
 //! The modified Helmholtz (Yukawa, screened Coulomb) kernel
 //! `K(x, y) = exp(-k |x - y|) / (4 pi |x - y|)`.
 
-use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, modified_helmholtz_p2p_with};
+use crate::{
+    EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind,
+    modified_helmholtz_p2p_with,
+};
 
 /// The 3D modified Helmholtz Green's function
 /// `K(x, y) = exp(-k r) / (4 pi r)`, `r = |x - y|`, the solution of
@@ -104,6 +107,41 @@ impl Kernel for ModifiedHelmholtz3d {
             mode,
             sources,
             charges,
+            targets,
+            out,
+        );
+    }
+
+    /// Every source kind and output (charges and dipoles; potentials,
+    /// gradients and Hessians), through the composed loop of
+    /// [`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel).
+    fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
+        true
+    }
+
+    /// Charges with potentials or gradients take [`Kernel::evaluate`]'s
+    /// loop; everything else the composed loop of
+    /// [`lanes::evaluate_sources`](crate::lanes::evaluate_sources), at
+    /// [`SimdLevel::active`].
+    ///
+    /// # Panics
+    /// When lengths are inconsistent.
+    fn evaluate_sources<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        crate::lanes::evaluate_sources_with(
+            SimdLevel::active(),
+            self,
+            kind,
+            mode,
+            sources,
+            densities,
             targets,
             out,
         );

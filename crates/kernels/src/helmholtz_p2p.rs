@@ -2,7 +2,7 @@
 //! [`ModifiedHelmholtz3d`] in the vectorised loop of [`crate::lanes`], with
 //! a polynomial `exp` on registers ([`crate::lanes::exp_nonpositive`]).
 
-use crate::lanes::{self, LaneFloat, LaneKernel, Simd, exp_nonpositive};
+use crate::lanes::{self, LaneFloat, LaneKernel, RadialLaneKernel, Simd, exp_nonpositive};
 use crate::{EvalMode, ModifiedHelmholtz3d, Real, SimdLevel};
 
 /// Accumulate the modified Helmholtz potential (and gradient) with
@@ -48,7 +48,16 @@ pub fn modified_helmholtz_p2p_with<T: Real>(
         "modified_helmholtz_p2p: k = {k} must be finite and >= 0"
     );
     let kernel = ModifiedHelmholtz3d { k };
-    lanes::evaluate_with(level, &kernel, mode, sources, charges, targets, out);
+    lanes::evaluate_sources_with(
+        level,
+        &kernel,
+        crate::SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets,
+        out,
+    );
 }
 
 impl LaneKernel for ModifiedHelmholtz3d {
@@ -78,5 +87,46 @@ impl LaneKernel for ModifiedHelmholtz3d {
     /// `1 / (4 pi)`.
     fn lane_scale(&self) -> f64 {
         crate::INV_4PI
+    }
+}
+
+impl RadialLaneKernel for ModifiedHelmholtz3d {
+    /// `k(r) = e^{-kr} / r`, with `x = k r`:
+    ///
+    /// ```text
+    /// f_0 =  e^{-x} / r
+    /// f_1 = -e^{-x} (1 + x) / r^3
+    /// f_2 =  e^{-x} (3 + 3x + x^2) / r^5
+    /// f_3 = -e^{-x} (15 + 15x + 6x^2 + x^3) / r^7
+    /// ```
+    ///
+    /// (`k = 0` gives Laplace's); `1/r = 0` makes coincident lanes zero.
+    #[inline(always)]
+    fn radial<T: LaneFloat, S: Simd<T>, const M: usize>(&self, s: S, r2: S::V) -> [S::V; 4] {
+        let rinv = s.rsqrt_or_zero(r2);
+        let x = s.mul(s.splat(T::from_f64(self.k)), s.sqrt(r2));
+        let e = exp_nonpositive(s, s.sub(s.splat(T::ZERO), x));
+        let er = s.mul(e, rinv);
+        let zero = s.splat(T::ZERO);
+        let mut f = [er, zero, zero, zero];
+        // Polynomials in x, lowest degree first, and the sign of each f_m.
+        const POLY: [[f64; 4]; 3] = [
+            [1.0, 1.0, 0.0, 0.0],
+            [3.0, 3.0, 1.0, 0.0],
+            [15.0, 15.0, 6.0, 1.0],
+        ];
+        let rinv2 = s.mul(rinv, rinv);
+        let mut scale = er;
+        for m in 1..=M.min(3) {
+            scale = s.mul(scale, rinv2);
+            let c = &POLY[m - 1];
+            let mut p = s.splat(T::from_f64(c[m]));
+            for j in (0..m).rev() {
+                p = s.mul_add(p, x, s.splat(T::from_f64(c[j])));
+            }
+            let sign = if m % 2 == 1 { -1.0 } else { 1.0 };
+            f[m] = s.mul(s.mul(s.splat(T::from_f64(sign)), p), scale);
+        }
+        f
     }
 }

@@ -10,15 +10,95 @@ pub enum EvalMode {
     /// The potential and its gradient with respect to the target,
     /// `[phi, d phi/d y1, d phi/d y2, d phi/d y3]`: four values per target.
     PotentialGradient,
+    /// The potential, its gradient and its Hessian (the second derivatives
+    /// with respect to the target, symmetric, so six of them):
+    /// `[phi, g1, g2, g3, H11, H22, H33, H12, H13, H23]`, ten values per
+    /// target (the order of FMM3D's `hess`). Kernels that support it say so
+    /// through [`Kernel::supports`].
+    PotentialGradientHessian,
 }
 
 impl EvalMode {
-    /// Values written per target: 1 or 4.
+    /// Values written per target: 1, 4 or 10.
     #[inline]
     pub fn values_per_target(self) -> usize {
         match self {
             EvalMode::Potential => 1,
             EvalMode::PotentialGradient => 4,
+            EvalMode::PotentialGradientHessian => 10,
+        }
+    }
+
+    /// Whether the gradient is among the outputs.
+    #[inline]
+    pub fn has_gradient(self) -> bool {
+        self != EvalMode::Potential
+    }
+
+    /// Whether the Hessian is among the outputs.
+    #[inline]
+    pub fn has_hessian(self) -> bool {
+        self == EvalMode::PotentialGradientHessian
+    }
+
+    /// A short name: `"potential"`, `"gradient"` or `"hessian"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            EvalMode::Potential => "potential",
+            EvalMode::PotentialGradient => "gradient",
+            EvalMode::PotentialGradientHessian => "hessian",
+        }
+    }
+}
+
+/// What each source carries: the densities a kernel evaluation reads per
+/// source, interleaved like the points.
+///
+/// With `K(x, y)` the kernel, a source at `x` with charge `q` and dipole
+/// vector `n` contributes at `y`
+///
+/// ```text
+/// u(y) = q K(x, y) + n . grad_x K(x, y)
+/// ```
+///
+/// (the single- and double-layer terms of a boundary integral; FMM3D's
+/// `charges` and `dipvec`, with the same sign). The derivative is taken with
+/// respect to the **source**; for a radial kernel `K(|x - y|)` this is
+/// `K'(r) n . (x - y) / r`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default)]
+pub enum SourceKind {
+    /// A charge `q` per source: `[q0, q1, ...]`.
+    #[default]
+    Charge,
+    /// A dipole vector `n` per source: `[n0x, n0y, n0z, n1x, ...]`.
+    Dipole,
+    /// Both, `[q0, n0x, n0y, n0z, q1, ...]`: four values per source.
+    ChargeDipole,
+}
+
+impl SourceKind {
+    /// Values read per source: 1, 3 or 4.
+    #[inline]
+    pub fn values_per_source(self) -> usize {
+        match self {
+            SourceKind::Charge => 1,
+            SourceKind::Dipole => 3,
+            SourceKind::ChargeDipole => 4,
+        }
+    }
+
+    /// Whether the sources carry dipoles.
+    #[inline]
+    pub fn has_dipoles(self) -> bool {
+        self != SourceKind::Charge
+    }
+
+    /// A short name: `"charge"`, `"dipole"` or `"charge+dipole"`.
+    pub fn name(self) -> &'static str {
+        match self {
+            SourceKind::Charge => "charge",
+            SourceKind::Dipole => "dipole",
+            SourceKind::ChargeDipole => "charge+dipole",
         }
     }
 }
@@ -71,7 +151,10 @@ pub trait Kernel: Clone + Send + Sync + 'static {
     /// `y_j`. Coincident pairs are skipped.
     ///
     /// Panics (debug) when lengths disagree; the public drivers validate
-    /// user input before it gets here.
+    /// user input before it gets here. The default (pairwise) handles
+    /// potentials and gradients only; a kernel that
+    /// [supports](Kernel::supports) Hessians of charges handles
+    /// [`EvalMode::PotentialGradientHessian`] here too.
     fn evaluate<T: Real>(
         &self,
         mode: EvalMode,
@@ -81,6 +164,51 @@ pub trait Kernel: Clone + Send + Sync + 'static {
         out: &mut [T],
     ) {
         crate::reference::evaluate_pairwise(self, mode, sources, charges, targets, out);
+    }
+
+    /// Whether [`Kernel::evaluate_sources`] handles sources of `kind` with
+    /// outputs `mode`. The default is what every kernel can do from
+    /// [`Kernel::kernel_value`] and [`Kernel::kernel_gradient`]: charges,
+    /// potentials and gradients. The FMM asks before it builds, and reports
+    /// an unsupported pair as an error.
+    fn supports(&self, kind: SourceKind, mode: EvalMode) -> bool {
+        kind == SourceKind::Charge && !mode.has_hessian()
+    }
+
+    /// Accumulate the field of sources of any [`SourceKind`]: `densities`
+    /// holds [`SourceKind::values_per_source`] values per source
+    /// (interleaved), `out` [`EvalMode::values_per_target`] per target:
+    ///
+    /// ```text
+    /// out_j += sum_i D_y^m [ q_i K(x_i, y_j) + n_i . grad_x K(x_i, y_j) ]
+    /// ```
+    ///
+    /// for the target derivatives `D_y^m` of `mode`. The FMM calls this
+    /// method (never [`Kernel::evaluate`] directly), so a kernel that
+    /// supports more than charges overrides it together with
+    /// [`Kernel::supports`]. The default handles charges by calling
+    /// [`Kernel::evaluate`].
+    ///
+    /// # Panics
+    /// When `(kind, mode)` is not [`Kernel::supports`]ed, or (debug) when
+    /// lengths disagree.
+    fn evaluate_sources<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        assert!(
+            self.supports(kind, mode) && kind == SourceKind::Charge,
+            "{}: {} sources with {} outputs are not supported (Kernel::supports)",
+            self.name(),
+            kind.name(),
+            mode.name()
+        );
+        self.evaluate(mode, sources, densities, targets, out);
     }
 
     /// Write the dense kernel matrix `A[j, i] = K(x_i, y_j)` (row-major,

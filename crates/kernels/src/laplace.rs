@@ -1,7 +1,7 @@
 //! The Laplace kernel `K(x, y) = 1 / (4 pi |x - y|)`.
 
 use crate::laplace_simd::{laplace_assemble_with, laplace_p2p_with};
-use crate::{EvalMode, Kernel, Real, SimdLevel};
+use crate::{EvalMode, Kernel, Real, SimdLevel, SourceKind};
 
 /// `1 / (4 pi)`: the factor of the 3D Laplace Green's function (and of the
 /// modified Helmholtz one), applied once per target by their P2P loops.
@@ -72,6 +72,41 @@ impl Kernel for Laplace3d {
         out: &mut [T],
     ) {
         laplace_p2p_with(SimdLevel::active(), mode, sources, charges, targets, out);
+    }
+
+    /// Every source kind and output (charges and dipoles; potentials,
+    /// gradients and Hessians), through the composed loop of
+    /// [`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel).
+    fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
+        true
+    }
+
+    /// Charges with potentials or gradients take [`Kernel::evaluate`]'s
+    /// loop; everything else the composed loop of
+    /// [`lanes::evaluate_sources`](crate::lanes::evaluate_sources), at
+    /// [`SimdLevel::active`].
+    ///
+    /// # Panics
+    /// When lengths are inconsistent.
+    fn evaluate_sources<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        crate::lanes::evaluate_sources_with(
+            SimdLevel::active(),
+            self,
+            kind,
+            mode,
+            sources,
+            densities,
+            targets,
+            out,
+        );
     }
 
     /// Vectorised, row-parallel assembly ([`laplace_assemble_with`]); equal

@@ -15,6 +15,11 @@ pub fn evaluate_pairwise<K: Kernel, T: Real>(
     let ns = sources.len() / 3;
     let nt = targets.len() / 3;
     let w = mode.values_per_target();
+    assert!(
+        !mode.has_hessian(),
+        "{}: the pairwise reference has no Hessians (Kernel::supports)",
+        kernel.name()
+    );
     debug_assert_eq!(sources.len(), 3 * ns);
     debug_assert_eq!(charges.len(), ns);
     debug_assert_eq!(out.len(), w * nt);

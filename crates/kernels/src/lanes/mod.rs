@@ -98,11 +98,13 @@
 
 mod backends;
 mod exp;
+mod radial;
 
 pub use backends::{Avx2, Avx512, Portable};
 pub use exp::exp_nonpositive;
+pub use radial::{RadialLaneKernel, composed_with, evaluate_sources, evaluate_sources_with};
 
-use crate::{EvalMode, Kernel, Real, SimdLevel};
+use crate::{EvalMode, Kernel, Real, SimdLevel, SourceKind};
 
 mod sealed {
     pub trait Sealed {}
@@ -308,7 +310,9 @@ where
 ///
 /// # Panics
 /// When a coordinate slice's length is not a multiple of 3, or `charges` /
-/// `out` do not match the number of sources / targets.
+/// `out` do not match the number of sources / targets, or `mode` asks for
+/// Hessians (those come from a [`RadialLaneKernel`] through
+/// [`evaluate_sources`]).
 #[inline]
 pub fn evaluate<K: LaneKernel, T: Real>(
     kernel: &K,
@@ -344,9 +348,16 @@ pub fn evaluate_with<K: LaneKernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) = crate::direct::check_lengths(mode, sources, charges, targets, out) {
+    if let Err(e) =
+        crate::direct::check_lengths(SourceKind::Charge, mode, sources, charges, targets, out)
+    {
         panic!("{} P2P: {e}", kernel.name());
     }
+    assert!(
+        !mode.has_hessian(),
+        "{} P2P: Hessians come from lanes::evaluate_sources (RadialLaneKernel)",
+        kernel.name()
+    );
     if sources.is_empty() || targets.is_empty() {
         return;
     }

@@ -33,7 +33,7 @@ mod assemble;
 
 pub use assemble::laplace_assemble_with;
 
-use crate::lanes::{self, LaneFloat, LaneKernel, Simd};
+use crate::lanes::{self, LaneFloat, LaneKernel, RadialLaneKernel, Simd};
 use crate::{EvalMode, Laplace3d, Real, SimdLevel};
 
 /// Accumulate the Laplace potential (and gradient) of `sources` with
@@ -65,7 +65,9 @@ pub fn laplace_p2p<T: Real>(
 ///
 /// skipping coincident pairs (`|y_j - x_i| == 0`). Points are interleaved
 /// `[x0, y0, z0, x1, ...]`; `out` holds `mode.values_per_target()` values per
-/// target (`[phi, gx, gy, gz]` for gradients) and is **added to**.
+/// target (`[phi, gx, gy, gz]` for gradients, then the six Hessian entries
+/// for [`EvalMode::PotentialGradientHessian`], which runs the composed loop
+/// of [`lanes::RadialLaneKernel`]) and is **added to**.
 ///
 /// # Method and accuracy
 /// Targets are processed in register blocks of 8 (`f64`) / 16 (`f32`) lanes
@@ -112,7 +114,16 @@ pub fn laplace_p2p_with<T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    lanes::evaluate_with(level, &Laplace3d, mode, sources, charges, targets, out);
+    lanes::evaluate_sources_with(
+        level,
+        &Laplace3d,
+        crate::SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets,
+        out,
+    );
 }
 
 impl LaneKernel for Laplace3d {
@@ -141,5 +152,25 @@ impl LaneKernel for Laplace3d {
     /// `1 / (4 pi)`.
     fn lane_scale(&self) -> f64 {
         crate::INV_4PI
+    }
+}
+
+impl RadialLaneKernel for Laplace3d {
+    /// `k = 1/r`: `f_0 = 1/r`, `f_1 = -1/r^3`, `f_2 = 3/r^5`,
+    /// `f_3 = -15/r^7` (each `-(2m - 1)/r^2` times the one before);
+    /// `1/r = 0` makes coincident lanes zero.
+    #[inline(always)]
+    fn radial<T: LaneFloat, S: Simd<T>, const M: usize>(&self, s: S, r2: S::V) -> [S::V; 4] {
+        let rinv = s.rsqrt_or_zero(r2);
+        let zero = s.splat(T::ZERO);
+        let mut f = [rinv, zero, zero, zero];
+        if M >= 1 {
+            let rinv2 = s.mul(rinv, rinv);
+            for m in 1..=M.min(3) {
+                let c = s.splat(T::from_f64(-(2.0 * m as f64 - 1.0)));
+                f[m] = s.mul(s.mul(c, f[m - 1]), rinv2);
+            }
+        }
+        f
     }
 }
