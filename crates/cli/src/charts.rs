@@ -634,6 +634,9 @@ pub(crate) mod tests {
             scheme,
             precision,
             gradients: true,
+            hessians: false,
+            kernel: "laplace".into(),
+            sources: "charge".into(),
             threads: 2,
             cache: None,
             tree: TreeFigures {

@@ -56,9 +56,11 @@ pub enum CliError {
         /// The value.
         value: f64,
     },
-    /// The number of charges differs from the number of sources.
-    #[error("{} holds {charges} charges but {} holds {sources} points: give one charge per source", charges_path.display(), sources_path.display())]
+    /// The number of charges (or dipoles) differs from the number of sources.
+    #[error("{} holds {charges} {what} but {} holds {sources} points: give one {} per source", charges_path.display(), sources_path.display(), what.trim_end_matches('s'))]
     CountMismatch {
+        /// `"charges"` or `"dipoles"`.
+        what: &'static str,
         /// The charges file.
         charges_path: PathBuf,
         /// Number of charges.

@@ -5,7 +5,9 @@
 //!
 //! ```text
 //! command, geometry (demo only), n_sources, n_targets, order, leaf_size,
-//! scheme, precision, gradients, threads, tolerance, predicted_error,
+//! scheme, precision, gradients, hessians, kernel ("laplace" or "yukawa:K"),
+//! sources ("charge", "dipole" or "charge+dipole"), threads, tolerance,
+//! predicted_error,
 //! cache (null without --cache-dir, else in words),
 //! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes,
 //!               clusters, far_points },
@@ -15,11 +17,11 @@
 //! charges (demo: "signed" or "positive"; eval: null),
 //! verification: { tolerance, met, rebuild_s,
 //!                 attempts: [ { order, svd_tolerance, predicted_error,
-//!                               measured: { n_sampled, potential, gradient },
+//!                               measured: { n_sampled, potential, gradient, hessian },
 //!                               evaluation_s, check_s } ] }
 //!               or null (no --tolerance, or --verify off; see verify),
 //! verify ("on", "off", or "n/a" without --tolerance),
-//! errors:     { n_sampled, potential, gradient } or null,
+//! errors:     { n_sampled, potential, gradient, hessian } or null,
 //! direct_check_s, peak_rss_bytes (null where unknown), wall_s
 //! ```
 
@@ -71,6 +73,15 @@ pub struct RunReport {
     pub precision: PrecisionArg,
     /// Whether gradients were evaluated.
     pub gradients: bool,
+    /// Whether Hessians were evaluated.
+    #[serde(default)]
+    pub hessians: bool,
+    /// The kernel: `laplace` or `yukawa:K`.
+    #[serde(default = "laplace_name")]
+    pub kernel: String,
+    /// What the sources carry: `charge`, `dipole` or `charge+dipole`.
+    #[serde(default = "charge_name")]
+    pub sources: String,
     /// Rayon worker threads.
     pub threads: usize,
     /// What the operator cache did (`None`: no `--cache-dir`), in words;
@@ -252,6 +263,17 @@ pub struct ErrorFigures {
     pub potential: f64,
     /// Relative L2 error of the gradient (`None` without gradients).
     pub gradient: Option<f64>,
+    /// Relative L2 error of the Hessian (`None` without Hessians).
+    #[serde(default)]
+    pub hessian: Option<f64>,
+}
+
+fn laplace_name() -> String {
+    "laplace".to_string()
+}
+
+fn charge_name() -> String {
+    "charge".to_string()
 }
 
 /// `1234567` as `1,234,567`.
@@ -353,14 +375,22 @@ impl RunReport {
         let row = |o: &mut String, label: &str, value: String| {
             let _ = writeln!(o, "  {label:<18} {value}");
         };
-        let what = if self.gradients {
-            "potential + gradient"
-        } else {
-            "potential"
+        let what = match (self.gradients, self.hessians) {
+            (_, true) => "potential + gradient + Hessian",
+            (true, false) => "potential + gradient",
+            (false, false) => "potential",
+        };
+        let kernel = match self.kernel.split_once(':') {
+            Some(("yukawa", k)) => format!("modified Helmholtz exp(-{k} r)/(4 pi r)"),
+            _ => "Laplace 1/(4 pi r)".to_string(),
+        };
+        let sources = match self.sources.as_str() {
+            "charge" => String::new(),
+            s => format!(", {s} sources"),
         };
         let _ = writeln!(
             o,
-            "ferrofmm {}: Laplace 1/(4 pi r), {what}, {}",
+            "ferrofmm {}: {kernel}{sources}, {what}, {}",
             self.command, self.precision
         );
         let points = match &self.geometry {
@@ -477,7 +507,11 @@ impl RunReport {
                             .measured
                             .gradient
                             .map(|g| format!(", gradient {g:.2e}"))
-                            .unwrap_or_default();
+                            .unwrap_or_default()
+                            + &a.measured
+                                .hessian
+                                .map(|h| format!(", Hessian {h:.2e}"))
+                                .unwrap_or_default();
                         let label = if i == 0 { "verified" } else { "  raised order" };
                         row(
                             &mut o,
@@ -522,6 +556,9 @@ impl RunReport {
                 row(&mut o, "potential", format!("{:.2e}", err.potential));
                 if let Some(g) = err.gradient {
                     row(&mut o, "gradient", format!("{g:.2e}"));
+                }
+                if let Some(h) = err.hessian {
+                    row(&mut o, "Hessian", format!("{h:.2e}"));
                 }
             }
             None => {

@@ -7,8 +7,10 @@
 //! e = sqrt( sum_j |phi_j - phi_j^direct|^2 / sum_j |phi_j^direct|^2 ),
 //! ```
 //!
-//! computed separately for the potential and (when evaluated) the gradient,
-//! with the direct sums in `f64` whatever the FMM's float type.
+//! computed separately for the potential and (when evaluated) the gradient
+//! and the Hessian (each over all its components), with the direct sums in
+//! `f64` whatever the FMM's float type. Sources of any
+//! [`SourceKind`] (charges, dipoles) are compared the same way.
 //!
 //! # Scaling
 //!
@@ -28,7 +30,7 @@
 
 use std::time::{Duration, Instant};
 
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
@@ -42,14 +44,20 @@ pub struct ErrorReport {
     pub potential: f64,
     /// Relative L2 error of the gradient (`None` for potential-only results).
     pub gradient: Option<f64>,
+    /// Relative L2 error of the Hessian, its six entries together (`None`
+    /// unless evaluated).
+    #[serde(default)]
+    pub hessian: Option<f64>,
 }
 
 impl ErrorReport {
-    /// The larger of the potential and the gradient error (the gradient's
-    /// only when evaluated): the error of everything the caller asked for.
+    /// The largest of the potential, gradient and Hessian errors (of those
+    /// evaluated): the error of everything the caller asked for.
     pub fn worst(&self) -> f64 {
-        self.gradient
-            .map_or(self.potential, |g| self.potential.max(g))
+        [self.gradient, self.hessian]
+            .into_iter()
+            .flatten()
+            .fold(self.potential, f64::max)
     }
 }
 
@@ -103,7 +111,32 @@ pub fn relative_errors<T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> ErrorReport {
-    let problem = Comparison::new(kernel, mode, sources, charges, targets, values);
+    relative_errors_sources(
+        kernel,
+        SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets,
+        values,
+        sample,
+    )
+}
+
+/// [`relative_errors`] for sources of any [`SourceKind`] (`densities`
+/// holds [`SourceKind::values_per_source`] values per source).
+#[allow(clippy::too_many_arguments)]
+pub fn relative_errors_sources<T: Real, K: Kernel>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    values: &[T],
+    sample: &[usize],
+) -> ErrorReport {
+    let problem = Comparison::new(kernel, kind, mode, sources, densities, targets, values);
     let mut sums = ErrorSums::default();
     problem.add(&mut sums, sample);
     sums.report(mode)
@@ -117,10 +150,12 @@ pub fn relative_errors<T: Real, K: Kernel>(
 /// The first 16 targets are summed and timed; the rest of the sample is
 /// sized from that rate to fill what is left of the budget. The sample is
 /// a prefix of [`random_sample`]`(n_targets, max_sample)`, so the same
-/// targets are used for the same problem whatever the budget.
+/// targets are used for the same problem whatever the budget. `charges`
+/// holds `kind.values_per_source()` values per source.
 #[allow(clippy::too_many_arguments)]
 pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
     kernel: &K,
+    kind: SourceKind,
     mode: EvalMode,
     sources: &[P],
     charges: &[T],
@@ -134,7 +169,7 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
     let n_targets = targets.len() / 3;
     let max_sample = max_sample.max(min_sample).max(1);
     let sample = random_sample(n_targets, max_sample);
-    let problem = Comparison::new(kernel, mode, sources, charges, targets, values);
+    let problem = Comparison::new(kernel, kind, mode, sources, charges, targets, values);
     let mut sums = ErrorSums::default();
     let first = PROBE.min(sample.len());
     let t = Instant::now();
@@ -171,12 +206,15 @@ struct ErrorSums {
     ref_pot: f64,
     diff_grad: f64,
     ref_grad: f64,
+    diff_hess: f64,
+    ref_hess: f64,
 }
 
 /// What is compared: an FMM result and the problem it solved, with the
 /// charge scale of the error sums.
 struct Comparison<'a, P, T, K> {
     kernel: &'a K,
+    kind: SourceKind,
     mode: EvalMode,
     sources: &'a [P],
     charges: &'a [T],
@@ -189,6 +227,7 @@ struct Comparison<'a, P, T, K> {
 impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
     fn new(
         kernel: &'a K,
+        kind: SourceKind,
         mode: EvalMode,
         sources: &'a [P],
         charges: &'a [T],
@@ -197,6 +236,7 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
     ) -> Self {
         Comparison {
             kernel,
+            kind,
             mode,
             sources,
             charges,
@@ -220,6 +260,7 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             .collect();
         let reference = scaled_reference(
             self.kernel,
+            self.kind,
             self.mode,
             self.sources,
             self.charges,
@@ -233,9 +274,12 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
                 if c == 0 {
                     sums.diff_pot += e * e;
                     sums.ref_pot += r * r;
-                } else {
+                } else if c < 4 {
                     sums.diff_grad += e * e;
                     sums.ref_grad += r * r;
+                } else {
+                    sums.diff_hess += e * e;
+                    sums.ref_hess += r * r;
                 }
             }
         }
@@ -249,7 +293,12 @@ impl ErrorSums {
         ErrorReport {
             n_sampled: self.n,
             potential: ratio(self.diff_pot, self.ref_pot),
-            gradient: (mode.values_per_target() == 4).then(|| ratio(self.diff_grad, self.ref_grad)),
+            gradient: mode
+                .has_gradient()
+                .then(|| ratio(self.diff_grad, self.ref_grad)),
+            hessian: mode
+                .has_hessian()
+                .then(|| ratio(self.diff_hess, self.ref_hess)),
         }
     }
 }
@@ -257,11 +306,12 @@ impl ErrorSums {
 /// Sources per block of the parallel reference sum.
 const REFERENCE_BLOCK: usize = 4096;
 
-/// Direct sums in `f64` at the points `at` (interleaved) for the charges
+/// Direct sums in `f64` at the points `at` (interleaved) for the densities
 /// divided by `scale`: every block of sources adds its share to all
 /// targets, blocks in parallel.
 fn scaled_reference<P: Real, T: Real, K: Kernel>(
     kernel: &K,
+    kind: SourceKind,
     mode: EvalMode,
     sources: &[P],
     charges: &[T],
@@ -269,16 +319,17 @@ fn scaled_reference<P: Real, T: Real, K: Kernel>(
     at: &[f64],
 ) -> Vec<f64> {
     let len = mode.values_per_target() * (at.len() / 3);
+    let nq = kind.values_per_source();
     sources
         .par_chunks(3 * REFERENCE_BLOCK)
-        .zip(charges.par_chunks(REFERENCE_BLOCK))
+        .zip(charges.par_chunks(nq * REFERENCE_BLOCK))
         .fold(
             || vec![0.0f64; len],
             |mut acc, (s, q)| {
                 let s: Vec<f64> = s.iter().map(|x| x.to_f64()).collect();
                 let q: Vec<f64> = q.iter().map(|x| x.to_f64() / scale).collect();
                 let mut part = vec![0.0f64; len];
-                kernel.evaluate(mode, &s, &q, at, &mut part);
+                kernel.evaluate_sources(kind, mode, &s, &q, at, &mut part);
                 acc.iter_mut().zip(&part).for_each(|(a, p)| *a += p);
                 acc
             },

@@ -8,7 +8,7 @@ use ferrofmm_field::{
     DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
     SvdM2l,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Laplace3d, Real, SourceKind};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
 use crate::fmm::ChosenScheme;
@@ -47,6 +47,7 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) order: usize,
     pub(crate) leaf_size: usize,
     pub(crate) mode: EvalMode,
+    pub(crate) source_kind: SourceKind,
     pub(crate) radii: SurfaceRadii,
     pub(crate) pinv_rcond: Option<f64>,
     pub(crate) cache_dir: Option<PathBuf>,
@@ -72,6 +73,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             order: DEFAULT_ORDER,
             leaf_size: DEFAULT_LEAF_SIZE,
             mode: EvalMode::Potential,
+            source_kind: SourceKind::Charge,
             radii: SurfaceRadii::default(),
             pinv_rcond: None,
             cache_dir: None,
@@ -96,6 +98,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             order: self.order,
             leaf_size: self.leaf_size,
             mode: self.mode,
+            source_kind: self.source_kind,
             radii: self.radii,
             pinv_rcond: self.pinv_rcond,
             cache_dir: self.cache_dir,
@@ -191,9 +194,41 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
-    /// Potentials only, or potentials and gradients.
+    /// What is evaluated at the targets: potentials, with gradients, or
+    /// with gradients and Hessians (see [`EvalMode`]).
     pub fn mode(mut self, mode: EvalMode) -> Self {
         self.mode = mode;
+        self
+    }
+
+    /// What each source carries ([`SourceKind`]): charges (the default),
+    /// dipole vectors, or both. The densities given to [`Fmm::evaluate`]
+    /// then hold `kind.values_per_source()` values per source, interleaved
+    /// (`[q]`, `[nx, ny, nz]` or `[q, nx, ny, nz]`), and each source
+    /// contributes `q K(x, y) + n . grad_x K(x, y)` (a double-layer
+    /// potential for dipoles). Only the source-side operators (P2M, P2L,
+    /// P2P) see the dipoles; the expansions stay those of the kernel.
+    ///
+    /// The kernel must [support](Kernel::supports) the kind with the
+    /// [mode](FmmBuilder::mode) (Laplace and modified Helmholtz support
+    /// every pair), else building fails with
+    /// [`KernelError::Unsupported`].
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry};
+    /// use ferrofmm_kernels::{EvalMode, SourceKind};
+    /// let points: Vec<f64> = Geometry::Cube.points(2000, 1);
+    /// let dipoles: Vec<f64> = Geometry::Sphere.points(2000, 2); // any vectors
+    /// let fmm = FmmBuilder::new(&points)
+    ///     .source_kind(SourceKind::Dipole)
+    ///     .mode(EvalMode::PotentialGradientHessian)
+    ///     .build_svd()
+    ///     .unwrap();
+    /// let out = fmm.evaluate(&dipoles).unwrap(); // 10 values per target
+    /// assert_eq!(out.len(), 10 * 2000);
+    /// ```
+    pub fn source_kind(mut self, kind: SourceKind) -> Self {
+        self.source_kind = kind;
         self
     }
 
@@ -280,6 +315,13 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Check every parameter and every coordinate before any work.
     pub(crate) fn validate(&self) -> Result<(), FmmError> {
+        if !self.kernel.supports(self.source_kind, self.mode) {
+            return Err(FmmError::Kernel(KernelError::Unsupported {
+                kernel: self.kernel.name(),
+                kind: self.source_kind.name(),
+                mode: self.mode.name(),
+            }));
+        }
         if let Some(eps) = self.tolerance {
             tuning::validate_tolerance(eps, T::PRECISION)?;
         }

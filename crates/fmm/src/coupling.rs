@@ -23,17 +23,19 @@
 //! apart, rounding them to `T` costs nothing in relative accuracy.
 
 use ferrofmm_field::M2lScheme;
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
 use crate::Fmm;
 use crate::part::{Body, Part};
 
 /// Where one cluster's sources act from: points (relative to `centre`) with
-/// weights (charges or equivalent densities).
+/// weights (charges or dipoles of `kind`, or equivalent densities, which
+/// are charges).
 pub(crate) struct SourceSide<'a, T> {
     points: SidePoints<'a, T>,
     weights: &'a [T],
+    kind: SourceKind,
 }
 
 /// Where one cluster receives: its targets (with `mode`) or its root's
@@ -113,6 +115,7 @@ pub(crate) fn source_side<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
                 t.operators.radii().upward_equivalent,
             )),
             weights: &multipoles[..n],
+            kind: SourceKind::Charge,
         },
         Body::Tree(t) => SourceSide {
             points: SidePoints::Stored {
@@ -120,6 +123,7 @@ pub(crate) fn source_side<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
                 centre: t.centre,
             },
             weights: charges,
+            kind: fmm.source_kind,
         },
         Body::Points(p) => SourceSide {
             points: SidePoints::Stored {
@@ -127,6 +131,7 @@ pub(crate) fn source_side<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
                 centre: p.centre,
             },
             weights: charges,
+            kind: fmm.source_kind,
         },
     })
 }
@@ -171,14 +176,22 @@ pub(crate) fn add_far_clusters<T: Real, K: Kernel>(
         TargetSide::Points { points, centre } => {
             for s in sources {
                 let x = s.points_from(*centre);
-                sum_parallel(kernel, mode, &x, s.weights, points, out);
+                sum_parallel(kernel, s.kind, mode, &x, s.weights, points, out);
             }
         }
         TargetSide::RootCheck { surface, centre } => {
             let y: Vec<T> = relative(surface, *centre);
             for s in sources {
                 let x = s.points_from(*centre);
-                sum_parallel(kernel, EvalMode::Potential, &x, s.weights, &y, root_check);
+                sum_parallel(
+                    kernel,
+                    s.kind,
+                    EvalMode::Potential,
+                    &x,
+                    s.weights,
+                    &y,
+                    root_check,
+                );
             }
         }
     }
@@ -191,31 +204,34 @@ const CHUNK: usize = 64;
 
 /// `out(y) += sum_x K(x, y) w(x)`, parallel over targets when there are
 /// many, else over sources (partial sums added at the end).
+#[allow(clippy::too_many_arguments)]
 fn sum_parallel<T: Real, K: Kernel>(
     kernel: &K,
+    kind: SourceKind,
     mode: EvalMode,
     x: &[T],
     w: &[T],
     y: &[T],
     out: &mut [T],
 ) {
-    let (nx, ny) = (w.len(), y.len() / 3);
+    let (nx, ny) = (x.len() / 3, y.len() / 3);
     let v = mode.values_per_target();
+    let nq = kind.values_per_source();
     if nx * ny <= SERIAL_PAIRS {
-        kernel.evaluate(mode, x, w, y, out);
+        kernel.evaluate_sources(kind, mode, x, w, y, out);
     } else if ny >= 4 * CHUNK {
         y.par_chunks(3 * CHUNK)
             .zip(out.par_chunks_mut(v * CHUNK))
-            .for_each(|(yc, oc)| kernel.evaluate(mode, x, w, yc, oc));
+            .for_each(|(yc, oc)| kernel.evaluate_sources(kind, mode, x, w, yc, oc));
     } else {
         let step = (nx / rayon::current_num_threads().max(1) / 4).max(4 * CHUNK);
         let partial = x
             .par_chunks(3 * step)
-            .zip(w.par_chunks(step))
+            .zip(w.par_chunks(nq * step))
             .fold(
                 || vec![T::ZERO; out.len()],
                 |mut acc, (xc, wc)| {
-                    kernel.evaluate(mode, xc, wc, y, &mut acc);
+                    kernel.evaluate_sources(kind, mode, xc, wc, y, &mut acc);
                     acc
                 },
             )

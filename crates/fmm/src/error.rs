@@ -60,7 +60,22 @@ pub enum FmmError {
         /// Number given.
         got: usize,
     },
-    /// A NaN or infinite charge.
+    /// The densities of sources with dipoles do not match the number of
+    /// sources (see `FmmBuilder::source_kind`).
+    #[error(
+        "expected {expected} values ({per_source} per source per vector for {kind} sources, interleaved), got {got}"
+    )]
+    DensityCount {
+        /// The source kind's name.
+        kind: &'static str,
+        /// Values per source: 3 (dipole) or 4 (charge + dipole).
+        per_source: usize,
+        /// Values expected.
+        expected: usize,
+        /// Values given.
+        got: usize,
+    },
+    /// A NaN or infinite charge (or dipole component).
     #[error("charge {index} is not finite ({value})")]
     NonFiniteCharge {
         /// Index into the flat charge array.

@@ -7,7 +7,7 @@ use std::time::Instant;
 use ferrofmm_field::{
     AMPLIFICATION_WARNING, M2lInteractions, M2lScheme, OperatorParams, Operators, surface_points,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real, SourceKind};
 use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
 
 use crate::builder::FmmBuilder;
@@ -41,6 +41,8 @@ pub(crate) type ConfigFromChosen<C, S> = Option<ChosenScheme<C, S>>;
 pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) kernel: K,
     pub(crate) mode: EvalMode,
+    /// What each source carries (densities per source).
+    pub(crate) source_kind: SourceKind,
     /// The far-separated clusters of the problem ([`crate::part`]); part 0
     /// is the largest and always has a tree. One part for most inputs.
     pub(crate) parts: Vec<Part<T, S>>,
@@ -232,6 +234,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         Ok(Fmm {
             kernel: b.kernel,
             mode: b.mode,
+            source_kind: b.source_kind,
             n_sources: b.sources.len() / 3,
             n_targets: b.targets.map_or(b.sources.len(), <[T]>::len) / 3,
             parts,
@@ -304,6 +307,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         passes::Ctx {
             kernel: &self.kernel,
             mode: self.mode,
+            kind: self.source_kind,
             unit_surface: &self.unit_surface,
         }
     }
@@ -315,11 +319,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             .expect("the largest cluster has a tree")
     }
 
-    /// Potentials (and gradients, depending on the mode) at the targets for
-    /// one charge per source, in the caller's original target order:
-    /// `values_per_target` values per target (`[phi]` or `[phi, gx, gy, gz]`).
+    /// Potentials (and gradients and Hessians, depending on the mode) at
+    /// the targets for one charge per source (or the densities of the
+    /// [source kind](FmmBuilder::source_kind): `[nx, ny, nz]` or
+    /// `[q, nx, ny, nz]` per source), in the caller's original target
+    /// order: `values_per_target` values per target (`[phi]`,
+    /// `[phi, gx, gy, gz]`, or those and `[H11, H22, H33, H12, H13, H23]`).
     ///
-    /// `phi(y) = sum_i K(x_i, y) q_i` with coincident pairs excluded.
+    /// `phi(y) = sum_i q_i K(x_i, y) + n_i . grad_x K(x_i, y)` with
+    /// coincident pairs excluded.
     pub fn evaluate(&self, charges: &[T]) -> Result<Vec<T>, FmmError> {
         self.evaluate_timed(charges).map(|(v, _)| v)
     }
@@ -337,16 +345,25 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         self.check_charges(charges, n_vectors)?;
         let mut out =
             Vec::with_capacity(n_vectors * self.n_targets * self.mode.values_per_target());
-        for q in charges.chunks_exact(self.n_sources) {
+        for q in charges.chunks_exact(self.n_sources * self.source_kind.values_per_source()) {
             out.extend(passes::evaluate(self, q).0);
         }
         Ok(out)
     }
 
     fn check_charges(&self, charges: &[T], n_vectors: usize) -> Result<(), FmmError> {
-        let expected = n_vectors * self.n_sources;
+        let per_source = self.source_kind.values_per_source();
+        let expected = n_vectors * self.n_sources * per_source;
         if charges.len() != expected || n_vectors == 0 {
-            return Err(FmmError::ChargeCount {
+            if self.source_kind == SourceKind::Charge {
+                return Err(FmmError::ChargeCount {
+                    expected,
+                    got: charges.len(),
+                });
+            }
+            return Err(FmmError::DensityCount {
+                kind: self.source_kind.name(),
+                per_source,
                 expected,
                 got: charges.len(),
             });
@@ -396,6 +413,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// What is evaluated.
     pub fn mode(&self) -> EvalMode {
         self.mode
+    }
+
+    /// What each source carries (see [`FmmBuilder::source_kind`]).
+    pub fn source_kind(&self) -> SourceKind {
+        self.source_kind
     }
 
     /// Number of sources.

@@ -42,7 +42,10 @@ mod tree_fmm;
 pub mod tuning;
 pub mod verify;
 
-pub use accuracy::{ErrorReport, estimate_errors, random_sample, relative_errors, sample_indices};
+pub use accuracy::{
+    ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_sources,
+    sample_indices,
+};
 pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;

@@ -128,20 +128,24 @@ impl<T: Real, S: M2lScheme<T>> Part<T, S> {
         }
     }
 
-    /// Charges of the part's sources in the order its body stores them
-    /// (tree order for a tree), from the caller's charges.
-    pub(crate) fn local_charges(&self, charges: &[T]) -> Vec<T> {
+    /// Densities (`nq` per source: charges, dipoles) of the part's
+    /// sources in the order its body stores them (tree order for a tree),
+    /// from the caller's.
+    pub(crate) fn local_charges(&self, charges: &[T], nq: usize) -> Vec<T> {
+        let take = |k: usize| {
+            let i = self.source_id(k);
+            &charges[nq * i..nq * (i + 1)]
+        };
         match &self.body {
             Body::Tree(t) if !t.has_sources => Vec::new(),
             Body::Tree(t) => t
                 .tree
                 .source_permutation()
                 .iter()
-                .map(|&k| charges[self.source_id(k)])
+                .flat_map(|&k| take(k))
+                .copied()
                 .collect(),
-            Body::Points(_) => (0..self.n_sources)
-                .map(|k| charges[self.source_id(k)])
-                .collect(),
+            Body::Points(_) => (0..self.n_sources).flat_map(take).copied().collect(),
         }
     }
 

@@ -20,7 +20,7 @@ use std::ops::Range;
 use std::time::Instant;
 
 use ferrofmm_field::M2lScheme;
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
 use crate::batch::{gather_apply_scatter, par_columns};
@@ -34,6 +34,9 @@ use ferrofmm_tree::Octree;
 pub(crate) struct Ctx<'a, K> {
     pub(crate) kernel: &'a K,
     pub(crate) mode: EvalMode,
+    /// What each source carries: `kind.values_per_source()` densities per
+    /// source in the charge vectors the passes read.
+    pub(crate) kind: SourceKind,
     pub(crate) unit_surface: &'a [f64],
 }
 
@@ -50,7 +53,12 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     let w = fmm.mode.values_per_target();
 
     let cx = fmm.ctx();
-    let local_q: Vec<Vec<T>> = fmm.parts.iter().map(|p| p.local_charges(charges)).collect();
+    let nq = fmm.source_kind.values_per_source();
+    let local_q: Vec<Vec<T>> = fmm
+        .parts
+        .iter()
+        .map(|p| p.local_charges(charges, nq))
+        .collect();
     let multipoles: Vec<Vec<T>> = fmm
         .parts
         .iter()
@@ -109,7 +117,8 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
             Body::Points(pp) => {
                 let t = Instant::now();
                 if part.n_sources > 0 && part.n_targets > 0 {
-                    fmm.kernel.evaluate(
+                    fmm.kernel.evaluate_sources(
+                        fmm.source_kind,
                         fmm.mode,
                         &pp.sources,
                         &local_q[k],
@@ -187,12 +196,18 @@ fn couple<T: Real, K: Kernel, S: M2lScheme<T>>(
         });
 }
 
-fn source_slices<'a, T: Real, S: M2lScheme<T>>(
+/// The coordinates and densities of the sources `r` (tree order).
+fn source_slices<'a, T: Real, S: M2lScheme<T>, K>(
+    cx: &Ctx<'_, K>,
     part: &'a TreePart<T, S>,
     q: &'a [T],
     r: Range<usize>,
 ) -> (&'a [T], &'a [T]) {
-    (&part.sources[3 * r.start..3 * r.end], &q[r])
+    let nq = cx.kind.values_per_source();
+    (
+        &part.sources[3 * r.start..3 * r.end],
+        &q[nq * r.start..nq * r.end],
+    )
 }
 
 /// Leaves' sources to their upward check surfaces, then check-to-equivalent per level.
@@ -216,8 +231,9 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
                 return;
             }
             part.surface_of(cx.unit_surface, b, radius, surface);
-            let (x, qb) = source_slices(part, q, r);
-            cx.kernel.evaluate(EvalMode::Potential, x, qb, surface, col);
+            let (x, qb) = source_slices(cx, part, q, r);
+            cx.kernel
+                .evaluate_sources(cx.kind, EvalMode::Potential, x, qb, surface, col);
         });
     for level in 0..=tree.depth() {
         let r = tree.level_range(level);
@@ -313,8 +329,9 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
                 }
                 part.surface_of(cx.unit_surface, b, radius, surface);
                 for &a in xs {
-                    let (x, qa) = source_slices(part, q, tree.source_range(a));
-                    cx.kernel.evaluate(EvalMode::Potential, x, qa, surface, col);
+                    let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
+                    cx.kernel
+                        .evaluate_sources(cx.kind, EvalMode::Potential, x, qa, surface, col);
                 }
             });
         timings.p2l += t.elapsed();
@@ -364,7 +381,8 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
         .for_each_init(Vec::new, |surface, (b, out)| {
             part.surface_of(cx.unit_surface, *b, down_equiv, surface);
             let d = &locals[n * *b..n * (*b + 1)];
-            cx.kernel.evaluate(mode, surface, d, targets_of(*b), out);
+            cx.kernel
+                .evaluate_sources(SourceKind::Charge, mode, surface, d, targets_of(*b), out);
         });
     timings.l2p += t.elapsed();
     if !part.has_sources {
@@ -379,7 +397,14 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
             for &a in tree.w_list(*b) {
                 part.surface_of(cx.unit_surface, a, up_equiv, surface);
                 let u = &multipoles[n * a..n * (a + 1)];
-                cx.kernel.evaluate(mode, surface, u, targets_of(*b), out);
+                cx.kernel.evaluate_sources(
+                    SourceKind::Charge,
+                    mode,
+                    surface,
+                    u,
+                    targets_of(*b),
+                    out,
+                );
             }
         });
     timings.m2p += t.elapsed();
@@ -388,8 +413,8 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     slices.par_iter_mut().for_each(|(b, out)| {
         let y = targets_of(*b);
         for &a in tree.u_list(*b) {
-            let (x, qa) = source_slices(part, q, tree.source_range(a));
-            cx.kernel.evaluate(mode, x, qa, y, out);
+            let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
+            cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
         }
     });
     timings.p2p += t.elapsed();

@@ -172,6 +172,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         Ctx {
             kernel: &self.kernel,
             mode: self.mode,
+            kind: ferrofmm_kernels::SourceKind::Charge,
             unit_surface: &self.unit_surface,
         }
     }

@@ -215,6 +215,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     ) -> ErrorReport {
         estimate_errors(
             &self.kernel,
+            self.source_kind,
             self.mode,
             sources,
             charges,

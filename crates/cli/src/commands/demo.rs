@@ -4,7 +4,7 @@
 use clap::Args;
 
 use super::run::{Input, Settings, run};
-use super::{CHARGES_HELP, ChargesArg, FmmArgs, GeometryArg};
+use super::{CHARGES_HELP, ChargesArg, FmmArgs, GeometryArg, KernelArg};
 use crate::error::{CliError, Result};
 
 /// Default number of points.
@@ -29,6 +29,10 @@ pub struct DemoArgs {
     /// Evaluate potentials only.
     #[arg(long = "no-gradients", overrides_with = "gradients")]
     pub no_gradients: bool,
+    /// Also evaluate the Hessians (six second derivatives per target;
+    /// implies gradients).
+    #[arg(long)]
+    pub hessians: bool,
     /// Evaluate this many times and report the fastest (and the median).
     #[arg(long, default_value_t = 1)]
     pub repeats: usize,
@@ -65,7 +69,9 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         leaf_size: args.fmm.leaf_size,
         scheme: args.fmm.scheme,
         precision: args.fmm.precision,
-        gradients: !args.no_gradients,
+        gradients: !args.no_gradients || args.hessians,
+        hessians: args.hessians,
+        kernel: KernelArg::parse(&args.fmm.kernel)?,
         repeats: args.repeats,
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),

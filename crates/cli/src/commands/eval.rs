@@ -4,10 +4,10 @@ use std::path::PathBuf;
 
 use clap::Args;
 
-use super::FmmArgs;
 use super::run::{Input, Settings, run};
+use super::{FmmArgs, KernelArg};
 use crate::error::{CliError, Result};
-use crate::io::{self, Format};
+use crate::io::{self, Contents, Format};
 
 /// Arguments of `ferrofmm eval`.
 #[derive(Args, Clone, Debug)]
@@ -18,12 +18,20 @@ pub struct EvalArgs {
     /// Target points, same formats (default: the sources).
     #[arg(long, value_name = "FILE")]
     pub targets: Option<PathBuf>,
-    /// Charges, one per source: .csv (one per line) or .npy (N).
+    /// Charges, one per source: .csv (one per line) or .npy (N). At least
+    /// one of --charges and --dipoles.
+    #[arg(long, value_name = "FILE", required_unless_present = "dipoles")]
+    pub charges: Option<PathBuf>,
+    /// Dipole vectors n, one per source: .csv (nx,ny,nz per line) or .npy
+    /// (N x 3). Each source then adds n . grad_x K(x, y) (a double-layer
+    /// potential), with its charge when --charges is given too.
     #[arg(long, value_name = "FILE")]
-    pub charges: PathBuf,
-    /// Output file, .csv or .npy: one potential per target, or potential and
-    /// gradient (N x 4) with --gradients, in the run's precision. Must not
-    /// be one of the input files; replaced only once fully written.
+    pub dipoles: Option<PathBuf>,
+    /// Output file, .csv or .npy, in the run's precision, one row per
+    /// target: `potential`; with --gradients also `grad_x, grad_y, grad_z`
+    /// (N x 4); with --hessians also `hess_xx, hess_yy, hess_zz, hess_xy,
+    /// hess_xz, hess_yz` (N x 10). Must not be one of the input files;
+    /// replaced only once fully written.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     #[command(flatten)]
@@ -31,6 +39,10 @@ pub struct EvalArgs {
     /// Also evaluate the gradient with respect to the target.
     #[arg(long)]
     pub gradients: bool,
+    /// Also evaluate the gradient and the Hessian (the six second
+    /// derivatives with respect to the target).
+    #[arg(long)]
+    pub hessians: bool,
     /// Compare this many sampled targets with direct summation (0: no check).
     #[arg(long, default_value_t = 0, value_name = "TARGETS")]
     pub check: usize,
@@ -45,31 +57,60 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     // Fail on an unusable output path before any work: unknown type, one
     // of the inputs, a directory, or a directory that takes no new file.
     Format::of(&args.out)?;
-    let mut inputs = vec![
-        ("--sources", args.sources.as_path()),
-        ("--charges", args.charges.as_path()),
-    ];
-    if let Some(t) = &args.targets {
-        inputs.push(("--targets", t.as_path()));
+    let kernel = KernelArg::parse(&args.fmm.kernel)?;
+    let mut inputs = vec![("--sources", args.sources.as_path())];
+    for (flag, path) in [
+        ("--charges", &args.charges),
+        ("--dipoles", &args.dipoles),
+        ("--targets", &args.targets),
+    ] {
+        if let Some(p) = path {
+            inputs.push((flag, p.as_path()));
+        }
     }
     io::output::check(&args.out, &inputs)?;
 
     let sources = io::read_points(&args.sources)?;
     let targets = args.targets.as_deref().map(io::read_points).transpose()?;
-    let charges = io::read_charges(&args.charges)?;
-    if charges.len() != sources.len() / 3 {
-        return Err(CliError::CountMismatch {
-            charges_path: args.charges.clone(),
-            charges: charges.len(),
-            sources_path: args.sources.clone(),
-            sources: sources.len() / 3,
-        });
-    }
+    let n_sources = sources.len() / 3;
+    let charges = match &args.charges {
+        Some(path) => {
+            let q = io::read_charges(path)?;
+            if q.len() != n_sources {
+                return Err(CliError::CountMismatch {
+                    what: "charges",
+                    charges_path: path.clone(),
+                    charges: q.len(),
+                    sources_path: args.sources.clone(),
+                    sources: n_sources,
+                });
+            }
+            Some(q)
+        }
+        None => None,
+    };
+    let dipoles = match &args.dipoles {
+        Some(path) => {
+            let n = io::read(path, Contents::Dipoles)?;
+            if n.len() != 3 * n_sources {
+                return Err(CliError::CountMismatch {
+                    what: "dipoles",
+                    charges_path: path.clone(),
+                    charges: n.len() / 3,
+                    sources_path: args.sources.clone(),
+                    sources: n_sources,
+                });
+            }
+            Some(n)
+        }
+        None => None,
+    };
 
     let input = Input::Given {
         sources,
         targets,
         charges,
+        dipoles,
     };
     let settings = Settings {
         command: "eval",
@@ -77,7 +118,9 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         leaf_size: args.fmm.leaf_size,
         scheme: args.fmm.scheme,
         precision: args.fmm.precision,
-        gradients: args.gradients,
+        gradients: args.gradients || args.hessians,
+        hessians: args.hessians,
+        kernel,
         repeats: 1,
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),

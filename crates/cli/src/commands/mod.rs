@@ -83,6 +83,51 @@ impl std::fmt::Display for SchemeArg {
     }
 }
 
+/// The kernel of a run (`--kernel`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum KernelArg {
+    /// Laplace `1 / (4 pi r)`.
+    Laplace,
+    /// Modified Helmholtz (Yukawa) `exp(-k r) / (4 pi r)` with `k >= 0`.
+    Yukawa(f64),
+}
+
+/// Help text of `--kernel`.
+pub const KERNEL_HELP: &str = "Kernel: `laplace` (1/(4 pi r), the default) or `yukawa:K` \
+(modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates)";
+
+impl KernelArg {
+    /// Parse `--kernel` (`laplace`, `yukawa:K`; an unknown or invalid value
+    /// is bad input: exit status 1).
+    pub fn parse(value: &str) -> Result<Self, CliError> {
+        let bad = |why: String| CliError::InvalidArgument(format!("--kernel {value}: {why}"));
+        match value.split_once(':') {
+            None if value == "laplace" => Ok(KernelArg::Laplace),
+            Some(("yukawa" | "modified-helmholtz", k)) => {
+                let k: f64 = k
+                    .parse()
+                    .map_err(|_| bad(format!("the wavenumber `{k}` is not a number")))?;
+                ferrofmm_kernels::ModifiedHelmholtz3d::new(k)
+                    .map(|_| KernelArg::Yukawa(k))
+                    .map_err(|e| bad(e.to_string()))
+            }
+            _ if value.starts_with("helmholtz") || value == "stokes" => Err(bad(
+                "not available yet (laplace and yukawa:K are)".to_string(),
+            )),
+            None if value == "yukawa" => Err(bad("give the wavenumber, e.g. yukawa:2.5".into())),
+            _ => Err(bad("use laplace or yukawa:K".to_string())),
+        }
+    }
+
+    /// The kernel in words, for reports: `laplace` or `yukawa:K`.
+    pub fn name(self) -> String {
+        match self {
+            KernelArg::Laplace => "laplace".to_string(),
+            KernelArg::Yukawa(k) => format!("yukawa:{k}"),
+        }
+    }
+}
+
 /// Built-in point distributions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
 pub enum GeometryArg {
@@ -183,6 +228,8 @@ pub struct FmmArgs {
     /// Directory of the on-disk operator cache (off by default).
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
+    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K", help = KERNEL_HELP)]
+    pub kernel: String,
     /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
     /// gradients) of the gradient: the order, leaf size and SVD rank are
     /// then chosen for these points (overriding --order and --leaf-size),

@@ -10,12 +10,15 @@ use std::time::Instant;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::{M2lCostShape, choose_precision, choose_scheme};
 use ferrofmm_fmm::{
-    Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors, sample_indices,
+    Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors_sources,
+    sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor};
-use ferrofmm_kernels::{EvalMode, Laplace3d, Precision, Real};
+use ferrofmm_kernels::{
+    EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, SourceKind,
+};
 
-use super::{PrecisionArg, SchemeArg};
+use super::{KernelArg, PrecisionArg, SchemeArg};
 use crate::error::Result;
 use crate::io::{self, Values};
 use crate::memory::peak_rss_bytes;
@@ -38,15 +41,34 @@ pub enum Input {
         /// Random seed.
         seed: u64,
     },
-    /// Points and charges read from files (interleaved `f64`).
+    /// Points and densities read from files (interleaved `f64`).
     Given {
         /// Sources.
         sources: Vec<f64>,
         /// Targets (`None`: the sources).
         targets: Option<Vec<f64>>,
-        /// One charge per source.
-        charges: Vec<f64>,
+        /// One charge per source (`None`: dipoles only).
+        charges: Option<Vec<f64>>,
+        /// One dipole vector per source, interleaved (`None`: charges only).
+        dipoles: Option<Vec<f64>>,
     },
+}
+
+/// The source kind and interleaved densities of charges and / or dipoles
+/// (`[q]`, `[nx, ny, nz]` or `[q, nx, ny, nz]` per source).
+pub fn densities(charges: Option<Vec<f64>>, dipoles: Option<Vec<f64>>) -> (SourceKind, Vec<f64>) {
+    match (charges, dipoles) {
+        (Some(q), None) => (SourceKind::Charge, q),
+        (None, Some(n)) => (SourceKind::Dipole, n),
+        (Some(q), Some(n)) => (
+            SourceKind::ChargeDipole,
+            q.iter()
+                .zip(n.chunks_exact(3))
+                .flat_map(|(&q, n)| [q, n[0], n[1], n[2]])
+                .collect(),
+        ),
+        (None, None) => (SourceKind::Charge, Vec::new()),
+    }
 }
 
 /// Parameters of one run.
@@ -64,6 +86,10 @@ pub struct Settings {
     pub precision: PrecisionArg,
     /// Potential and gradient (true) or potential only.
     pub gradients: bool,
+    /// Hessians too (implies gradients).
+    pub hessians: bool,
+    /// The kernel.
+    pub kernel: KernelArg,
     /// Evaluations to time (at least 1).
     pub repeats: usize,
     /// Targets to compare with direct summation (0: no check).
@@ -81,13 +107,9 @@ pub struct Settings {
 /// Run the FMM described by `input` and `settings`; write the values to
 /// `output` when given (format by extension).
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
-    use PrecisionArg::{Auto, F32, F64};
-    use SchemeArg::{Dense, Fft, Svd};
-    let mode = if settings.gradients {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
+    use PrecisionArg::{Auto, F64};
+    use SchemeArg::Svd;
+    let mode = settings.mode();
     // The points, made once, for the automatic choices (only with a
     // tolerance and an `auto` setting).
     let auto = settings.precision == Auto || settings.scheme == SchemeArg::Auto;
@@ -113,13 +135,47 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         scheme,
         ..settings.clone()
     };
+    match settings.kernel {
+        KernelArg::Laplace => run_kernel(Laplace3d, input, settings, output),
+        KernelArg::Yukawa(k) => run_kernel(
+            ModifiedHelmholtz3d::new(k)
+                .map_err(|e| crate::error::CliError::InvalidArgument(e.to_string()))?,
+            input,
+            settings,
+            output,
+        ),
+    }
+}
+
+impl Settings {
+    /// The evaluation mode of `gradients` and `hessians`.
+    pub fn mode(&self) -> EvalMode {
+        if self.hessians {
+            EvalMode::PotentialGradientHessian
+        } else if self.gradients {
+            EvalMode::PotentialGradient
+        } else {
+            EvalMode::Potential
+        }
+    }
+}
+
+/// [`run`] with the kernel chosen: the one match on float type and scheme.
+fn run_kernel<K: Kernel>(
+    kernel: K,
+    input: Input,
+    settings: &Settings,
+    output: Option<&Path>,
+) -> Result<RunReport> {
+    use PrecisionArg::{Auto, F32, F64};
+    use SchemeArg::{Dense, Fft, Svd};
     match (settings.precision, settings.scheme) {
-        (F64, Svd) => run_typed::<f64, SvdM2l<f64>>(input, settings, output),
-        (F64, Dense) => run_typed::<f64, DenseM2l<f64>>(input, settings, output),
-        (F32, Svd) => run_typed::<f32, SvdM2l<f32>>(input, settings, output),
-        (F32, Dense) => run_typed::<f32, DenseM2l<f32>>(input, settings, output),
-        (F64, Fft) => run_typed::<f64, FftM2l<f64>>(input, settings, output),
-        (F32, Fft) => run_typed::<f32, FftM2l<f32>>(input, settings, output),
+        (F64, Svd) => run_typed::<f64, SvdM2l<f64>, K>(kernel, input, settings, output),
+        (F64, Dense) => run_typed::<f64, DenseM2l<f64>, K>(kernel, input, settings, output),
+        (F32, Svd) => run_typed::<f32, SvdM2l<f32>, K>(kernel, input, settings, output),
+        (F32, Dense) => run_typed::<f32, DenseM2l<f32>, K>(kernel, input, settings, output),
+        (F64, Fft) => run_typed::<f64, FftM2l<f64>, K>(kernel, input, settings, output),
+        (F32, Fft) => run_typed::<f32, FftM2l<f32>, K>(kernel, input, settings, output),
         (Auto, _) | (_, SchemeArg::Auto) => {
             unreachable!("auto precision and scheme are resolved above")
         }
@@ -173,13 +229,23 @@ fn auto_precision(
     })
 }
 
-/// Column names of the output for a run with or without gradients.
-pub fn output_names(gradients: bool) -> &'static [&'static str] {
-    if gradients {
-        &["potential", "grad_x", "grad_y", "grad_z"]
-    } else {
-        &["potential"]
-    }
+/// Column names of the output for a run of `mode`: `potential`, then
+/// `grad_x, grad_y, grad_z`, then `hess_xx, hess_yy, hess_zz, hess_xy,
+/// hess_xz, hess_yz`.
+pub fn output_names(mode: EvalMode) -> &'static [&'static str] {
+    const ALL: [&str; 10] = [
+        "potential",
+        "grad_x",
+        "grad_y",
+        "grad_z",
+        "hess_xx",
+        "hess_yy",
+        "hess_zz",
+        "hess_xy",
+        "hess_xz",
+        "hess_yz",
+    ];
+    &ALL[..mode.values_per_target()]
 }
 
 /// The values as the float type they are.
@@ -197,37 +263,38 @@ fn as_values<T: Real>(values: &[T]) -> Values<'_> {
 /// raises the order).
 pub trait BuildScheme<T: Real>: M2lScheme<T> {
     /// Build the FMM described by `builder` with this scheme.
-    fn build(
-        builder: FmmBuilder<'_, T, Laplace3d>,
-    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError>;
+    fn build<K: Kernel>(
+        builder: FmmBuilder<'_, T, K>,
+    ) -> std::result::Result<Fmm<T, K, Self>, FmmError>;
 }
 
 impl<T: Real> BuildScheme<T> for SvdM2l<T> {
-    fn build(
-        builder: FmmBuilder<'_, T, Laplace3d>,
-    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+    fn build<K: Kernel>(
+        builder: FmmBuilder<'_, T, K>,
+    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
         builder.build_svd()
     }
 }
 
 impl<T: Real> BuildScheme<T> for DenseM2l<T> {
-    fn build(
-        builder: FmmBuilder<'_, T, Laplace3d>,
-    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+    fn build<K: Kernel>(
+        builder: FmmBuilder<'_, T, K>,
+    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
         builder.build_dense()
     }
 }
 
 impl<T: Real> BuildScheme<T> for FftM2l<T> {
-    fn build(
-        builder: FmmBuilder<'_, T, Laplace3d>,
-    ) -> std::result::Result<Fmm<T, Laplace3d, Self>, FmmError> {
+    fn build<K: Kernel>(
+        builder: FmmBuilder<'_, T, K>,
+    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
         builder.build_with(Default::default())
     }
 }
 
-/// [`run`] for float type `T` and M2L scheme `S`.
-pub fn run_typed<T: Real, S: BuildScheme<T>>(
+/// [`run`] for float type `T`, M2L scheme `S` and kernel `K`.
+pub fn run_typed<T: Real, S: BuildScheme<T>, K: Kernel>(
+    kernel: K,
     input: Input,
     settings: &Settings,
     output: Option<&Path>,
@@ -236,11 +303,7 @@ where
     S::Config: Default,
 {
     let start = Instant::now();
-    let mode = if settings.gradients {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
+    let mode = settings.mode();
     // Files are read as f64 and converted once (consumed, so that only one
     // copy of the input is held).
     let convert = |v: Vec<f64>| v.into_iter().map(T::from_f64).collect::<Vec<T>>();
@@ -253,7 +316,7 @@ where
         ),
         Input::Given { .. } => (None, None),
     };
-    let (sources, targets, q): (Vec<T>, Option<Vec<T>>, Vec<T>) = match input {
+    let (sources, targets, kind, q): (Vec<T>, Option<Vec<T>>, SourceKind, Vec<T>) = match input {
         Input::Generated {
             geometry,
             charges,
@@ -261,13 +324,24 @@ where
             seed,
         } => with_stage(
             format!("generating {n} points ({})", geometry.name()),
-            || (geometry.points(n, seed), None, charges.generate(n, seed)),
+            || {
+                (
+                    geometry.points(n, seed),
+                    None,
+                    SourceKind::Charge,
+                    charges.generate(n, seed),
+                )
+            },
         ),
         Input::Given {
             sources,
             targets,
             charges,
-        } => (convert(sources), targets.map(convert), convert(charges)),
+            dipoles,
+        } => {
+            let (kind, d) = densities(charges, dipoles);
+            (convert(sources), targets.map(convert), kind, convert(d))
+        }
     };
 
     let mut fmm = {
@@ -277,6 +351,8 @@ where
             .with_progress(stage.precompute_progress());
         let _precomputing = crate::interrupt::precomputing();
         let mut builder = FmmBuilder::new(&sources)
+            .kernel(kernel.clone())
+            .source_kind(kind)
             .order(settings.order)
             .leaf_size(settings.leaf_size)
             .mode(mode)
@@ -339,12 +415,13 @@ where
         let sample = sample_indices(fmm.n_targets(), settings.check);
         let e = with_stage(
             format!("direct summation on {} sampled targets", sample.len()),
-            || relative_errors(&Laplace3d, mode, &sources, &q, tgt, &values, &sample),
+            || relative_errors_sources(&kernel, kind, mode, &sources, &q, tgt, &values, &sample),
         );
         let figures = ErrorFigures {
             n_sampled: e.n_sampled,
             potential: e.potential,
             gradient: e.gradient,
+            hessian: e.hessian,
         };
         (Some(figures), Some(t0.elapsed().as_secs_f64()))
     } else {
@@ -353,7 +430,7 @@ where
 
     if let Some(path) = output {
         with_stage(format!("writing {}", path.display()), || {
-            io::write(path, as_values(&values), output_names(settings.gradients))
+            io::write(path, as_values(&values), output_names(mode))
         })?;
     }
 
@@ -377,7 +454,10 @@ where
         verification,
         scheme: settings.scheme,
         precision: settings.precision,
-        gradients: settings.gradients,
+        gradients: mode.has_gradient(),
+        hessians: mode.has_hessian(),
+        kernel: settings.kernel.name(),
+        sources: kind.name().to_string(),
         threads: rayon::current_num_threads(),
         cache: cache_summary(
             fmm.operators().cache_status(),

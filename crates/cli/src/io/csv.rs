@@ -81,6 +81,7 @@ pub fn parse(text: &str, contents: Contents) -> Result<Vec<f64>, (usize, ParseEr
             let expected = match contents {
                 Contents::Points => "3 values (x, y, z)".to_string(),
                 Contents::Charges => "1 value (the charge)".to_string(),
+                Contents::Dipoles => "3 values (the dipole's nx, ny, nz)".to_string(),
             };
             return Err((
                 line_no,

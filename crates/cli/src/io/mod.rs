@@ -26,13 +26,15 @@ pub enum Contents {
     Points,
     /// Charges: one value per record.
     Charges,
+    /// Dipole vectors: three components per record.
+    Dipoles,
 }
 
 impl Contents {
     /// Values per record.
     pub fn columns(self) -> usize {
         match self {
-            Contents::Points => 3,
+            Contents::Points | Contents::Dipoles => 3,
             Contents::Charges => 1,
         }
     }
@@ -42,6 +44,7 @@ impl Contents {
         match self {
             Contents::Points => "points",
             Contents::Charges => "charges",
+            Contents::Dipoles => "dipoles",
         }
     }
 }

@@ -53,11 +53,12 @@ pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
             .join(", ")
     );
     let (rows, columns) = match (contents, shape.as_slice()) {
-        (Contents::Points, &[n, 3]) => (n, 3),
+        (Contents::Points | Contents::Dipoles, &[n, 3]) => (n, 3),
         (Contents::Charges, &[n]) | (Contents::Charges, &[n, 1]) => (n, 1),
-        (Contents::Points, _) => {
+        (Contents::Points | Contents::Dipoles, _) => {
             return Err(bad(format!(
-                "expected an (N, 3) array of points, found shape {shape_text}"
+                "expected an (N, 3) array of {}, found shape {shape_text}",
+                contents.noun()
             )));
         }
         (Contents::Charges, _) => {

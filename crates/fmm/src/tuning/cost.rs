@@ -104,6 +104,10 @@ const P2P_PAIR_WITH_GRADIENT: f64 = 1.71e-10;
 /// second (AVX-512, `cargo bench --bench p2p`).
 pub const GRADIENT_COST_FACTOR: f64 = 1.6;
 
+/// As [`GRADIENT_COST_FACTOR`] with Hessians too (ten outputs per target,
+/// the composed loop of `ferrofmm_kernels::lanes::RadialLaneKernel`).
+pub const HESSIAN_COST_FACTOR: f64 = 3.0;
+
 impl CostModel {
     /// The model for evaluation mode `mode`. The coefficients are fitted on
     /// potentials; with gradients, target-side kernel work (P2P, L2P, M2P)
@@ -119,17 +123,17 @@ impl CostModel {
     /// assert_eq!(CostModel::default().for_mode(EvalMode::Potential), pot);
     /// ```
     pub fn for_mode(self, mode: EvalMode) -> Self {
-        match mode {
-            EvalMode::Potential => self,
-            EvalMode::PotentialGradient => {
-                let half = 0.5 * (1.0 + GRADIENT_COST_FACTOR);
-                CostModel {
-                    p2p_pair: self.p2p_pair * GRADIENT_COST_FACTOR,
-                    surface_point: self.surface_point * half,
-                    far_point: self.far_point * half,
-                    ..self
-                }
-            }
+        let factor = match mode {
+            EvalMode::Potential => return self,
+            EvalMode::PotentialGradient => GRADIENT_COST_FACTOR,
+            EvalMode::PotentialGradientHessian => HESSIAN_COST_FACTOR,
+        };
+        let half = 0.5 * (1.0 + factor);
+        CostModel {
+            p2p_pair: self.p2p_pair * factor,
+            surface_point: self.surface_point * half,
+            far_point: self.far_point * half,
+            ..self
         }
     }
 }

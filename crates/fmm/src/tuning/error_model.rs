@@ -121,6 +121,12 @@ pub(super) const F64_GRADIENT_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 
     5.2e-10, // p = 12
 ];
 
+/// The Hessian's error against the gradient's at the same order (Laplace,
+/// f64, SVD M2L; measured, see `docs/tolerance.md`): the table of
+/// [`F64_GRADIENT_ERRORS`] is scaled by it for
+/// `EvalMode::PotentialGradientHessian`.
+pub const HESSIAN_ERROR_FACTOR: f64 = 4.0;
+
 /// Ranks of the SVD-compressed M2L stack at tolerances `10^-2 .. 10^-11`
 /// (measured, order 9; lower orders cap the rank at the number of surface
 /// points).
@@ -183,10 +189,15 @@ impl ErrorModel {
         if mode.values_per_target() == 1 {
             return Self::laplace(precision);
         }
+        let hessian = if mode.has_hessian() {
+            HESSIAN_ERROR_FACTOR
+        } else {
+            1.0
+        };
         let worst: Vec<f64> = F64_POTENTIAL_ERRORS
             .iter()
             .zip(&F64_GRADIENT_ERRORS)
-            .map(|(p, g)| p.max(*g))
+            .map(|(p, g)| p.max(*g * hessian))
             .collect();
         let mut m = Self::from_table(
             precision,
@@ -196,7 +207,7 @@ impl ErrorModel {
         if precision == Precision::F32 {
             m.floor = F32_GRADIENT_FLOOR;
         }
-        m.rounding_factor = 3.0 * ROUNDING_FACTOR;
+        m.rounding_factor = 3.0 * hessian * ROUNDING_FACTOR;
         m
     }
 

@@ -129,7 +129,9 @@ impl TuningModel for YukawaModel {
     fn cost_model(&self, mode: EvalMode, _: M2lCostShape) -> CostModel {
         let factor = match mode {
             EvalMode::Potential => YUKAWA_P2P_FACTOR,
-            EvalMode::PotentialGradient => YUKAWA_GRADIENT_P2P_FACTOR,
+            EvalMode::PotentialGradient | EvalMode::PotentialGradientHessian => {
+                YUKAWA_GRADIENT_P2P_FACTOR
+            }
         };
         CostModel::default().for_mode(mode).scaled_kernel(factor)
     }
