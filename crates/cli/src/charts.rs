@@ -679,6 +679,7 @@ pub(crate) mod tests {
                 n_sampled: 1000,
                 potential: error,
                 gradient: Some(10.0 * error),
+                hessian: None,
             }),
             direct_check_s: Some(0.01),
             peak_rss_bytes: Some(50 << 20),

@@ -388,6 +388,7 @@ mod tests {
         let noisy: Vec<f64> = exact.iter().map(|v| v * (1.0 + 1e-4)).collect();
         let e = estimate_errors(
             &Laplace3d,
+            SourceKind::Charge,
             mode,
             &points,
             &q,
@@ -401,6 +402,7 @@ mod tests {
         assert!((e.potential / 1e-4 - 1.0).abs() < 1e-6, "{e:?}");
         let e = estimate_errors(
             &Laplace3d,
+            SourceKind::Charge,
             mode,
             &points,
             &q,

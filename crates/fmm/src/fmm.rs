@@ -157,7 +157,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                         tuning::default_model(&b.kernel, width)
                     }
                 };
-                let tuner = Tuner::from_model(model, T::PRECISION, b.mode, S::COST_SHAPE);
+                // A dipole's potential is a derivative of a charge's: its
+                // error follows the gradient's (measured, see
+                // `examples/sources_sweep.rs`), so dipoles are modelled
+                // with the gradient's table at least.
+                let model_mode = match (b.source_kind.has_dipoles(), b.mode) {
+                    (true, EvalMode::Potential) => EvalMode::PotentialGradient,
+                    (_, mode) => mode,
+                };
+                let tuner = Tuner::from_model(model, T::PRECISION, model_mode, S::COST_SHAPE);
                 error_model = Some(tuner.error.clone());
                 let c = tuner.choose(
                     eps,

@@ -80,17 +80,24 @@ fn assert_bounded(label: &str, e: &ErrorReport, order: usize, at4: f64) {
 }
 
 /// Every kernel x source kind x output, orders 4..10, on the cube with
-/// zero-mean densities; one Hessian build covers all three outputs.
+/// zero-mean densities; one Hessian build covers all three outputs (all
+/// kinds at p = 4 and 6, charge + dipole above, to keep the test short).
 #[test]
 fn every_kernel_kind_and_output_meets_its_order_bound() {
     let yukawa = ModifiedHelmholtz3d::new(5.0).unwrap();
+    let mode = EvalMode::PotentialGradientHessian;
+    let n = 12_000;
     for order in [4, 6, 8, 10] {
-        for kind in KINDS {
-            let mode = EvalMode::PotentialGradientHessian;
+        let kinds: &[SourceKind] = if order <= 6 {
+            &KINDS
+        } else {
+            &[SourceKind::ChargeDipole]
+        };
+        for &kind in kinds {
             let (e, _) = run::<f64, _>(
                 &Laplace3d,
                 Geometry::Cube,
-                20_000,
+                n,
                 order,
                 kind,
                 mode,
@@ -102,7 +109,7 @@ fn every_kernel_kind_and_output_meets_its_order_bound() {
                 let (e, _) = run::<f64, _>(
                     &yukawa,
                     Geometry::Cube,
-                    20_000,
+                    n,
                     order,
                     kind,
                     mode,
@@ -184,6 +191,51 @@ fn adaptive_thin_and_clustered_inputs_with_dipoles() {
         Some(&targets),
     );
     assert_bounded("separate targets", &e, 6, 2e-3);
+}
+
+/// A distant point is its own cluster, coupled to the cloud outside the
+/// tree (its dipole acts through the cluster coupling, and it receives
+/// the cloud's field there): still to the order's accuracy, at the
+/// outlier too.
+#[test]
+fn a_distant_dipole_is_coupled_to_the_accuracy_of_the_order() {
+    let n = 8000;
+    let mut points: Vec<f64> = Geometry::Cube.points(n, 2);
+    points[3 * n - 3..].copy_from_slice(&[1e4, -3e3, 2e4]);
+    let kind = SourceKind::ChargeDipole;
+    let mode = EvalMode::PotentialGradientHessian;
+    let mut d: Vec<f64> = Charges::Signed.generate(4 * n, 3);
+    // A strong outlier, so that its field matters in the cloud.
+    d[4 * n - 4..].copy_from_slice(&[1e3, 2e6, -1e6, 3e6]);
+    let fmm = FmmBuilder::new(&points)
+        .source_kind(kind)
+        .mode(mode)
+        .order(6)
+        .build_svd()
+        .unwrap();
+    assert!(
+        fmm.n_clusters() > 1,
+        "the outlier should be a cluster of its own"
+    );
+    let values = fmm.evaluate(&d).unwrap();
+    let mut sample = sample_indices(n, 300);
+    sample.push(n - 1);
+    let e = relative_errors_sources(
+        &Laplace3d, kind, mode, &points, &d, &points, &values, &sample,
+    );
+    assert_bounded("outlier", &e, 6, 2e-3);
+    // The outlier alone: its own values against direct summation.
+    let e = relative_errors_sources(
+        &Laplace3d,
+        kind,
+        mode,
+        &points,
+        &d,
+        &points,
+        &values,
+        &[n - 1],
+    );
+    assert!(e.worst() < 1e-4, "at the outlier: {e:?}");
 }
 
 /// f32 reaches its rounding floor with dipoles and Hessians too.

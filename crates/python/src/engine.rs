@@ -10,7 +10,7 @@ use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SourceKind};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -127,7 +127,7 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         let per_vector = self.n_targets() * self.mode().values_per_target();
         let mut values = Vec::with_capacity(n_vectors * per_vector);
         let mut timings = EvalTimings::default();
-        for one in q.chunks_exact(self.n_sources()) {
+        for one in q.chunks_exact(self.n_sources() * self.source_kind().values_per_source()) {
             let (v, t) = self.evaluate_timed(one)?;
             values.extend_from_slice(&v);
             timings.accumulate(&t);
@@ -145,7 +145,7 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         n_vectors: usize,
     ) -> Result<Evaluated, FmmError> {
         let q = T::unwrap(charges);
-        let n = self.n_sources();
+        let n = self.n_sources() * self.source_kind().values_per_source();
         let first = Fmm::evaluate_verified(self, &q[..n])?;
         let mut values = first.values;
         let mut timings = first.timings;
@@ -205,6 +205,7 @@ struct BuildOptions {
     order: Option<usize>,
     leaf_size: Option<usize>,
     mode: EvalMode,
+    source_kind: SourceKind,
     verify: bool,
     cache_dir: Option<PathBuf>,
 }
@@ -233,6 +234,7 @@ fn build_with<T: Float, K: Kernel>(
     let mut b = FmmBuilder::new(sources)
         .kernel(kernel)
         .mode(o.mode)
+        .source_kind(o.source_kind)
         .monitor(monitor)
         .verify(o.verify);
     if let Some(t) = targets {
@@ -290,7 +292,7 @@ pub(crate) struct NativeFmm {
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge"))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -306,7 +308,19 @@ impl NativeFmm {
         verify: bool,
         threads: Option<usize>,
         cache_dir: Option<PathBuf>,
+        hessian: bool,
+        source: &str,
     ) -> PyResult<Self> {
+        let source_kind = match source {
+            "charge" => SourceKind::Charge,
+            "dipole" => SourceKind::Dipole,
+            "charge+dipole" => SourceKind::ChargeDipole,
+            other => {
+                return Err(PyValueError::new_err(format!(
+                    "unknown source kind {other:?}: use \"charge\", \"dipole\" or \"charge+dipole\""
+                )));
+            }
+        };
         let kernel = match (kernel, k) {
             ("laplace", None) => KernelChoice::Laplace,
             ("laplace", Some(_)) => {
@@ -359,11 +373,14 @@ impl NativeFmm {
             eps,
             order,
             leaf_size,
-            mode: if gradient {
+            mode: if hessian {
+                EvalMode::PotentialGradientHessian
+            } else if gradient {
                 EvalMode::PotentialGradient
             } else {
                 EvalMode::Potential
             },
+            source_kind,
             verify,
             cache_dir,
         };
@@ -411,10 +428,12 @@ impl NativeFmm {
     ) -> PyResult<(Bound<'py, PyAny>, String)> {
         let charges = Floats::from_numpy("charges", charges)?;
         let n_sources = self.read().n_sources();
-        if n_vectors == 0 || charges.len() != n_vectors * n_sources {
+        let per = self.options.source_kind.values_per_source();
+        if n_vectors == 0 || charges.len() != n_vectors * n_sources * per {
             return Err(PyValueError::new_err(format!(
-                "expected {} charges ({n_vectors} vector(s) of one per source, {n_sources} sources), got {}",
-                n_vectors * n_sources,
+                "expected {} values ({n_vectors} vector(s) of {per} per source for {} sources, {n_sources} sources), got {}",
+                n_vectors * n_sources * per,
+                self.options.source_kind.name(),
                 charges.len()
             )));
         }
@@ -520,7 +539,7 @@ impl NativeFmm {
                 .or(chosen.map(|c| c.predicted_error)),
             "measured_error": verification.map(|v| {
                 let m = v.measured();
-                json!({"potential": m.potential, "gradient": m.gradient, "sampled_targets": m.n_sampled})
+                json!({"potential": m.potential, "gradient": m.gradient, "hessian": m.hessian, "sampled_targets": m.n_sampled})
             }),
             "verified": verification.map(|v| v.met),
             "n_vectors": n_vectors,

@@ -1,12 +1,13 @@
 """ferrofmm: the kernel-independent fast multipole method (KIFMM) in 3D.
 
-Computes, for N sources x_i with charges q_i and M targets y_j,
+Computes, for N sources x_i with charges q_i (and / or dipole vectors n_i)
+and M targets y_j,
 
-    phi(y_j) = sum_i K(x_i, y_j) q_i          (K(x, x) := 0)
+    phi(y_j) = sum_i q_i K(x_i, y_j) + n_i . grad_x K(x_i, y_j)   (K(x, x) := 0)
 
-and optionally grad phi(y_j), in O(N + M) work to a requested accuracy, for
-the Laplace kernel K = 1 / (4 pi r) and the Yukawa (modified Helmholtz)
-kernel K = exp(-k r) / (4 pi r).
+and optionally grad phi(y_j) and its Hessian, in O(N + M) work to a
+requested accuracy, for the Laplace kernel K = 1 / (4 pi r) and the Yukawa
+(modified Helmholtz) kernel K = exp(-k r) / (4 pi r).
 
 One call::
 
@@ -147,7 +148,12 @@ class FmmResult:
         ``(m,)`` for one charge vector, ``(k, m)`` for ``k`` vectors.
     gradient : numpy.ndarray or None
         ``(m, 3)`` or ``(k, m, 3)``: the gradient of the potential with
-        respect to the target; ``None`` unless ``gradient=True``.
+        respect to the target; ``None`` unless ``gradient=True`` (or
+        ``hessian=True``).
+    hessian : numpy.ndarray or None
+        ``(m, 6)`` or ``(k, m, 6)``: the second derivatives with respect to
+        the target, ``xx, yy, zz, xy, xz, yz``; ``None`` unless
+        ``hessian=True``.
     info : dict
         ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``dtype``,
         ``eps``, ``predicted_error``, ``measured_error`` (estimated on a
@@ -156,17 +162,25 @@ class FmmResult:
         and ``timings`` (seconds, ``setup`` and ``evaluate`` per operator).
     """
 
-    __slots__ = ("potential", "gradient", "info")
+    __slots__ = ("potential", "gradient", "hessian", "info")
 
-    def __init__(self, potential: np.ndarray, gradient: Optional[np.ndarray], info: Dict[str, Any]):
+    def __init__(
+        self,
+        potential: np.ndarray,
+        gradient: Optional[np.ndarray],
+        info: Dict[str, Any],
+        hessian: Optional[np.ndarray] = None,
+    ):
         self.potential = potential
         self.gradient = gradient
+        self.hessian = hessian
         self.info = info
 
     def __repr__(self) -> str:
         g = None if self.gradient is None else self.gradient.shape
+        h = "" if self.hessian is None else f", hessian={self.hessian.shape}"
         return (
-            f"FmmResult(potential={self.potential.shape}, gradient={g}, "
+            f"FmmResult(potential={self.potential.shape}, gradient={g}{h}, "
             f"order={self.info.get('order')}, dtype={self.info.get('dtype')})"
         )
 
@@ -198,6 +212,14 @@ class Fmm:
         ``DEFAULT_LEAF_SIZE``).
     gradient : bool
         Also compute gradients.
+    hessian : bool
+        Also compute gradients and Hessians (``xx, yy, zz, xy, xz, yz``).
+    charges : bool
+        The sources carry charges (default ``True``).
+    dipoles : bool
+        The sources carry dipole vectors ``n`` (default ``False``): each
+        adds ``n . grad_x K(x, y)``, a double-layer potential (FMM3D's
+        ``dipvec``, same sign). With ``charges=False`` too, dipoles only.
     dtype : {None, "float32", "float64"}
         Float type of the run; ``None`` follows ``sources``.
     threads : int, optional
@@ -230,7 +252,16 @@ class Fmm:
         scheme: str = "auto",
         verify: bool = True,
         cache_dir: Any = None,
+        hessian: bool = False,
+        charges: bool = True,
+        dipoles: bool = False,
     ) -> None:
+        charges, dipoles = bool(charges), bool(dipoles)
+        if not (charges or dipoles):
+            raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
+        source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
+            (charges, dipoles)
+        ]
         src = _points("sources", sources)
         tgt = None if targets is None else _points("targets", targets)
         run = _float_dtype(dtype) or src.dtype
@@ -256,9 +287,14 @@ class Fmm:
             bool(verify),
             _positive_int("threads", threads),
             None if cache_dir is None else str(cache_dir),
+            bool(hessian),
+            source,
         )
         self._dtype = run
-        self._gradient = bool(gradient)
+        self._hessian = bool(hessian)
+        self._gradient = bool(gradient) or self._hessian
+        self._charges = charges
+        self._dipoles = dipoles
         self._last_info: Optional[Dict[str, Any]] = None
 
     @property
@@ -276,40 +312,70 @@ class Fmm:
         """Float type of the run."""
         return self._dtype
 
-    def evaluate(self, charges: Any) -> FmmResult:
-        """Potentials (and gradients) at the targets for ``charges``.
+    def evaluate(self, charges: Any = None, dipoles: Any = None) -> FmmResult:
+        """Potentials (and gradients, Hessians) at the targets.
 
         ``charges`` is ``(n,)`` (one value per source) or ``(k, n)`` for
-        ``k`` charge vectors evaluated in one call; nothing is rebuilt.
+        ``k`` charge vectors evaluated in one call; ``dipoles`` is
+        ``(n, 3)`` or ``(k, n, 3)``. Give what the sources were built to
+        carry (``charges=True`` / ``dipoles=True`` of :class:`Fmm`);
+        nothing is rebuilt.
         """
-        q = _as_float_array("charges", charges)
         n = self.n_sources
-        if q.ndim == 1:
-            k, batched = 1, False
-            if q.shape[0] != n:
-                raise ValueError(f"charges has {q.shape[0]} values but there are {n} sources")
-        elif q.ndim == 2:
-            k, batched = q.shape[0], True
-            if q.shape[1] != n:
+        parts = []
+        shapes = []
+        for name, value, wanted, flag in (
+            ("charges", charges, self._charges, "charges"),
+            ("dipoles", dipoles, self._dipoles, "dipoles"),
+        ):
+            if value is None:
+                if wanted:
+                    raise ValueError(f"this Fmm's sources carry {name}: give {name}")
+                continue
+            if not wanted:
                 raise ValueError(
-                    f"charges must have shape (k, {n}) (one row per charge vector), got {q.shape}"
+                    f"this Fmm's sources carry no {name}: build it with {flag}=True"
                 )
-            if k == 0:
-                raise ValueError("charges holds no charge vector (shape (0, n))")
-        else:
-            raise ValueError(f"charges must have shape (n,) or (k, n), got {q.shape}")
-        values, info_json = self._native.evaluate(_flat(q, self._dtype), k)
+            a = _as_float_array(name, value)
+            tail = () if name == "charges" else (3,)
+            one = "(n,)" if name == "charges" else "(n, 3)"
+            many = "(k, n)" if name == "charges" else "(k, n, 3)"
+            if a.ndim == 1 + len(tail):
+                batched = False
+                a = a[None]
+            elif a.ndim == 2 + len(tail):
+                batched = True
+            else:
+                raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
+            if a.shape[1:] != (n,) + tail:
+                raise ValueError(
+                    f"{name} has shape {a.shape if batched else a.shape[1:]} but there are "
+                    f"{n} sources: use {one} or {many}"
+                )
+            if a.shape[0] == 0:
+                raise ValueError(f"{name} holds no vector (shape {a.shape})")
+            parts.append(a.reshape(a.shape[0], n, -1))
+            shapes.append((a.shape[0], batched))
+        if len(set(shapes)) > 1:
+            raise ValueError(
+                "charges and dipoles must both be single or hold the same number of vectors"
+            )
+        k, batched = shapes[0]
+        dens = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
+        values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
         info = json.loads(info_json)
         self._last_info = info
         m = self.n_targets
-        per = 4 if self._gradient else 1
+        per = 10 if self._hessian else 4 if self._gradient else 1
         v = values.reshape(k, m, per)
         potential = np.ascontiguousarray(v[:, :, 0])
-        gradient = np.ascontiguousarray(v[:, :, 1:]) if self._gradient else None
+        gradient = np.ascontiguousarray(v[:, :, 1:4]) if self._gradient else None
+        hessian = np.ascontiguousarray(v[:, :, 4:]) if self._hessian else None
         if not batched:
             potential = potential[0]
             gradient = None if gradient is None else gradient[0]
-        return FmmResult(potential, gradient, info)
+            hessian = None if hessian is None else hessian[0]
+        return FmmResult(potential, gradient, info, hessian)
 
     def summary(self) -> Dict[str, Any]:
         """Tree, operator and parameter figures (a dict; as the CLI's ``--json``)."""
@@ -326,18 +392,28 @@ class Fmm:
         return f"Fmm(n_sources={self.n_sources}, n_targets={self.n_targets}, dtype={self._dtype})"
 
 
-def _one_call(kernel: str, k: Optional[float], sources: Any, charges: Any, **kw: Any) -> FmmResult:
-    return Fmm(sources, kw.pop("targets"), kernel, k=k, **kw).evaluate(charges)
+def _one_call(
+    kernel: str, k: Optional[float], sources: Any, charges: Any, dipoles: Any, **kw: Any
+) -> FmmResult:
+    if charges is None and dipoles is None:
+        raise ValueError("give charges, dipoles or both")
+    fmm = Fmm(
+        sources, kw.pop("targets"), kernel, k=k, charges=charges is not None,
+        dipoles=dipoles is not None, **kw,
+    )
+    return fmm.evaluate(charges, dipoles)
 
 
 def laplace(
     sources: Any,
-    charges: Any,
+    charges: Any = None,
     *,
+    dipoles: Any = None,
     targets: Any = None,
     eps: Optional[float] = None,
     order: Optional[int] = None,
     gradient: bool = False,
+    hessian: bool = False,
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
@@ -350,8 +426,12 @@ def laplace(
     ----------
     sources : array_like, shape (n, 3)
         Float64 or float32 positions, any memory order (copied, never modified).
-    charges : array_like, shape (n,) or (k, n)
+    charges : array_like, shape (n,) or (k, n), optional
         One charge per source, or ``k`` charge vectors evaluated at once.
+    dipoles : array_like, shape (n, 3) or (k, n, 3), optional
+        One dipole vector ``n`` per source: each adds
+        ``n . grad_x K(x, y)`` (a double-layer potential). At least one of
+        ``charges`` and ``dipoles``.
     targets : array_like, shape (m, 3), optional
         Evaluation points; the sources when ``None`` (self-interaction excluded).
     eps : float, optional
@@ -361,6 +441,8 @@ def laplace(
         Expansion order instead of ``eps``.
     gradient : bool
         Also return the gradient with respect to the target.
+    hessian : bool
+        Also return the gradient and the Hessian (``xx, yy, zz, xy, xz, yz``).
     dtype : {None, "float32", "float64"}
         Float type of the run (default: that of ``sources``).
     threads : int, optional
@@ -379,7 +461,7 @@ def laplace(
     -------
     FmmResult
         ``.potential`` (m,) or (k, m), ``.gradient`` (m, 3) or (k, m, 3)
-        or None, ``.info`` (dict).
+        or None, ``.hessian`` (m, 6) or (k, m, 6) or None, ``.info`` (dict).
 
     Examples
     --------
@@ -390,21 +472,23 @@ def laplace(
     (2000,)
     """
     return _one_call(
-        "laplace", None, sources, charges, targets=targets, eps=eps, order=order,
-        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme=scheme, verify=verify,
+        "laplace", None, sources, charges, dipoles, targets=targets, eps=eps, order=order,
+        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
+        leaf_size=leaf_size, scheme=scheme, verify=verify,
     )
 
 
 def yukawa(
     sources: Any,
-    charges: Any,
+    charges: Any = None,
     *,
     k: float,
+    dipoles: Any = None,
     targets: Any = None,
     eps: Optional[float] = None,
     order: Optional[int] = None,
     gradient: bool = False,
+    hessian: bool = False,
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
@@ -417,9 +501,9 @@ def yukawa(
     length). The other parameters and the result are as for :func:`laplace`.
     """
     return _one_call(
-        "yukawa", k, sources, charges, targets=targets, eps=eps, order=order,
-        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme=scheme, verify=verify,
+        "yukawa", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
+        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
+        leaf_size=leaf_size, scheme=scheme, verify=verify,
     )
 
 

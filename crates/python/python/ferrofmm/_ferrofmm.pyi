@@ -26,6 +26,8 @@ class NativeFmm:
         verify: bool,
         threads: Optional[int],
         cache_dir: Optional[str],
+        hessian: bool = ...,
+        source: str = ...,
     ) -> None: ...
     def evaluate(
         self, charges: npt.NDArray[np.floating], n_vectors: int
