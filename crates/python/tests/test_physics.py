@@ -33,8 +33,8 @@ def direct(sources, targets, charges=None, dipoles=None, k=0.0):
     """Potential (m,), gradient (m, 3), Hessian (m, 6: xx yy zz xy xz yz)."""
     d = sources[None, :, :] - targets[:, None, :]  # (m, n, 3)
     r = np.linalg.norm(d, axis=2)
-    r[r == 0] = np.inf  # coincident pairs add nothing
-    f0, f1, f2, f3 = radial(r, k)
+    same = r == 0  # coincident pairs add nothing
+    f0, f1, f2, f3 = (np.where(same, 0.0, f) for f in radial(np.where(same, 1.0, r), k))
     eye = np.eye(3)
     dd = d[..., :, None] * d[..., None, :]  # (m, n, 3, 3)
     u = np.zeros(len(targets))
@@ -107,8 +107,10 @@ def test_bad_dipole_input_is_a_value_error(rng):
     with pytest.raises(ValueError, match="charges, dipoles or both"):
         ferrofmm.laplace(x, order=4)
     fmm = ferrofmm.Fmm(x, order=4, dipoles=True, charges=False)
-    with pytest.raises(ValueError, match="carry dipoles"):
+    with pytest.raises(ValueError, match="carry no charges .only dipoles"):
         fmm.evaluate(np.ones(300))
+    with pytest.raises(ValueError, match="carry dipoles: give dipoles"):
+        fmm.evaluate()
     with pytest.raises(ValueError, match="carry no charges"):
         fmm.evaluate(np.ones(300), np.ones((300, 3)))
     with pytest.raises(ValueError, match="carry nothing"):

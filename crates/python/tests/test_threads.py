@@ -1,6 +1,7 @@
 """The GIL is released while the library works, and Ctrl-C is not swallowed."""
 
 import _thread
+import signal
 import threading
 import time
 
@@ -47,6 +48,10 @@ def test_ctrl_c_interrupts_within_a_second(monkeypatch):
     # (about 4 s in a release build on 2 cores; cancelled after 0.5 s, long
     # before its memory, about 2.6 GB, is allocated).
     monkeypatch.setenv("FERROFMM_MEMORY_LIMIT", "unlimited")
+    # Python's own SIGINT handler, which `interrupt_main` needs: a process
+    # started in the background by a non-interactive shell (`cmd &`)
+    # inherits SIGINT ignored, and then `interrupt_main` does nothing.
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
     interrupt_at = []
 
     def interrupt():
@@ -56,10 +61,13 @@ def test_ctrl_c_interrupts_within_a_second(monkeypatch):
     timer = threading.Timer(0.5, interrupt)
     timer.start()
     start = time.perf_counter()
-    with pytest.raises(KeyboardInterrupt):
-        ferrofmm.Fmm(x, order=14, leaf_size=5, scheme="dense")
-    caught = time.perf_counter()
-    timer.join()
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            ferrofmm.Fmm(x, order=14, leaf_size=5, scheme="dense")
+        caught = time.perf_counter()
+    finally:
+        timer.join()
+        signal.signal(signal.SIGINT, previous)
     assert interrupt_at, "the interrupt fired"
     assert caught - interrupt_at[0] < 1.0
     assert caught - start < 5.0

@@ -333,8 +333,10 @@ class Fmm:
                     raise ValueError(f"this Fmm's sources carry {name}: give {name}")
                 continue
             if not wanted:
+                carried = "charges" if self._charges else "dipoles"
                 raise ValueError(
-                    f"this Fmm's sources carry no {name}: build it with {flag}=True"
+                    f"this Fmm's sources carry no {name} (only {carried}): "
+                    f"build it with {flag}=True"
                 )
             a = _as_float_array(name, value)
             tail = () if name == "charges" else (3,)
@@ -348,12 +350,20 @@ class Fmm:
             else:
                 raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
             if a.shape[1:] != (n,) + tail:
+                if name == "charges" and not batched:
+                    raise ValueError(f"charges has {a.shape[1]} values but there are {n} sources")
+                if name == "charges":
+                    raise ValueError(
+                        f"charges must have shape (k, {n}) (one row per charge vector), "
+                        f"got {a.shape}"
+                    )
                 raise ValueError(
-                    f"{name} has shape {a.shape if batched else a.shape[1:]} but there are "
+                    f"dipoles has shape {a.shape if batched else a.shape[1:]} but there are "
                     f"{n} sources: use {one} or {many}"
                 )
             if a.shape[0] == 0:
-                raise ValueError(f"{name} holds no vector (shape {a.shape})")
+                what = "charge vector" if name == "charges" else "dipole vector set"
+                raise ValueError(f"{name} holds no {what} (shape {a.shape})")
             parts.append(a.reshape(a.shape[0], n, -1))
             shapes.append((a.shape[0], batched))
         if len(set(shapes)) > 1:
