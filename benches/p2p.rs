@@ -1,6 +1,8 @@
 //! P2P throughput of the Laplace kernel (interactions per second, single
-//! thread) for every SIMD level this CPU supports, plus the dense assembly
-//! and the modified Helmholtz loop.
+//! thread) for every SIMD level this CPU supports, plus the dense assembly,
+//! the modified Helmholtz loop, and every source kind x output of both
+//! kernels (`p2p/sources/{laplace,yukawa}/{charge,dipole,charge+dipole}/
+//! {potential,gradient,hessian}/dispatch`, f64).
 //!
 //! Ids: `p2p/laplace/{f64,f32}/{potential,potential+gradient}/{level}/{ns}x{nt}`
 //! where `level` is `scalar` (portable code, forced), `avx2` or `avx512`
@@ -15,8 +17,8 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use ferrofmm::kernels::{
-    EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SimdLevel, laplace_assemble_with,
-    laplace_p2p_with, modified_helmholtz_p2p_with,
+    EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SimdLevel, SourceKind,
+    laplace_assemble_with, laplace_p2p_with, modified_helmholtz_p2p_with,
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -145,11 +147,56 @@ fn bench_yukawa(c: &mut Criterion) {
     group.finish();
 }
 
+/// Every source kind x output through `Kernel::evaluate_sources`, as the
+/// FMM calls it (best level of the CPU), f64, 1024 x 1024.
+fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
+    let mut rng = StdRng::seed_from_u64(11);
+    let n = 1024;
+    let (s, _) = points::<f64>(&mut rng, n);
+    let (t, _) = points::<f64>(&mut rng, n);
+    let mut group = c.benchmark_group("p2p");
+    group.throughput(Throughput::Elements((n * n) as u64));
+    for kind in [
+        SourceKind::Charge,
+        SourceKind::Dipole,
+        SourceKind::ChargeDipole,
+    ] {
+        let (d, _) = points::<f64>(&mut rng, n * kind.values_per_source());
+        let d = &d[..n * kind.values_per_source()];
+        for mode in [
+            EvalMode::Potential,
+            EvalMode::PotentialGradient,
+            EvalMode::PotentialGradientHessian,
+        ] {
+            let mut out = vec![0.0f64; mode.values_per_target() * n];
+            let id = BenchmarkId::new(
+                format!("sources/{name}/{}/{}/dispatch", kind.name(), mode.name()),
+                format!("{n}x{n}"),
+            );
+            group.bench_function(id, |b| {
+                b.iter(|| {
+                    kernel.evaluate_sources(
+                        kind,
+                        mode,
+                        black_box(&s),
+                        black_box(d),
+                        black_box(&t),
+                        black_box(&mut out),
+                    )
+                })
+            });
+        }
+    }
+    group.finish();
+}
+
 fn benches(c: &mut Criterion) {
     bench_laplace::<f64>(c, "f64");
     bench_laplace::<f32>(c, "f32");
     bench_assemble(c);
     bench_yukawa(c);
+    bench_sources(c, &Laplace3d, "laplace");
+    bench_sources(c, &ModifiedHelmholtz3d::new(1.0).unwrap(), "yukawa");
 }
 
 criterion_group!(p2p, benches);

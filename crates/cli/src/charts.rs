@@ -132,13 +132,14 @@ impl<'a> SweepData<'a> {
         }
         let first = &runs[0];
         let several_leaf_sizes = runs.iter().any(|r| r.leaf_size != first.leaf_size);
-        let what = if first.gradients {
-            "potential + gradient"
-        } else {
-            "potential"
+        let what = match (first.gradients, first.hessians) {
+            (_, true) => "potential + gradient + Hessian",
+            (true, false) => "potential + gradient",
+            (false, false) => "potential",
         };
         let title = format!(
-            "N = {}, {}, {what}, {} threads",
+            "{}, N = {}, {}, {what}, {} threads",
+            first.kernel,
             crate::report::thousands(first.n_sources),
             first.geometry.as_deref().unwrap_or("points from files"),
             first.threads

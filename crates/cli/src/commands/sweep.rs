@@ -70,6 +70,11 @@ pub struct SweepArgs {
     /// Evaluate potentials only (default: potential and gradient).
     #[arg(long = "no-gradients")]
     pub no_gradients: bool,
+    /// Evaluate Hessians too (implies gradients).
+    #[arg(long)]
+    pub hessians: bool,
+    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K", help = super::KERNEL_HELP)]
+    pub kernel: String,
     /// Random seed of the points and charges.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -131,6 +136,7 @@ impl Config {
 pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     let bad = |m: &str| Err(CliError::InvalidArgument(m.to_string()));
     ChargesArg::parse(&args.charges)?;
+    super::KernelArg::parse(&args.kernel)?;
     if args.n == 0 {
         return bad("--n must be at least 1");
     }
@@ -228,7 +234,10 @@ fn run_child(
         .args(["--repeats", &args.repeats.to_string()])
         .args(["--check", &args.check.to_string()])
         .args(["--seed", &args.seed.to_string()]);
-    if args.no_gradients {
+    cmd.args(["--kernel", &args.kernel]);
+    if args.hessians {
+        cmd.arg("--hessians");
+    } else if args.no_gradients {
         cmd.arg("--no-gradients");
     }
     if let Some(t) = threads {
