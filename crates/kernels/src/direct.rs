@@ -82,7 +82,15 @@ pub fn direct_sum_sources<K: Kernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) = check_lengths(kind, mode, sources, densities, targets, out) {
+    if let Err(e) = check_lengths(
+        kernel.components(),
+        kind,
+        mode,
+        sources,
+        densities,
+        targets,
+        out,
+    ) {
         panic!("direct_sum: {e}");
     }
     assert!(
@@ -94,7 +102,7 @@ pub fn direct_sum_sources<K: Kernel, T: Real>(
             mode: mode.name(),
         }
     );
-    let w = mode.values_per_target();
+    let w = kernel.values_per_target(mode);
     targets
         .par_chunks(3 * DIRECT_SUM_BLOCK)
         .zip(out.par_chunks_mut(w * DIRECT_SUM_BLOCK))
@@ -117,7 +125,7 @@ pub fn direct_sum_sources_checked<K: Kernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) -> Result<(), KernelError> {
-    check_source_inputs(kind, mode, sources, densities, targets, out)?;
+    check_kernel_inputs(kernel, kind, mode, sources, densities, targets, out)?;
     if !kernel.supports(kind, mode) {
         return Err(KernelError::Unsupported {
             kernel: kernel.name(),
@@ -188,7 +196,47 @@ pub fn check_source_inputs<T: Real>(
     targets: &[T],
     out: &[T],
 ) -> Result<(), KernelError> {
-    check_lengths(kind, mode, sources, densities, targets, out)?;
+    check_values(1, kind, mode, sources, densities, targets, out)
+}
+
+/// [`check_source_inputs`] for `kernel`, whose densities and outputs have
+/// [`Kernel::components`] values per quantity
+/// ([`Kernel::values_per_source`] per source,
+/// [`Kernel::values_per_target`] per target).
+///
+/// # Errors
+/// The first problem found, as a [`KernelError`].
+pub fn check_kernel_inputs<K: Kernel, T: Real>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &[T],
+) -> Result<(), KernelError> {
+    check_values(
+        kernel.components(),
+        kind,
+        mode,
+        sources,
+        densities,
+        targets,
+        out,
+    )
+}
+
+/// Lengths, then finiteness, for `components` values per quantity.
+fn check_values<T: Real>(
+    components: usize,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &[T],
+) -> Result<(), KernelError> {
+    check_lengths(components, kind, mode, sources, densities, targets, out)?;
     let densities_name = match kind {
         SourceKind::Charge => "charges",
         SourceKind::Dipole => "dipoles",
@@ -210,7 +258,9 @@ pub fn check_source_inputs<T: Real>(
     Ok(())
 }
 
+/// Lengths of an evaluation with `components` values per quantity.
 pub(crate) fn check_lengths<T: Real>(
+    components: usize,
     kind: SourceKind,
     mode: EvalMode,
     sources: &[T],
@@ -224,13 +274,13 @@ pub(crate) fn check_lengths<T: Real>(
         }
     }
     let n_sources = sources.len() / 3;
-    if kind == SourceKind::Charge && densities.len() != n_sources {
+    if kind == SourceKind::Charge && components == 1 && densities.len() != n_sources {
         return Err(KernelError::ChargesLength {
             n_sources,
             n_charges: densities.len(),
         });
     }
-    let per_source = kind.values_per_source();
+    let per_source = components * kind.values_per_source();
     if densities.len() != per_source * n_sources {
         return Err(KernelError::DensitiesLength {
             n_sources,
@@ -239,7 +289,7 @@ pub(crate) fn check_lengths<T: Real>(
             found: densities.len(),
         });
     }
-    let w = mode.values_per_target();
+    let w = components * mode.values_per_target();
     let expected = w * (targets.len() / 3);
     if out.len() != expected {
         return Err(KernelError::OutputLength {

@@ -103,13 +103,25 @@ impl SourceKind {
     }
 }
 
-/// A scalar, translation-invariant kernel `K(x, y) = k(x - y)` in 3D.
+/// A translation-invariant kernel `K(x, y) = k(x - y)` in 3D: scalar, or
+/// with [`Kernel::components`] `c > 1` a `c x c` block (complex kernels in
+/// their real 2 x 2 form, vector kernels such as Stokes).
 ///
 /// # Layout
 /// Points are **interleaved** `[x0, y0, z0, x1, y1, z1, ...]` (length `3 n`).
 /// Charges hold one value per source. Outputs hold
 /// [`EvalMode::values_per_target`] values per target, interleaved
 /// (`[phi0, gx0, gy0, gz0, phi1, ...]` for gradients).
+///
+/// With `c` components every density and every output is a `c`-vector,
+/// stored **quantity-major**: per source, `c` values of the charge, then `c`
+/// of each dipole direction; per target, `c` values of the potential, then
+/// `c` of each derivative. So [`Kernel::values_per_source`] is
+/// `c * kind.values_per_source()` and [`Kernel::values_per_target`] is
+/// `c * mode.values_per_target()`. For a complex kernel (`c = 2`, the
+/// components being the real and imaginary parts) this is exactly the
+/// memory of an array of complex numbers (`[re, im]` pairs), so complex
+/// charges and outputs are read and written in place.
 ///
 /// # Conventions
 /// * `K(x, x) := 0`: a source that coincides with a target contributes
@@ -140,10 +152,41 @@ pub trait Kernel: Clone + Send + Sync + 'static {
     /// operators computed per tree level).
     fn homogeneity(&self) -> Option<f64>;
 
-    /// `K` at separation `d = target - source` (`|d| > 0`).
+    /// Components `c` of each density and each potential: 1 for a scalar
+    /// kernel (the default), 2 for a complex kernel in real form, 3 for
+    /// Stokes. A kernel with `c > 1` overrides [`Kernel::evaluate`] (or
+    /// [`Kernel::evaluate_sources`]) and [`Kernel::assemble`]: the pairwise
+    /// defaults know only the scalar `kernel_value`.
+    fn components(&self) -> usize {
+        1
+    }
+
+    /// Values per source of `kind`: `components() * kind.values_per_source()`.
+    fn values_per_source(&self, kind: SourceKind) -> usize {
+        self.components() * kind.values_per_source()
+    }
+
+    /// Values per target of `mode`: `components() * mode.values_per_target()`.
+    fn values_per_target(&self, mode: EvalMode) -> usize {
+        self.components() * mode.values_per_target()
+    }
+
+    /// The wavenumber `k` (inverse length) of an oscillatory kernel such as
+    /// Helmholtz `e^{ikr} / (4 pi r)`; `0` (the default) for kernels that do
+    /// not oscillate. The FMM's operators resolve a limited number of
+    /// wavelengths per box, so it refuses domains wider than
+    /// `ferrofmm_fmm::MAX_WAVENUMBER_WIDTH / k`.
+    fn wavenumber(&self) -> f64 {
+        0.0
+    }
+
+    /// `K` at separation `d = target - source` (`|d| > 0`); for a kernel
+    /// with `c > 1` components, the `(0, 0)` entry of its block (the real
+    /// part of a complex kernel).
     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T;
 
-    /// `grad_y K(x, y)` at separation `d = y - x` (`|d| > 0`).
+    /// `grad_y K(x, y)` at separation `d = y - x` (`|d| > 0`); the `(0, 0)`
+    /// entry's gradient for a kernel with `c > 1` components.
     fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3];
 
     /// Accumulate `out[j] += sum_i K(x_i, y_j) q_i` (and the gradient for
@@ -212,7 +255,11 @@ pub trait Kernel: Clone + Send + Sync + 'static {
     }
 
     /// Write the dense kernel matrix `A[j, i] = K(x_i, y_j)` (row-major,
-    /// `n_targets x n_sources`, potential only) into `matrix`.
+    /// `n_targets x n_sources`, potential only) into `matrix`. With `c`
+    /// [components](Kernel::components) the matrix is `c n_targets x c
+    /// n_sources` and entry `[c j + a, c i + b]` is the block entry
+    /// `K_ab(x_i, y_j)`: potential component `a` at `y_j` per unit of
+    /// density component `b` at `x_i`. Coincident pairs give zero blocks.
     fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
         crate::reference::assemble_pairwise(self, sources, targets, matrix);
     }

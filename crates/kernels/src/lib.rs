@@ -1,7 +1,9 @@
 //! # ferrofmm-kernels
 //!
 //! The [`Kernel`] trait through which the whole FMM sees a Green's function,
-//! the kernels we ship ([`Laplace3d`], [`ModifiedHelmholtz3d`]), fast
+//! the kernels we ship ([`Laplace3d`], [`ModifiedHelmholtz3d`], the
+//! oscillatory [`Helmholtz3d`] in complex form and the [`Stokes3d`]
+//! Stokeslet, the last two with several [components](Kernel::components)), fast
 //! particle-to-particle (P2P) evaluation with runtime CPU dispatch
 //! ([`laplace_p2p_with`], [`modified_helmholtz_p2p_with`], [`SimdLevel`]),
 //! dense kernel matrices ([`laplace_assemble_with`]), and parallel direct
@@ -25,7 +27,10 @@
 //! * **Points are interleaved** `[x0, y0, z0, x1, y1, z1, ...]`; charges hold
 //!   one value per source; outputs hold 1 (`[phi]`) or 4 (`[phi, gx, gy, gz]`)
 //!   values per target, interleaved ([`EvalMode::values_per_target`]).
-//!   Every crate of the workspace uses this layout.
+//!   Every crate of the workspace uses this layout. A kernel with `c`
+//!   components stores `c` values per quantity, quantity-major (complex
+//!   numbers as `[re, im]` pairs; Stokes forces and velocities as
+//!   3-vectors): see [`Kernel`].
 //! * Why not structure-of-arrays? It is what users hold (`&[[f64; 3]]` casts
 //!   to it for free), the tree sorts and gathers points as one contiguous
 //!   record each, and the P2P does not need SoA: it vectorises over
@@ -69,12 +74,14 @@ mod kernel;
 pub mod lanes;
 mod laplace;
 mod laplace_simd;
+mod oscillatory_helmholtz;
 mod real;
 pub mod reference;
 mod simd;
+mod stokes;
 
 pub use direct::{
-    DIRECT_SUM_BLOCK, check_inputs, check_source_inputs, direct_sum, direct_sum_checked,
+    DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum, direct_sum_checked,
     direct_sum_sources, direct_sum_sources_checked,
 };
 pub use error::KernelError;
@@ -82,6 +89,8 @@ pub use helmholtz::ModifiedHelmholtz3d;
 pub use helmholtz_p2p::modified_helmholtz_p2p_with;
 pub use kernel::{EvalMode, Kernel, SourceKind};
 pub use laplace::{INV_4PI, Laplace3d};
+pub use oscillatory_helmholtz::Helmholtz3d;
 pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
 pub use real::{Precision, Real};
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};
+pub use stokes::Stokes3d;

@@ -74,6 +74,8 @@ pub trait Real:
     fn abs(self) -> Self;
     /// `e^self`.
     fn exp(self) -> Self;
+    /// `(sin self, cos self)`.
+    fn sin_cos(self) -> (Self, Self);
     /// True unless NaN or infinite.
     fn is_finite(self) -> bool;
     /// Larger of two values (NaN-ignoring, as `f64::max`).
@@ -119,6 +121,10 @@ macro_rules! impl_real {
             #[inline(always)]
             fn exp(self) -> Self {
                 <$t>::exp(self)
+            }
+            #[inline(always)]
+            fn sin_cos(self) -> (Self, Self) {
+                <$t>::sin_cos(self)
             }
             #[inline(always)]
             fn is_finite(self) -> bool {

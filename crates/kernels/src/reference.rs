@@ -15,6 +15,12 @@ pub fn evaluate_pairwise<K: Kernel, T: Real>(
     let ns = sources.len() / 3;
     let nt = targets.len() / 3;
     let w = mode.values_per_target();
+    assert_eq!(
+        kernel.components(),
+        1,
+        "{}: a kernel with several components overrides Kernel::evaluate",
+        kernel.name()
+    );
     assert!(
         !mode.has_hessian(),
         "{}: the pairwise reference has no Hessians (Kernel::supports)",
@@ -59,6 +65,12 @@ pub fn assemble_pairwise<K: Kernel, T: Real>(
 ) {
     let ns = sources.len() / 3;
     let nt = targets.len() / 3;
+    assert_eq!(
+        kernel.components(),
+        1,
+        "{}: a kernel with several components overrides Kernel::assemble",
+        kernel.name()
+    );
     debug_assert_eq!(matrix.len(), ns * nt);
     for j in 0..nt {
         for i in 0..ns {

@@ -349,7 +349,7 @@ pub fn evaluate_with<K: LaneKernel, T: Real>(
     out: &mut [T],
 ) {
     if let Err(e) =
-        crate::direct::check_lengths(SourceKind::Charge, mode, sources, charges, targets, out)
+        crate::direct::check_lengths(1, SourceKind::Charge, mode, sources, charges, targets, out)
     {
         panic!("{} P2P: {e}", kernel.name());
     }

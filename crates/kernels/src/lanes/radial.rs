@@ -141,7 +141,7 @@ pub fn composed_with<K: RadialLaneKernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) = crate::direct::check_lengths(kind, mode, sources, densities, targets, out) {
+    if let Err(e) = crate::direct::check_lengths(1, kind, mode, sources, densities, targets, out) {
         panic!("{} P2P: {e}", kernel.name());
     }
     if sources.is_empty() || targets.is_empty() {

@@ -1,0 +1,284 @@
+//! The oscillatory Helmholtz kernel `G(x, y) = e^{i k |x - y|} / (4 pi |x - y|)`,
+//! a complex kernel in its real 2 x 2 form.
+//!
+//! # Maths
+//! With `r = |y - x|`, `d = y - x` and the radial functions
+//!
+//! ```text
+//! f0 = e^{ikr} / (4 pi r)
+//! f1 = f0' / r = e^{ikr} (ikr - 1) / (4 pi r^3)
+//! f2 = f1' / r = e^{ikr} (3 - 3ikr - k^2 r^2) / (4 pi r^5)
+//! ```
+//!
+//! a source with complex charge `q` and complex dipole vector `n` adds at `y`
+//!
+//! ```text
+//! u      = q f0 - f1 (n . d)
+//! grad u = q f1 d - f2 (n . d) d - f1 n
+//! ```
+//!
+//! (`n . grad_x G = -f1 n . d`: FMM3D's `dipvec` convention). At `k = 0`
+//! these are the Laplace functions `1/(4 pi r)`, `-1/(4 pi r^3)`,
+//! `3/(4 pi r^5)`.
+//!
+//! # Real form
+//! Complex numbers are stored as `[re, im]` pairs, so the kernel has two
+//! [components](Kernel::components) and a complex product `G q` is the
+//! 2 x 2 block `[[Re G, -Im G], [Im G, Re G]]` applied to `[Re q, Im q]`.
+//! Densities per source are `[q, nx, ny, nz]` as complex pairs (8 values for
+//! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs:
+//! the memory of NumPy `complex128` arrays.
+
+use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
+
+/// The 3D Helmholtz Green's function `G = e^{ikr} / (4 pi r)`, the
+/// outgoing solution of `(Delta + k^2) u = -delta`, as a complex kernel in
+/// real 2 x 2 form (see the [module docs](self) for the layout and the
+/// formulas).
+///
+/// * [`Kernel::components`] is 2 (real and imaginary parts);
+/// * not scale invariant for `k > 0`, so the FMM builds operators per
+///   level, and [`Kernel::wavenumber`] is `k`: the FMM refuses domains
+///   wider than the low-frequency limit
+///   (`ferrofmm_fmm::MAX_WAVENUMBER_WIDTH / k`);
+/// * charges and dipoles (alone or together), potentials and gradients.
+///
+/// ```
+/// use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, SourceKind};
+/// let helmholtz = Helmholtz3d::new(2.0).unwrap();
+/// // A unit real charge at the origin, seen from (0.5, 0, 0): e^{i} / (2 pi).
+/// let mut u = [0.0f64; 2];
+/// helmholtz.evaluate(EvalMode::Potential, &[0.0; 3], &[1.0, 0.0], &[0.5, 0.0, 0.0], &mut u);
+/// let a = 1.0 / (2.0 * std::f64::consts::PI);
+/// assert!((u[0] - a * 1f64.cos()).abs() < 1e-15 && (u[1] - a * 1f64.sin()).abs() < 1e-15);
+/// assert!(Helmholtz3d::new(f64::NAN).is_err());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Helmholtz3d {
+    /// The wavenumber `k >= 0` (inverse length; wavelength `2 pi / k`).
+    pub k: f64,
+}
+
+impl Helmholtz3d {
+    /// The kernel with wavenumber `k`.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
+    /// infinite.
+    pub fn new(k: f64) -> Result<Self, KernelError> {
+        if k.is_finite() && k >= 0.0 {
+            Ok(Helmholtz3d { k })
+        } else {
+            Err(KernelError::InvalidParameter {
+                name: "k",
+                value: k,
+                expected: "finite and >= 0",
+            })
+        }
+    }
+}
+
+/// `e^{ikr}` times `1 / (4 pi r)`: `(Re, Im)` of `f0`, and `r^{-1}`.
+#[inline(always)]
+fn f0_parts<T: Real>(k: T, r2: T) -> (T, T, T) {
+    let r = r2.sqrt();
+    let rinv = T::ONE / r;
+    let (s, c) = (k * r).sin_cos();
+    let a = T::from_f64(INV_4PI) * rinv;
+    (c * a, s * a, rinv)
+}
+
+/// Complex product `(a + ib)(c + id)`.
+#[inline(always)]
+fn cmul<T: Real>(a: T, b: T, c: T, d: T) -> (T, T) {
+    (a * c - b * d, a * d + b * c)
+}
+
+impl Kernel for Helmholtz3d {
+    /// `"helmholtz3d"`.
+    fn name(&self) -> String {
+        "helmholtz3d".to_string()
+    }
+
+    /// `vec![k]`.
+    fn parameters(&self) -> Vec<f64> {
+        vec![self.k]
+    }
+
+    /// `None` for `k > 0`; `Some(-1.0)` for `k = 0` (Laplace, complex).
+    fn homogeneity(&self) -> Option<f64> {
+        if self.k == 0.0 { Some(-1.0) } else { None }
+    }
+
+    /// 2: real and imaginary parts.
+    fn components(&self) -> usize {
+        2
+    }
+
+    /// `k`.
+    fn wavenumber(&self) -> f64 {
+        self.k
+    }
+
+    /// `Re G = cos(kr) / (4 pi r)`.
+    #[inline]
+    fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        f0_parts(T::from_f64(self.k), r2).0
+    }
+
+    /// `grad_y Re G = Re f1 d = -(cos kr + kr sin kr) d / (4 pi r^3)`.
+    #[inline]
+    fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let k = T::from_f64(self.k);
+        let (gr, gi, rinv) = f0_parts(k, r2);
+        let kr = k * r2 * rinv;
+        let f1 = -(gr + kr * gi) * rinv * rinv;
+        [f1 * d[0], f1 * d[1], f1 * d[2]]
+    }
+
+    /// Complex charges `[re, im]` per source; `[u]` or `[u, ux, uy, uz]` as
+    /// complex pairs per target.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    fn evaluate<T: Real>(
+        &self,
+        mode: EvalMode,
+        sources: &[T],
+        charges: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        self.evaluate_sources(SourceKind::Charge, mode, sources, charges, targets, out);
+    }
+
+    /// Charges, dipoles or both, with potentials or gradients (no Hessians).
+    fn supports(&self, _kind: SourceKind, mode: EvalMode) -> bool {
+        !mode.has_hessian()
+    }
+
+    /// `u_j += sum_i q_i f0 - f1 (n_i . d)` (and the gradient), in complex
+    /// arithmetic on `[re, im]` pairs; coincident pairs skipped.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    fn evaluate_sources<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        if let Err(e) = crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
+        {
+            panic!("helmholtz3d: {e}");
+        }
+        assert!(
+            self.supports(kind, mode),
+            "helmholtz3d: no Hessians (Kernel::supports)"
+        );
+        let k = T::from_f64(self.k);
+        let vps = 2 * kind.values_per_source();
+        let w = 2 * mode.values_per_target();
+        let grad = mode.has_gradient();
+        let (has_q, has_n) = (kind != SourceKind::Dipole, kind.has_dipoles());
+        let n_off = if has_q { 2 } else { 0 };
+        for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
+            let mut acc = [T::ZERO; 8];
+            for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(vps)) {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 == T::ZERO {
+                    continue;
+                }
+                let (gr, gi, rinv) = f0_parts(k, r2);
+                let rinv2 = rinv * rinv;
+                let kr = k * r2 * rinv;
+                // f1 = f0 (ikr - 1) / r^2
+                let (f1r, f1i) = {
+                    let (a, b) = cmul(gr, gi, -T::ONE, kr);
+                    (a * rinv2, b * rinv2)
+                };
+                // Coefficient of d in the gradient, and the potential.
+                let (mut pr, mut pi) = (T::ZERO, T::ZERO);
+                let (mut cr, mut ci) = (T::ZERO, T::ZERO);
+                if has_q {
+                    let (a, b) = cmul(gr, gi, q[0], q[1]);
+                    pr += a;
+                    pi += b;
+                    if grad {
+                        let (a, b) = cmul(f1r, f1i, q[0], q[1]);
+                        cr += a;
+                        ci += b;
+                    }
+                }
+                let n = &q[n_off..];
+                if has_n {
+                    let ndr = n[0] * d[0] + n[2] * d[1] + n[4] * d[2];
+                    let ndi = n[1] * d[0] + n[3] * d[1] + n[5] * d[2];
+                    let (a, b) = cmul(f1r, f1i, ndr, ndi);
+                    pr -= a;
+                    pi -= b;
+                    if grad {
+                        // f2 = f0 (3 - 3ikr - k^2 r^2) / r^4
+                        let three = T::from_f64(3.0);
+                        let (f2r, f2i) = {
+                            let (a, b) = cmul(gr, gi, three - kr * kr, -three * kr);
+                            (a * rinv2 * rinv2, b * rinv2 * rinv2)
+                        };
+                        let (a, b) = cmul(f2r, f2i, ndr, ndi);
+                        cr -= a;
+                        ci -= b;
+                    }
+                }
+                acc[0] += pr;
+                acc[1] += pi;
+                if grad {
+                    for m in 0..3 {
+                        acc[2 + 2 * m] += cr * d[m];
+                        acc[3 + 2 * m] += ci * d[m];
+                        if has_n {
+                            let (a, b) = cmul(f1r, f1i, n[2 * m], n[2 * m + 1]);
+                            acc[2 + 2 * m] -= a;
+                            acc[3 + 2 * m] -= b;
+                        }
+                    }
+                }
+            }
+            for (o, a) in o.iter_mut().zip(acc) {
+                *o += a;
+            }
+        }
+    }
+
+    /// `[[Re G, -Im G], [Im G, Re G]]` blocks (`2 n_targets x 2 n_sources`,
+    /// row-major), zero for coincident pairs.
+    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
+        let ns = sources.len() / 3;
+        let nt = targets.len() / 3;
+        assert_eq!(matrix.len(), 4 * ns * nt, "helmholtz3d: matrix size");
+        let k = T::from_f64(self.k);
+        let cols = 2 * ns;
+        for (j, y) in targets.chunks_exact(3).enumerate() {
+            for (i, x) in sources.chunks_exact(3).enumerate() {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let (gr, gi) = if r2 == T::ZERO {
+                    (T::ZERO, T::ZERO)
+                } else {
+                    let (gr, gi, _) = f0_parts(k, r2);
+                    (gr, gi)
+                };
+                let top = 2 * j * cols + 2 * i;
+                matrix[top] = gr;
+                matrix[top + 1] = -gi;
+                matrix[top + cols] = gi;
+                matrix[top + cols + 1] = gr;
+            }
+        }
+    }
+}

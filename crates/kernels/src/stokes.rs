@@ -1,0 +1,223 @@
+//! The Stokeslet: the velocity of a viscous fluid at `y` due to a point
+//! force at `x`, a 3 x 3 kernel.
+//!
+//! # Maths
+//! With `d = y - x`, `r = |d|` and viscosity `mu`,
+//!
+//! ```text
+//! G_ab(d) = (delta_ab / r + d_a d_b / r^3) / (8 pi mu)
+//! u_a(y)  = sum_i G_ab(y - x_i) f_{i,b}
+//! ```
+//!
+//! and the velocity gradient (derivative `c` of component `a`) is
+//!
+//! ```text
+//! d_c u_a = [ -f_a d_c + delta_ac (d . f) + d_a f_c - 3 d_a d_c (d . f) / r^2 ] / (8 pi mu r^3).
+//! ```
+//!
+//! FMM3D's `stfmm3d` uses `G = delta/(2r) + d d / (2 r^3)`, which is this
+//! kernel with `mu = 1 / (4 pi)`.
+//!
+//! # Layout
+//! Three [components](Kernel::components): forces `[f0x, f0y, f0z, f1x, ...]`
+//! per source; per target `[u_x, u_y, u_z]`, then for gradients
+//! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
+//! as every kernel's outputs: the quantity, then its components).
+
+use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};
+
+/// The Stokeslet `G = (I / r + d d^T / r^3) / (8 pi mu)`: forces in,
+/// velocities (and velocity gradients) out. See the [module docs](self).
+///
+/// * [`Kernel::components`] is 3;
+/// * homogeneous of degree `-1`, so the FMM computes operators once and
+///   rescales them per level;
+/// * point forces (no stresslets) with potentials or gradients.
+///
+/// ```
+/// use ferrofmm_kernels::{EvalMode, Kernel, Stokes3d};
+/// let stokes = Stokes3d::new(1.0).unwrap();
+/// // A unit force along x at the origin, seen from (2, 0, 0): 2 / (8 pi 2).
+/// let mut u = [0.0f64; 3];
+/// stokes.evaluate(EvalMode::Potential, &[0.0; 3], &[1.0, 0.0, 0.0], &[2.0, 0.0, 0.0], &mut u);
+/// let expected = 2.0 / (8.0 * std::f64::consts::PI * 2.0);
+/// assert!((u[0] - expected).abs() < 1e-16 && u[1] == 0.0 && u[2] == 0.0);
+/// assert!(Stokes3d::new(0.0).is_err());
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stokes3d {
+    /// The dynamic viscosity `mu > 0`.
+    pub viscosity: f64,
+}
+
+impl Stokes3d {
+    /// The Stokeslet for viscosity `mu`.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidParameter`] unless `mu` is finite and positive.
+    pub fn new(viscosity: f64) -> Result<Self, KernelError> {
+        if viscosity.is_finite() && viscosity > 0.0 {
+            Ok(Stokes3d { viscosity })
+        } else {
+            Err(KernelError::InvalidParameter {
+                name: "viscosity",
+                value: viscosity,
+                expected: "finite and > 0",
+            })
+        }
+    }
+
+    /// `1 / (8 pi mu)`.
+    fn scale(&self) -> f64 {
+        1.0 / (8.0 * std::f64::consts::PI * self.viscosity)
+    }
+}
+
+impl Default for Stokes3d {
+    /// Unit viscosity.
+    fn default() -> Self {
+        Stokes3d { viscosity: 1.0 }
+    }
+}
+
+impl Kernel for Stokes3d {
+    /// `"stokes3d"`.
+    fn name(&self) -> String {
+        "stokes3d".to_string()
+    }
+
+    /// `vec![mu]`.
+    fn parameters(&self) -> Vec<f64> {
+        vec![self.viscosity]
+    }
+
+    /// `Some(-1.0)`.
+    fn homogeneity(&self) -> Option<f64> {
+        Some(-1.0)
+    }
+
+    /// 3: the force and velocity components.
+    fn components(&self) -> usize {
+        3
+    }
+
+    /// `G_xx = (1 / r + d_x^2 / r^3) / (8 pi mu)`.
+    #[inline]
+    fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let rinv = T::ONE / r2.sqrt();
+        T::from_f64(self.scale()) * rinv * (T::ONE + d[0] * d[0] / r2)
+    }
+
+    /// `grad_y G_xx`: `d_c G_xx = (-d_c + 2 delta_xc d_x - 3 d_x^2 d_c / r^2) / (8 pi mu r^3)`.
+    #[inline]
+    fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let rinv = T::ONE / r2.sqrt();
+        let s = T::from_f64(self.scale()) * rinv * rinv * rinv;
+        let t = T::from_f64(3.0) * d[0] * d[0] / r2;
+        let two = T::from_f64(2.0);
+        [
+            s * (-d[0] + two * d[0] - t * d[0]),
+            s * (-d[1] - t * d[1]),
+            s * (-d[2] - t * d[2]),
+        ]
+    }
+
+    /// Point forces, `[u]` or `[u, d_x u, d_y u, d_z u]` per target (each a
+    /// 3-vector); coincident pairs skipped.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    fn evaluate<T: Real>(
+        &self,
+        mode: EvalMode,
+        sources: &[T],
+        charges: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        if let Err(e) = crate::direct::check_lengths(
+            3,
+            SourceKind::Charge,
+            mode,
+            sources,
+            charges,
+            targets,
+            out,
+        ) {
+            panic!("stokes3d: {e}");
+        }
+        assert!(!mode.has_hessian(), "stokes3d: no Hessians (Kernel::supports)");
+        let scale = T::from_f64(self.scale());
+        let three = T::from_f64(3.0);
+        let w = 3 * mode.values_per_target();
+        let grad = mode.has_gradient();
+        for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
+            let mut acc = [T::ZERO; 12];
+            for (x, f) in sources.chunks_exact(3).zip(charges.chunks_exact(3)) {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 == T::ZERO {
+                    continue;
+                }
+                let rinv = T::ONE / r2.sqrt();
+                let rinv2 = rinv * rinv;
+                let df = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
+                let s = scale * rinv;
+                let t = df * rinv2;
+                for a in 0..3 {
+                    acc[a] += s * (f[a] + d[a] * t);
+                }
+                if grad {
+                    let s3 = s * rinv2;
+                    for c in 0..3 {
+                        for a in 0..3 {
+                            let mut v = d[a] * f[c] - f[a] * d[c] - three * d[a] * d[c] * t;
+                            if a == c {
+                                v += df;
+                            }
+                            acc[3 + 3 * c + a] += s3 * v;
+                        }
+                    }
+                }
+            }
+            for (o, a) in o.iter_mut().zip(acc) {
+                *o += a;
+            }
+        }
+    }
+
+    /// Point forces with potentials or gradients.
+    fn supports(&self, kind: SourceKind, mode: EvalMode) -> bool {
+        kind == SourceKind::Charge && !mode.has_hessian()
+    }
+
+    /// The `3 x 3` blocks `G_ab(y_j - x_i)` (`3 n_targets x 3 n_sources`,
+    /// row-major), zero for coincident pairs.
+    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
+        let ns = sources.len() / 3;
+        let nt = targets.len() / 3;
+        assert_eq!(matrix.len(), 9 * ns * nt, "stokes3d: matrix size");
+        let scale = T::from_f64(self.scale());
+        let cols = 3 * ns;
+        for (j, y) in targets.chunks_exact(3).enumerate() {
+            for (i, x) in sources.chunks_exact(3).enumerate() {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                for a in 0..3 {
+                    for b in 0..3 {
+                        let v = if r2 == T::ZERO {
+                            T::ZERO
+                        } else {
+                            let rinv = T::ONE / r2.sqrt();
+                            let delta = if a == b { T::ONE } else { T::ZERO };
+                            scale * rinv * (delta + d[a] * d[b] / r2)
+                        };
+                        matrix[(3 * j + a) * cols + 3 * i + b] = v;
+                    }
+                }
+            }
+        }
+    }
+}

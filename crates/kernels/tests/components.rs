@@ -1,0 +1,265 @@
+//! Kernels with several components ([`Helmholtz3d`] in complex form,
+//! [`Stokes3d`]) against independent references: gradients against central
+//! differences in the target, dipoles against central differences in the
+//! source position, Helmholtz at `k = 0` against Laplace, the assembled
+//! matrix against the evaluation, f32 against f64, the Stokes velocity's
+//! divergence, and bad input.
+
+use ferrofmm_kernels::{
+    EvalMode, Helmholtz3d, Kernel, KernelError, Laplace3d, SourceKind, Stokes3d,
+    check_kernel_inputs, direct_sum_sources_checked,
+};
+use ferrofmm_testing::{errors::relative_l2, points::uniform_cube, rng::SplitMix64};
+
+/// Sources in `[-1, 1)^3`, densities in `[-1, 1)`, targets at distance >= 1
+/// from every source.
+fn separated<K: Kernel>(k: &K, kind: SourceKind, seed: u64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let s = uniform_cube(23, -1.0, 2.0, seed);
+    let mut rng = SplitMix64(seed + 1);
+    let d: Vec<f64> = (0..23 * k.values_per_source(kind))
+        .map(|_| rng.range(-1.0, 1.0))
+        .collect();
+    let mut t = uniform_cube(11, -1.0, 2.0, seed + 2);
+    for x in t.iter_mut() {
+        *x = if *x >= 0.0 { *x + 2.0 } else { *x - 2.0 };
+    }
+    (s, d, t)
+}
+
+fn eval<K: Kernel>(
+    k: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    s: &[f64],
+    d: &[f64],
+    t: &[f64],
+) -> Vec<f64> {
+    let mut out = vec![0.0; k.values_per_target(mode) * t.len() / 3];
+    k.evaluate_sources(kind, mode, s, d, t, &mut out);
+    out
+}
+
+/// Gradient columns against central differences of the potential in each
+/// target coordinate.
+fn check_gradient<K: Kernel>(k: &K, kind: SourceKind, seed: u64) {
+    let c = k.components();
+    let (s, d, t) = separated(k, kind, seed);
+    let full = eval(k, kind, EvalMode::PotentialGradient, &s, &d, &t);
+    let h = 1e-5;
+    let mut fd = vec![0.0; full.len()];
+    let mut got = vec![0.0; full.len()];
+    for j in 0..t.len() / 3 {
+        for m in 0..3 {
+            let mut tp = t[3 * j..3 * j + 3].to_vec();
+            let mut tm = tp.clone();
+            tp[m] += h;
+            tm[m] -= h;
+            let up = eval(k, kind, EvalMode::Potential, &s, &d, &tp);
+            let um = eval(k, kind, EvalMode::Potential, &s, &d, &tm);
+            for a in 0..c {
+                let at = 4 * c * j + c * (1 + m) + a;
+                fd[at] = (up[a] - um[a]) / (2.0 * h);
+                got[at] = full[at];
+            }
+        }
+    }
+    let err = relative_l2(&got, &fd);
+    assert!(err < 1e-7, "{} {kind:?} gradient vs differences: {err:e}", k.name());
+}
+
+#[test]
+fn helmholtz_gradients_match_differences_for_every_source_kind() {
+    for (i, kw) in [0.5, 3.0, 10.0].into_iter().enumerate() {
+        let k = Helmholtz3d::new(kw).unwrap();
+        for kind in [
+            SourceKind::Charge,
+            SourceKind::Dipole,
+            SourceKind::ChargeDipole,
+        ] {
+            check_gradient(&k, kind, 10 * i as u64 + 3);
+        }
+    }
+}
+
+#[test]
+fn stokes_gradients_match_differences_and_the_velocity_is_divergence_free() {
+    let k = Stokes3d::new(0.7).unwrap();
+    check_gradient(&k, SourceKind::Charge, 5);
+    let (s, d, t) = separated(&k, SourceKind::Charge, 8);
+    let g = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &s, &d, &t);
+    for o in g.chunks_exact(12) {
+        let div = o[3] + o[7] + o[11];
+        let scale: f64 = o[3..].iter().map(|v| v.abs()).sum();
+        assert!(div.abs() <= 1e-13 * scale, "div u = {div:e} (scale {scale:e})");
+    }
+}
+
+/// `n . grad_x G` equals the central difference of the charge potential in
+/// the source position along `n`, for each complex dipole component.
+#[test]
+fn helmholtz_dipoles_are_source_derivatives_of_charges() {
+    let k = Helmholtz3d::new(4.0).unwrap();
+    let (s, d, t) = separated(&k, SourceKind::Dipole, 21);
+    let got = eval(&k, SourceKind::Dipole, EvalMode::PotentialGradient, &s, &d, &t);
+    let h = 1e-5;
+    let mut want = vec![0.0; got.len()];
+    for i in 0..s.len() / 3 {
+        for m in 0..3 {
+            let mut sp = s[3 * i..3 * i + 3].to_vec();
+            let mut sm = sp.clone();
+            sp[m] += h;
+            sm[m] -= h;
+            // Complex dipole component m of source i, as a complex charge.
+            let q = [d[6 * i + 2 * m], d[6 * i + 2 * m + 1]];
+            let up = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &sp, &q, &t);
+            let um = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &sm, &q, &t);
+            for (w, (a, b)) in want.iter_mut().zip(up.iter().zip(&um)) {
+                *w += (a - b) / (2.0 * h);
+            }
+        }
+    }
+    let err = relative_l2(&got, &want);
+    assert!(err < 1e-7, "dipoles vs source differences: {err:e}");
+}
+
+/// At `k = 0` the real and imaginary parts are Laplace fields of the real
+/// and imaginary charges.
+#[test]
+fn helmholtz_at_zero_wavenumber_is_laplace_per_part() {
+    let k = Helmholtz3d::new(0.0).unwrap();
+    let (s, d, t) = separated(&k, SourceKind::Charge, 31);
+    let got = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &s, &d, &t);
+    for part in 0..2 {
+        let q: Vec<f64> = d.iter().skip(part).step_by(2).copied().collect();
+        let want = eval(
+            &Laplace3d,
+            SourceKind::Charge,
+            EvalMode::PotentialGradient,
+            &s,
+            &q,
+            &t,
+        );
+        let mine: Vec<f64> = got.iter().skip(part).step_by(2).copied().collect();
+        let err = relative_l2(&mine, &want);
+        assert!(err < 1e-14, "part {part}: {err:e}");
+    }
+}
+
+/// `A d` with the assembled block matrix equals the potential evaluation,
+/// also with coincident points (zero blocks).
+fn check_assembly<K: Kernel>(k: &K) {
+    let c = k.components();
+    let s = uniform_cube(19, 0.0, 1.0, 41);
+    let mut rng = SplitMix64(42);
+    let d: Vec<f64> = (0..19 * c).map(|_| rng.range(-1.0, 1.0)).collect();
+    let mut t = uniform_cube(13, 0.0, 1.0, 43);
+    t[..3].copy_from_slice(&s[..3]);
+    let mut a = vec![0.0; 19 * 13 * c * c];
+    k.assemble(&s, &t, &mut a);
+    let product: Vec<f64> = a
+        .chunks_exact(19 * c)
+        .map(|row| row.iter().zip(&d).map(|(x, y)| x * y).sum())
+        .collect();
+    let want = eval(k, SourceKind::Charge, EvalMode::Potential, &s, &d, &t);
+    let err = relative_l2(&product, &want);
+    assert!(err < 1e-14, "{}: assembled vs evaluated {err:e}", k.name());
+    assert!(a.iter().all(|v| v.is_finite()));
+}
+
+#[test]
+fn assembled_blocks_reproduce_the_evaluation() {
+    check_assembly(&Helmholtz3d::new(6.0).unwrap());
+    check_assembly(&Stokes3d::default());
+}
+
+/// The generic `f32` path agrees with `f64` to single precision.
+#[test]
+fn single_precision_follows_double() {
+    fn check<K: Kernel>(k: &K, kind: SourceKind) {
+        let (s, d, t) = separated(k, kind, 51);
+        let want = eval(k, kind, EvalMode::PotentialGradient, &s, &d, &t);
+        let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+        let mut out = vec![0.0f32; want.len()];
+        k.evaluate_sources(
+            kind,
+            EvalMode::PotentialGradient,
+            &f(&s),
+            &f(&d),
+            &f(&t),
+            &mut out,
+        );
+        let got: Vec<f64> = out.iter().map(|&x| x as f64).collect();
+        let err = relative_l2(&got, &want);
+        assert!(err < 1e-5, "{} f32: {err:e}", k.name());
+    }
+    check(&Helmholtz3d::new(5.0).unwrap(), SourceKind::ChargeDipole);
+    check(&Stokes3d::default(), SourceKind::Charge);
+}
+
+#[test]
+fn bad_input_is_refused_with_the_component_count() {
+    let h = Helmholtz3d::new(1.0).unwrap();
+    let s = [0.0; 6];
+    let t = [1.0; 3];
+    // Real charges (one per source) for a complex kernel.
+    let err = check_kernel_inputs(
+        &h,
+        SourceKind::Charge,
+        EvalMode::Potential,
+        &s,
+        &[1.0, 1.0],
+        &t,
+        &[0.0; 2],
+    );
+    assert!(
+        matches!(err, Err(KernelError::DensitiesLength { per_source: 2, found: 2, .. })),
+        "{err:?}"
+    );
+    // Dipoles need six values per source (three complex).
+    let err = check_kernel_inputs(
+        &h,
+        SourceKind::Dipole,
+        EvalMode::Potential,
+        &s,
+        &[1.0; 8],
+        &t,
+        &[0.0; 2],
+    );
+    assert!(matches!(err, Err(KernelError::DensitiesLength { per_source: 6, .. })));
+    // Outputs: two per target for a potential.
+    let err = check_kernel_inputs(
+        &h,
+        SourceKind::Charge,
+        EvalMode::Potential,
+        &s,
+        &[1.0; 4],
+        &t,
+        &[0.0; 1],
+    );
+    assert!(matches!(err, Err(KernelError::OutputLength { expected: 2, .. })));
+    // Stokes takes forces only, and no kernel here has Hessians.
+    let mut out = [0.0; 3];
+    let err = direct_sum_sources_checked(
+        &Stokes3d::default(),
+        SourceKind::Dipole,
+        EvalMode::Potential,
+        &s,
+        &[1.0; 18],
+        &t,
+        &mut out,
+    );
+    assert!(matches!(err, Err(KernelError::Unsupported { .. })), "{err:?}");
+    let mut out = [0.0; 20];
+    let err = direct_sum_sources_checked(
+        &h,
+        SourceKind::Charge,
+        EvalMode::PotentialGradientHessian,
+        &s,
+        &[1.0; 4],
+        &t,
+        &mut out,
+    );
+    assert!(matches!(err, Err(KernelError::Unsupported { .. })), "{err:?}");
+    assert!(Helmholtz3d::new(-1.0).is_err());
+    assert!(Stokes3d::new(f64::INFINITY).is_err());
+}
