@@ -66,6 +66,17 @@ pub enum FieldError {
         reason: String,
     },
 
+    /// The M2L scheme cannot translate this kernel (e.g. the FFT scheme and
+    /// a kernel with several components).
+    #[error("the {scheme} M2L scheme does not handle kernel `{kernel}`: {reason}")]
+    UnsupportedKernel {
+        /// The scheme's name.
+        scheme: &'static str,
+        /// The kernel's name.
+        kernel: String,
+        /// Why, and what to use instead.
+        reason: &'static str,
+    },
     /// The precomputation was cancelled through its
     /// [`PrecomputeMonitor`](crate::PrecomputeMonitor) (e.g. Ctrl-C).
     #[error("operator precomputation cancelled")]

@@ -107,4 +107,4 @@ pub use precompute::{
     M2lUsage, MEMORY_LIMIT_ENV, MemoryLimit, PrecomputeEstimate, PrecomputeMonitor,
     PrecomputeProgress, available_memory,
 };
-pub use surface::{SurfaceKind, SurfaceRadii, n_surface_points, surface_points};
+pub use surface::{SurfaceKind, SurfaceRadii, expansion_len, n_surface_points, surface_points};

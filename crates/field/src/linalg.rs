@@ -10,15 +10,18 @@ use ferrofmm_kernels::{Kernel, Real};
 use crate::FieldError;
 
 /// Column-major kernel matrix `A[j, i] = K(x_i, y_j)` (`n_targets x
-/// n_sources`) between interleaved `f64` point sets.
+/// n_sources`) between interleaved `f64` point sets; `c n_targets x c
+/// n_sources` blocks for a kernel with `c` [components](Kernel::components)
+/// (see [`Kernel::assemble`]).
 pub(crate) fn kernel_matrix<K: Kernel>(
     kernel: &K,
     sources: &[f64],
     targets: &[f64],
     what: &str,
 ) -> Result<Mat<f64>, FieldError> {
-    let ns = sources.len() / 3;
-    let nt = targets.len() / 3;
+    let c = kernel.components();
+    let ns = c * (sources.len() / 3);
+    let nt = c * (targets.len() / 3);
     let mut row_major = vec![0.0f64; ns * nt];
     kernel.assemble::<f64>(sources, targets, &mut row_major);
     if row_major.iter().any(|x| !x.is_finite()) {

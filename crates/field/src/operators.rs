@@ -12,7 +12,7 @@ use crate::levels::LevelMap;
 use crate::linalg::{col_major, kernel_matrix, round_to};
 use crate::pinv::{PinvF64, PinvSummary, pinv};
 use crate::{
-    FieldError, OperatorParams, SurfaceKind, SurfaceRadii, Update, gemm_scaled, n_surface_points,
+    FieldError, OperatorParams, SurfaceKind, SurfaceRadii, Update, expansion_len, gemm_scaled,
     surface_points,
 };
 
@@ -295,7 +295,7 @@ impl<T: Real> Operators<T> {
         let homogeneity = kernel.homogeneity();
         let levels = LevelMap::new(homogeneity, domain_width, depth, 0)?;
         let child_levels = LevelMap::new(homogeneity, domain_width, depth, 1)?;
-        let n = n_surface_points(params.order);
+        let n = expansion_len(kernel, params.order);
         let rcond = params.rcond_for(T::PRECISION);
         let n_child_sets = if depth >= 1 { child_levels.n_sets() } else { 0 };
 
@@ -332,7 +332,10 @@ impl<T: Real> Operators<T> {
         self.order
     }
 
-    /// Points per surface, `n = 6 (p-1)^2 + 2`: the length of one expansion.
+    /// Values in one expansion, `n = c (6 (p-1)^2 + 2)`: one per surface
+    /// point and kernel [component](Kernel::components) (see
+    /// [`expansion_len`](crate::expansion_len)); the points alone are
+    /// [`n_surface_points`](crate::n_surface_points).
     pub fn n_surface(&self) -> usize {
         self.n
     }
@@ -578,7 +581,7 @@ fn compute<K: Kernel, T: Real>(
     n_child_sets: usize,
 ) -> Result<OperatorTables<T>, FieldError> {
     let p = params.order;
-    let n = n_surface_points(p);
+    let n = expansion_len(kernel, p);
     let r = params.radii;
     let origin = [0.0; 3];
     // Check-to-equivalent pseudo-inverses, one pair per set.

@@ -1,7 +1,7 @@
 //! Equivalent and check surfaces: the cube-surface grid of order `p` and the
 //! radii that scale it to a box.
 
-use ferrofmm_kernels::Real;
+use ferrofmm_kernels::{Kernel, Real};
 
 /// Number of points of the cube-surface grid of order `p`:
 /// `p^3 - (p-2)^3 = 6 (p-1)^2 + 2`.
@@ -20,6 +20,23 @@ use ferrofmm_kernels::Real;
 pub fn n_surface_points(order: usize) -> usize {
     assert!(order >= 2, "surface order must be at least 2, got {order}");
     6 * (order - 1) * (order - 1) + 2
+}
+
+/// Values in one expansion of `kernel` at `order`: one density per surface
+/// point and [component](Kernel::components),
+/// `kernel.components() * n_surface_points(order)`. Every operator and M2L
+/// matrix is square of this size; expansions are stored point-major
+/// (`[c values of point 0, c values of point 1, ...]`), the layout of the
+/// kernel's densities.
+///
+/// ```
+/// use ferrofmm_field::{expansion_len, n_surface_points};
+/// use ferrofmm_kernels::{Laplace3d, Stokes3d};
+/// assert_eq!(expansion_len(&Laplace3d, 4), n_surface_points(4));
+/// assert_eq!(expansion_len(&Stokes3d::default(), 4), 3 * n_surface_points(4));
+/// ```
+pub fn expansion_len<K: Kernel>(kernel: &K, order: usize) -> usize {
+    kernel.components() * n_surface_points(order)
 }
 
 /// Points of the cube-surface grid of `order`, scaled to a box:

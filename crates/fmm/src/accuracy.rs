@@ -251,7 +251,8 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
         if sample.is_empty() {
             return;
         }
-        let w = self.mode.values_per_target();
+        let comps = self.kernel.components();
+        let w = self.kernel.values_per_target(self.mode);
         let t = self.targets;
         let at: Vec<f64> = sample
             .iter()
@@ -271,10 +272,13 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             for c in 0..w {
                 let r = reference[w * k + c];
                 let e = self.values[w * j + c].to_f64() / self.scale - r;
-                if c == 0 {
+                // Quantity-major: `comps` values of the potential, then of
+                // each derivative.
+                let quantity = c / comps;
+                if quantity == 0 {
                     sums.diff_pot += e * e;
                     sums.ref_pot += r * r;
-                } else if c < 4 {
+                } else if quantity < 4 {
                     sums.diff_grad += e * e;
                     sums.ref_grad += r * r;
                 } else {
@@ -318,8 +322,8 @@ fn scaled_reference<P: Real, T: Real, K: Kernel>(
     scale: f64,
     at: &[f64],
 ) -> Vec<f64> {
-    let len = mode.values_per_target() * (at.len() / 3);
-    let nq = kind.values_per_source();
+    let len = kernel.values_per_target(mode) * (at.len() / 3);
+    let nq = kernel.values_per_source(kind);
     sources
         .par_chunks(3 * REFERENCE_BLOCK)
         .zip(charges.par_chunks(nq * REFERENCE_BLOCK))

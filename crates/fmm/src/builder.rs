@@ -21,6 +21,14 @@ pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
 pub const DEFAULT_LEAF_SIZE: usize = 150;
 /// Default expansion order.
 pub const DEFAULT_ORDER: usize = 6;
+/// Largest `k W` (wavenumber times the width of a tree's cube) the FMM
+/// accepts for an oscillatory kernel ([`Kernel::wavenumber`]): the
+/// equivalent surfaces of the kernel-independent method sample the field
+/// at `p` points per box side, so the operators lose accuracy once boxes
+/// span several wavelengths (the low-frequency regime; a high-frequency
+/// FMM needs directional expansions). M2L starts at level 2, whose boxes
+/// are `W / 4` wide. Measured on the unit cube (docs/kernels.md).
+pub const MAX_WAVENUMBER_WIDTH: f64 = 40.0;
 
 /// Builder of an [`Fmm`].
 ///

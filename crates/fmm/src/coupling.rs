@@ -114,7 +114,7 @@ pub(crate) fn source_side<'a, T: Real, K: Kernel, S: M2lScheme<T>>(
                 &t.tree,
                 t.operators.radii().upward_equivalent,
             )),
-            weights: &multipoles[..n],
+            weights: &multipoles[..fmm.expansion_len()],
             kind: SourceKind::Charge,
         },
         Body::Tree(t) => SourceSide {
@@ -215,8 +215,8 @@ fn sum_parallel<T: Real, K: Kernel>(
     out: &mut [T],
 ) {
     let (nx, ny) = (x.len() / 3, y.len() / 3);
-    let v = mode.values_per_target();
-    let nq = kind.values_per_source();
+    let v = kernel.values_per_target(mode);
+    let nq = kernel.values_per_source(kind);
     if nx * ny <= SERIAL_PAIRS {
         kernel.evaluate_sources(kind, mode, x, w, y, out);
     } else if ny >= 4 * CHUNK {

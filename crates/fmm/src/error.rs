@@ -75,6 +75,22 @@ pub enum FmmError {
         /// Values given.
         got: usize,
     },
+    /// An oscillatory kernel whose wavenumber times the domain width is
+    /// beyond what the (low-frequency) operators resolve.
+    #[error(
+        "kernel {kernel} with wavenumber k = {wavenumber} on a domain of width {width}: k * width = {kw:.3} exceeds the low-frequency limit {limit} of this FMM (about {wavelengths:.1} wavelengths across the domain); use a domain narrower than {max_width:.4} or a smaller k", kw = wavenumber * width, wavelengths = limit / (2.0 * std::f64::consts::PI), max_width = limit / wavenumber
+    )]
+    BeyondLowFrequency {
+        /// The kernel's name.
+        kernel: String,
+        /// Its wavenumber `k`.
+        wavenumber: f64,
+        /// The width of the tree's domain (a cluster's own cube when the
+        /// points form separated clusters).
+        width: f64,
+        /// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH).
+        limit: f64,
+    },
     /// A NaN or infinite charge (or dipole component).
     #[error("charge {index} is not finite ({value})")]
     NonFiniteCharge {

@@ -311,6 +311,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     }
 
     /// What the passes read besides a tree part.
+    /// Values in one box's expansion: one per surface point and kernel
+    /// [component](Kernel::components).
+    pub(crate) fn expansion_len(&self) -> usize {
+        self.kernel.components() * (self.unit_surface.len() / 3)
+    }
+
     pub(crate) fn ctx(&self) -> passes::Ctx<'_, K> {
         passes::Ctx {
             kernel: &self.kernel,
@@ -351,19 +357,22 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// same way (vector-major). Nothing is rebuilt between vectors.
     pub fn evaluate_many(&self, charges: &[T], n_vectors: usize) -> Result<Vec<T>, FmmError> {
         self.check_charges(charges, n_vectors)?;
-        let mut out =
-            Vec::with_capacity(n_vectors * self.n_targets * self.mode.values_per_target());
-        for q in charges.chunks_exact(self.n_sources * self.source_kind.values_per_source()) {
+        let mut out = Vec::with_capacity(
+            n_vectors * self.n_targets * self.kernel.values_per_target(self.mode),
+        );
+        for q in
+            charges.chunks_exact(self.n_sources * self.kernel.values_per_source(self.source_kind))
+        {
             out.extend(passes::evaluate(self, q).0);
         }
         Ok(out)
     }
 
     fn check_charges(&self, charges: &[T], n_vectors: usize) -> Result<(), FmmError> {
-        let per_source = self.source_kind.values_per_source();
+        let per_source = self.kernel.values_per_source(self.source_kind);
         let expected = n_vectors * self.n_sources * per_source;
         if charges.len() != expected || n_vectors == 0 {
-            if self.source_kind == SourceKind::Charge {
+            if self.source_kind == SourceKind::Charge && per_source == 1 {
                 return Err(FmmError::ChargeCount {
                     expected,
                     got: charges.len(),
@@ -554,6 +563,15 @@ pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
     usage: &ferrofmm_field::M2lUsage,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
+    let k = kernel.wavenumber();
+    if k * width > crate::MAX_WAVENUMBER_WIDTH {
+        return Err(FmmError::BeyondLowFrequency {
+            kernel: kernel.name(),
+            wavenumber: k,
+            width,
+            limit: crate::MAX_WAVENUMBER_WIDTH,
+        });
+    }
     let t = Instant::now();
     crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, usage)?;
     let operators = Operators::<T>::new(kernel, params, width, depth)?;

@@ -46,7 +46,9 @@ pub use accuracy::{
     ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_sources,
     sample_indices,
 };
-pub use builder::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MIN_ORDER};
+pub use builder::{
+    DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MAX_WAVENUMBER_WIDTH, MIN_ORDER,
+};
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
 pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};

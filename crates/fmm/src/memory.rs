@@ -54,8 +54,8 @@ impl MemoryReport {
     pub(crate) fn of<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
         let t = size_of::<T>();
         let us = size_of::<usize>();
-        let n = fmm.unit_surface.len() / 3;
-        let w = fmm.mode.values_per_target();
+        let n = fmm.expansion_len();
+        let w = fmm.kernel.values_per_target(fmm.mode);
         let mut n_boxes = 0;
         let mut points = 0;
         let mut tree_bytes = 0;

@@ -49,11 +49,11 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
 ) -> (Vec<T>, EvalTimings) {
     let t0 = Instant::now();
     let mut timings = EvalTimings::default();
-    let n = fmm.unit_surface.len() / 3;
-    let w = fmm.mode.values_per_target();
+    let n = fmm.expansion_len();
+    let w = fmm.kernel.values_per_target(fmm.mode);
 
     let cx = fmm.ctx();
-    let nq = fmm.source_kind.values_per_source();
+    let nq = fmm.kernel.values_per_source(fmm.source_kind);
     let local_q: Vec<Vec<T>> = fmm
         .parts
         .iter()
@@ -168,7 +168,7 @@ fn couple<T: Real, K: Kernel, S: M2lScheme<T>>(
     values: &mut [Vec<T>],
     root_checks: &mut [Vec<T>],
 ) {
-    let n = fmm.unit_surface.len() / 3;
+    let n = fmm.expansion_len();
     let sources: Vec<Option<coupling::SourceSide<'_, T>>> = fmm
         .parts
         .iter()
@@ -197,13 +197,13 @@ fn couple<T: Real, K: Kernel, S: M2lScheme<T>>(
 }
 
 /// The coordinates and densities of the sources `r` (tree order).
-fn source_slices<'a, T: Real, S: M2lScheme<T>, K>(
+fn source_slices<'a, T: Real, S: M2lScheme<T>, K: Kernel>(
     cx: &Ctx<'_, K>,
     part: &'a TreePart<T, S>,
     q: &'a [T],
     r: Range<usize>,
 ) -> (&'a [T], &'a [T]) {
-    let nq = cx.kind.values_per_source();
+    let nq = cx.kernel.values_per_source(cx.kind);
     (
         &part.sources[3 * r.start..3 * r.end],
         &q[nq * r.start..nq * r.end],
@@ -366,7 +366,7 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     let tree = &part.tree;
     let ops = &part.operators;
     let n = ops.n_surface();
-    let w = cx.mode.values_per_target();
+    let w = cx.kernel.values_per_target(cx.mode);
     let mode = cx.mode;
     let mut slices = leaf_output_slices(tree, w, sorted);
     let targets_of = |b: usize| {

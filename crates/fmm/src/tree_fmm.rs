@@ -182,9 +182,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         &self.part.tree
     }
 
-    /// Equivalent (and check) points per box, `n = 6 (p - 1)^2 + 2`: box
-    /// `b`'s multipole and local are entries `n b .. n (b + 1)` of the
-    /// vectors the passes return.
+    /// Values per box expansion, `n = c (6 (p - 1)^2 + 2)` for a kernel
+    /// with `c` [components](Kernel::components) (one per equivalent point
+    /// for scalar kernels): box `b`'s multipole and local are entries
+    /// `n b .. n (b + 1)` of the vectors the passes return.
     pub fn n_surface(&self) -> usize {
         self.part.operators.n_surface()
     }
@@ -292,7 +293,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         self.check("multipoles", multipoles.len(), len)?;
         self.check("locals", locals.len(), len)?;
         let n_targets = self.part.target_points().len() / 3;
-        let mut values = vec![T::ZERO; self.mode.values_per_target() * n_targets];
+        let mut values = vec![T::ZERO; self.kernel.values_per_target(self.mode) * n_targets];
         passes::leaf_passes(
             &self.ctx(),
             &self.part,

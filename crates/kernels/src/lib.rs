@@ -81,16 +81,16 @@ mod simd;
 mod stokes;
 
 pub use direct::{
-    DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum, direct_sum_checked,
-    direct_sum_sources, direct_sum_sources_checked,
+    DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,
+    direct_sum_checked, direct_sum_sources, direct_sum_sources_checked,
 };
 pub use error::KernelError;
 pub use helmholtz::ModifiedHelmholtz3d;
 pub use helmholtz_p2p::modified_helmholtz_p2p_with;
 pub use kernel::{EvalMode, Kernel, SourceKind};
 pub use laplace::{INV_4PI, Laplace3d};
-pub use oscillatory_helmholtz::Helmholtz3d;
 pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
+pub use oscillatory_helmholtz::Helmholtz3d;
 pub use real::{Precision, Real};
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};
 pub use stokes::Stokes3d;

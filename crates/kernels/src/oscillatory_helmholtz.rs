@@ -173,7 +173,8 @@ impl Kernel for Helmholtz3d {
         targets: &[T],
         out: &mut [T],
     ) {
-        if let Err(e) = crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
+        if let Err(e) =
+            crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
         {
             panic!("helmholtz3d: {e}");
         }

@@ -148,7 +148,10 @@ impl Kernel for Stokes3d {
         ) {
             panic!("stokes3d: {e}");
         }
-        assert!(!mode.has_hessian(), "stokes3d: no Hessians (Kernel::supports)");
+        assert!(
+            !mode.has_hessian(),
+            "stokes3d: no Hessians (Kernel::supports)"
+        );
         let scale = T::from_f64(self.scale());
         let three = T::from_f64(3.0);
         let w = 3 * mode.values_per_target();

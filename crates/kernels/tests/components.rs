@@ -64,7 +64,11 @@ fn check_gradient<K: Kernel>(k: &K, kind: SourceKind, seed: u64) {
         }
     }
     let err = relative_l2(&got, &fd);
-    assert!(err < 1e-7, "{} {kind:?} gradient vs differences: {err:e}", k.name());
+    assert!(
+        err < 1e-7,
+        "{} {kind:?} gradient vs differences: {err:e}",
+        k.name()
+    );
 }
 
 #[test]
@@ -86,11 +90,21 @@ fn stokes_gradients_match_differences_and_the_velocity_is_divergence_free() {
     let k = Stokes3d::new(0.7).unwrap();
     check_gradient(&k, SourceKind::Charge, 5);
     let (s, d, t) = separated(&k, SourceKind::Charge, 8);
-    let g = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &s, &d, &t);
+    let g = eval(
+        &k,
+        SourceKind::Charge,
+        EvalMode::PotentialGradient,
+        &s,
+        &d,
+        &t,
+    );
     for o in g.chunks_exact(12) {
         let div = o[3] + o[7] + o[11];
         let scale: f64 = o[3..].iter().map(|v| v.abs()).sum();
-        assert!(div.abs() <= 1e-13 * scale, "div u = {div:e} (scale {scale:e})");
+        assert!(
+            div.abs() <= 1e-13 * scale,
+            "div u = {div:e} (scale {scale:e})"
+        );
     }
 }
 
@@ -100,7 +114,14 @@ fn stokes_gradients_match_differences_and_the_velocity_is_divergence_free() {
 fn helmholtz_dipoles_are_source_derivatives_of_charges() {
     let k = Helmholtz3d::new(4.0).unwrap();
     let (s, d, t) = separated(&k, SourceKind::Dipole, 21);
-    let got = eval(&k, SourceKind::Dipole, EvalMode::PotentialGradient, &s, &d, &t);
+    let got = eval(
+        &k,
+        SourceKind::Dipole,
+        EvalMode::PotentialGradient,
+        &s,
+        &d,
+        &t,
+    );
     let h = 1e-5;
     let mut want = vec![0.0; got.len()];
     for i in 0..s.len() / 3 {
@@ -111,8 +132,22 @@ fn helmholtz_dipoles_are_source_derivatives_of_charges() {
             sm[m] -= h;
             // Complex dipole component m of source i, as a complex charge.
             let q = [d[6 * i + 2 * m], d[6 * i + 2 * m + 1]];
-            let up = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &sp, &q, &t);
-            let um = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &sm, &q, &t);
+            let up = eval(
+                &k,
+                SourceKind::Charge,
+                EvalMode::PotentialGradient,
+                &sp,
+                &q,
+                &t,
+            );
+            let um = eval(
+                &k,
+                SourceKind::Charge,
+                EvalMode::PotentialGradient,
+                &sm,
+                &q,
+                &t,
+            );
             for (w, (a, b)) in want.iter_mut().zip(up.iter().zip(&um)) {
                 *w += (a - b) / (2.0 * h);
             }
@@ -128,7 +163,14 @@ fn helmholtz_dipoles_are_source_derivatives_of_charges() {
 fn helmholtz_at_zero_wavenumber_is_laplace_per_part() {
     let k = Helmholtz3d::new(0.0).unwrap();
     let (s, d, t) = separated(&k, SourceKind::Charge, 31);
-    let got = eval(&k, SourceKind::Charge, EvalMode::PotentialGradient, &s, &d, &t);
+    let got = eval(
+        &k,
+        SourceKind::Charge,
+        EvalMode::PotentialGradient,
+        &s,
+        &d,
+        &t,
+    );
     for part in 0..2 {
         let q: Vec<f64> = d.iter().skip(part).step_by(2).copied().collect();
         let want = eval(
@@ -212,7 +254,14 @@ fn bad_input_is_refused_with_the_component_count() {
         &[0.0; 2],
     );
     assert!(
-        matches!(err, Err(KernelError::DensitiesLength { per_source: 2, found: 2, .. })),
+        matches!(
+            err,
+            Err(KernelError::DensitiesLength {
+                per_source: 2,
+                found: 2,
+                ..
+            })
+        ),
         "{err:?}"
     );
     // Dipoles need six values per source (three complex).
@@ -225,7 +274,10 @@ fn bad_input_is_refused_with_the_component_count() {
         &t,
         &[0.0; 2],
     );
-    assert!(matches!(err, Err(KernelError::DensitiesLength { per_source: 6, .. })));
+    assert!(matches!(
+        err,
+        Err(KernelError::DensitiesLength { per_source: 6, .. })
+    ));
     // Outputs: two per target for a potential.
     let err = check_kernel_inputs(
         &h,
@@ -236,7 +288,10 @@ fn bad_input_is_refused_with_the_component_count() {
         &t,
         &[0.0; 1],
     );
-    assert!(matches!(err, Err(KernelError::OutputLength { expected: 2, .. })));
+    assert!(matches!(
+        err,
+        Err(KernelError::OutputLength { expected: 2, .. })
+    ));
     // Stokes takes forces only, and no kernel here has Hessians.
     let mut out = [0.0; 3];
     let err = direct_sum_sources_checked(
@@ -248,7 +303,10 @@ fn bad_input_is_refused_with_the_component_count() {
         &t,
         &mut out,
     );
-    assert!(matches!(err, Err(KernelError::Unsupported { .. })), "{err:?}");
+    assert!(
+        matches!(err, Err(KernelError::Unsupported { .. })),
+        "{err:?}"
+    );
     let mut out = [0.0; 20];
     let err = direct_sum_sources_checked(
         &h,
@@ -259,7 +317,10 @@ fn bad_input_is_refused_with_the_component_count() {
         &t,
         &mut out,
     );
-    assert!(matches!(err, Err(KernelError::Unsupported { .. })), "{err:?}");
+    assert!(
+        matches!(err, Err(KernelError::Unsupported { .. })),
+        "{err:?}"
+    );
     assert!(Helmholtz3d::new(-1.0).is_err());
     assert!(Stokes3d::new(f64::INFINITY).is_err());
 }

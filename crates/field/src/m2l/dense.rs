@@ -12,7 +12,7 @@ use crate::levels::LevelMap;
 use crate::linalg::col_major;
 use crate::{
     FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, Update, gemm_scaled,
-    n_surface_points, transfer_vectors,
+    transfer_vectors,
 };
 
 /// Configuration of [`DenseM2l`] (nothing to configure).
@@ -119,7 +119,7 @@ impl<T: Real> DenseM2l<T> {
     ) -> Result<Self, FieldError> {
         params.validate()?;
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let n = n_surface_points(params.order);
+        let n = crate::expansion_len(kernel, params.order);
         let n_sets = levels.n_sets();
         let sets: Vec<Vec<usize>> = match plan {
             None => vec![(0..N_TRANSFER_VECTORS).collect(); n_sets],

@@ -158,7 +158,7 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
             .iter()
             .map(Vec::len)
             .sum();
-        let n = crate::n_surface_points(params.order) as u64;
+        let n = crate::expansion_len(kernel, params.order) as u64;
         let threads = effective_threads() as u64;
         let size = std::mem::size_of::<T>() as u64;
         let flops = 20.0 * m as f64 * (n * n) as f64;

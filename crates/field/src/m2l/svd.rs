@@ -15,7 +15,7 @@ use crate::linalg::{col_major, householder_r_until, nested_par, round_to, svd};
 use crate::precompute::{FLOPS_PER_THREAD, Units, effective_threads};
 use crate::{
     FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
-    Update, gemm, gemm_scaled, n_surface_points, transfer_vectors,
+    Update, expansion_len, gemm, gemm_scaled, transfer_vectors,
 };
 
 /// Configuration of [`SvdM2l`].
@@ -284,7 +284,7 @@ impl<T: Real> SvdM2l<T> {
             ));
         }
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let n = n_surface_points(params.order);
+        let n = expansion_len(kernel, params.order);
         let tolerance = if config.tolerance > 0.0 {
             config.tolerance
         } else {
@@ -437,7 +437,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         usage: &M2lUsage,
     ) -> PrecomputeEstimate {
         let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
-        let n = n_surface_points(params.order) as f64;
+        let n = expansion_len(kernel, params.order) as f64;
         let k = config.rank.map_or(n, |r| (r as f64).min(n));
         let threads = effective_threads() as f64;
         let per_core = if config.rank.is_some() { 1.0 } else { 4.0 };
@@ -576,7 +576,7 @@ fn compress_set<K: Kernel>(
     units: &Units<'_>,
 ) -> Result<(SvdSetInfo, Vec<f64>), FieldError> {
     let p = params.order;
-    let n = n_surface_points(p);
+    let n = expansion_len(kernel, p);
     let all = transfer_vectors();
     let vectors: Vec<[i32; 3]> = used.iter().map(|&v| all[v]).collect();
     let stop = || units.cancelled();

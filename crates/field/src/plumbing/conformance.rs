@@ -39,7 +39,7 @@ use ferrofmm_kernels::{Kernel, Real};
 
 use super::{LevelMap, m2l_matrix};
 use crate::{
-    M2lInteractions, M2lScheme, M2lUsage, OperatorParams, Update, gemm_scaled, n_surface_points,
+    M2lInteractions, M2lScheme, M2lUsage, OperatorParams, Update, gemm_scaled,
     transfer_vector_index, transfer_vectors,
 };
 
@@ -78,7 +78,7 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
     tolerance: f64,
 ) -> Result<ConformanceReport, String> {
     let depth = *LEVELS.last().expect("levels");
-    let n = n_surface_points(params.order);
+    let n = crate::expansion_len(kernel, params.order);
     let full = S::precompute(kernel, params, config, DOMAIN_WIDTH, depth)
         .map_err(|e| format!("precompute: {e}"))?;
     let mut usage = M2lUsage::none();
@@ -272,7 +272,7 @@ fn reference<T: Real, K: Kernel>(
     multipoles: &[T],
     check0: &[T],
 ) -> Result<Vec<f64>, String> {
-    let n = n_surface_points(params.order);
+    let n = crate::expansion_len(kernel, params.order);
     let h = map.half_width(level);
     let mut out: Vec<f64> = check0.iter().map(|x| x.to_f64()).collect();
     let vectors = transfer_vectors();

@@ -328,6 +328,13 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     ) -> Result<Self, FieldError> {
         params.validate()?;
         check_radii(params)?;
+        if kernel.components() != 1 {
+            return Err(FieldError::UnsupportedKernel {
+                scheme: "fft",
+                kernel: kernel.name(),
+                reason: "the FFT scheme convolves scalar kernels only; use the svd or dense scheme",
+            });
+        }
         params.monitor.check()?;
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
         let grid = grid_size(params.order);

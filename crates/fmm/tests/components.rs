@@ -1,0 +1,195 @@
+//! Kernels with several components through the one driver: the complex
+//! Helmholtz kernel over a range of wavenumbers (charges and dipoles) and
+//! the Stokeslet, against direct summation, on uniform and clustered
+//! points with zero-mean and positive densities; and the errors a user gets
+//! for what the method cannot do.
+//!
+//! Bounds follow the order as for Laplace (`docs/kernels.md` has the
+//! measured tables): the relative L2 error of the worst output falls about
+//! 6x per order, and a larger `k` costs up to a few times more at a given
+//! order inside the low-frequency limit.
+
+use ferrofmm_fmm::{
+    Charges, ErrorReport, FmmBuilder, FmmError, Geometry, MAX_WAVENUMBER_WIDTH,
+    relative_errors_sources, sample_indices,
+};
+use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, SourceKind, Stokes3d};
+
+/// Error bound at order `p` for outputs whose order-4 error is `at4`.
+fn bound(at4: f64, p: usize) -> f64 {
+    at4 * 6f64.powi(4 - p as i32)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run<K: Kernel>(
+    kernel: &K,
+    geometry: Geometry,
+    n: usize,
+    order: usize,
+    kind: SourceKind,
+    mode: EvalMode,
+    sign: Charges,
+) -> ErrorReport {
+    let points: Vec<f64> = geometry.points(n, 5);
+    let densities: Vec<f64> = sign.generate(n * kernel.values_per_source(kind), 6);
+    let fmm = FmmBuilder::new(&points)
+        .kernel(kernel.clone())
+        .order(order)
+        .leaf_size(64)
+        .mode(mode)
+        .source_kind(kind)
+        .build_svd()
+        .unwrap();
+    let values = fmm.evaluate(&densities).unwrap();
+    assert_eq!(values.len(), n * kernel.values_per_target(mode));
+    let sample = sample_indices(n, 300);
+    let e = relative_errors_sources(
+        kernel, kind, mode, &points, &densities, &points, &values, &sample,
+    );
+    eprintln!(
+        "{} {:?} {} {} p={order} {} {}: {:.2e} {:?}",
+        kernel.name(),
+        kernel.parameters(),
+        geometry.name(),
+        sign.name(),
+        kind.name(),
+        mode.name(),
+        e.potential,
+        e.gradient,
+    );
+    assert!(e.worst() > 0.0, "nothing was compared");
+    e
+}
+
+/// Every wavenumber of the issue at p = 4 on the cube (charges plus
+/// dipoles, zero-mean), the largest at p = 6 too, and clustered Plummer
+/// points with positive charges. Measured at N = 2e4
+/// (`examples/components_sweep.rs`): worst output 3.6e-4 (k = 1) to 3.8e-3
+/// (k = 20) at p = 4, 7.5e-6 to 1.5e-5 at p = 6.
+#[test]
+fn helmholtz_meets_its_order_bound_over_wavenumbers() {
+    let cases = [
+        (
+            1.0,
+            4,
+            Geometry::Cube,
+            SourceKind::ChargeDipole,
+            Charges::Signed,
+        ),
+        (
+            5.0,
+            4,
+            Geometry::Cube,
+            SourceKind::ChargeDipole,
+            Charges::Signed,
+        ),
+        (10.0, 4, Geometry::Cube, SourceKind::Dipole, Charges::Signed),
+        (
+            20.0,
+            4,
+            Geometry::Cube,
+            SourceKind::ChargeDipole,
+            Charges::Signed,
+        ),
+        (
+            10.0,
+            4,
+            Geometry::Plummer,
+            SourceKind::Charge,
+            Charges::Positive,
+        ),
+        (
+            20.0,
+            6,
+            Geometry::Cube,
+            SourceKind::ChargeDipole,
+            Charges::Signed,
+        ),
+    ];
+    for (k, order, geometry, kind, sign) in cases {
+        let kernel = Helmholtz3d::new(k).unwrap();
+        let e = run(
+            &kernel,
+            geometry,
+            4000,
+            order,
+            kind,
+            EvalMode::PotentialGradient,
+            sign,
+        );
+        let b = bound(1e-2, order);
+        assert!(e.worst() <= b, "k={k} p={order}: {e:?} above {b:.1e}");
+    }
+}
+
+/// Measured at N = 2e4: worst output 1.4e-3 (cube) and 4.0e-3 (Plummer
+/// gradient) at p = 4, 3.9e-5 and 1.6e-4 at p = 6.
+#[test]
+fn stokes_meets_its_order_bound() {
+    let kernel = Stokes3d::default();
+    for (order, geometry, sign) in [
+        (4, Geometry::Cube, Charges::Signed),
+        (6, Geometry::Plummer, Charges::Positive),
+    ] {
+        let e = run(
+            &kernel,
+            geometry,
+            4000,
+            order,
+            SourceKind::Charge,
+            EvalMode::PotentialGradient,
+            sign,
+        );
+        let b = bound(1.5e-2, order);
+        assert!(e.worst() <= b, "stokes p={order}: {e:?} above {b:.1e}");
+    }
+}
+
+#[test]
+fn what_the_method_cannot_do_is_a_clear_error() {
+    let points: Vec<f64> = Geometry::Cube.points(500, 1);
+    // Beyond the low-frequency limit: named, with the limit.
+    let k = 2.0 * MAX_WAVENUMBER_WIDTH;
+    let err = FmmBuilder::new(&points)
+        .kernel(Helmholtz3d::new(k).unwrap())
+        .leaf_size(32)
+        .build_svd()
+        .err()
+        .expect("refused");
+    assert!(matches!(err, FmmError::BeyondLowFrequency { .. }), "{err}");
+    assert!(err.to_string().contains("low-frequency limit"), "{err}");
+    // The FFT scheme convolves scalar kernels only.
+    let err = FmmBuilder::new(&points)
+        .kernel(Stokes3d::default())
+        .leaf_size(32)
+        .build_with::<ferrofmm_field::FftM2l<f64>>(Default::default())
+        .err()
+        .expect("refused");
+    assert!(err.to_string().contains("svd or dense"), "{err}");
+    // Real charges for a complex kernel: two values per source.
+    let fmm = FmmBuilder::new(&points)
+        .kernel(Helmholtz3d::new(1.0).unwrap())
+        .leaf_size(32)
+        .build_svd()
+        .unwrap();
+    let err = fmm.evaluate(&vec![1.0; 500]).unwrap_err();
+    assert!(
+        matches!(
+            err,
+            FmmError::DensityCount {
+                per_source: 2,
+                expected: 1000,
+                ..
+            }
+        ),
+        "{err}"
+    );
+    // Stokes takes forces only.
+    let err = FmmBuilder::new(&points)
+        .kernel(Stokes3d::default())
+        .source_kind(SourceKind::Dipole)
+        .build_svd()
+        .err()
+        .expect("refused");
+    assert!(matches!(err, FmmError::Kernel(_)), "{err}");
+}
