@@ -34,7 +34,8 @@ use commands::eval::EvalArgs;
 use commands::sweep::SweepArgs;
 use error::{CliError, Result};
 
-/// Kernel-independent fast multipole method (Laplace 1/(4 pi r) in 3D).
+/// Kernel-independent fast multipole method in 3D (Laplace, modified
+/// Helmholtz, Helmholtz and Stokes kernels).
 #[derive(Parser, Debug)]
 #[command(
     name = "ferrofmm",

@@ -4,7 +4,10 @@
 mod common;
 
 use common::{charges, ferrofmm, points, read_npy, scratch, texts, write_csv, write_npy};
-use ferrofmm_kernels::{EvalMode, Laplace3d, ModifiedHelmholtz3d, SourceKind, direct_sum_sources};
+use ferrofmm_kernels::{
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, SourceKind, Stokes3d,
+    direct_sum_sources,
+};
 use ferrofmm_testing::errors::relative_l2_columns;
 
 const N: usize = 3000;
@@ -139,6 +142,8 @@ fn bad_kernels_and_dipole_files_are_clear_errors() {
     write_npy(&short, &charges(3 * 49, 2), &[49, 3]);
     let flat = dir.join("flat.npy");
     write_npy(&flat, &charges(50, 2), &[50]);
+    let complex = dir.join("q2.npy");
+    write_npy(&complex, &charges(100, 3), &[50, 2]);
     let out = dir.join("o.npy");
     let base = [
         "eval",
@@ -156,11 +161,43 @@ fn bad_kernels_and_dipole_files_are_clear_errors() {
         (
             vec![
                 "--dipoles",
-                short.to_str().unwrap(),
+                flat.to_str().unwrap(),
                 "--kernel",
                 "helmholtz:3",
             ],
-            "not available yet",
+            "(N, 6) array of dipoles",
+        ),
+        (
+            vec!["--charges", flat.to_str().unwrap(), "--kernel", "stokes"],
+            "(N, 3) array of charges",
+        ),
+        (
+            vec!["--dipoles", short.to_str().unwrap(), "--kernel", "stokes"],
+            "does not support dipole sources",
+        ),
+        (
+            vec![
+                "--charges",
+                complex.to_str().unwrap(),
+                "--kernel",
+                "helmholtz:1e4",
+            ],
+            "low-frequency limit",
+        ),
+        (
+            vec![
+                "--charges",
+                short.to_str().unwrap(),
+                "--kernel",
+                "stokes",
+                "--scheme",
+                "fft",
+            ],
+            "49 charges",
+        ),
+        (
+            vec!["--charges", flat.to_str().unwrap(), "--kernel", "maxwell"],
+            "helmholtz:K or stokes",
         ),
         (
             vec![
@@ -185,4 +222,139 @@ fn bad_kernels_and_dipole_files_are_clear_errors() {
         assert!(stderr.contains(needle), "{args:?}: {stderr}");
         assert!(!out.exists());
     }
+}
+
+/// Complex Helmholtz charges (CSV, `re, im`) with complex dipoles (npy,
+/// `(N, 6)`), and Stokes forces (npy, `(N, 3)`) with the FFT scheme
+/// refused: every output column against direct summation, and the CSV
+/// header naming the components.
+#[test]
+fn helmholtz_and_stokes_outputs_match_direct_summation() {
+    let dir = scratch("physics-components");
+    let n = 2000;
+    let sources = points(n, 13);
+    let src = dir.join("s.npy");
+    write_npy(&src, &sources, &[n as u64, 3]);
+    let q2 = charges(2 * n, 14);
+    let n6 = charges(6 * n, 15);
+    let f3 = charges(3 * n, 16);
+    let (q_path, n_path, f_path) = (dir.join("q.csv"), dir.join("n.npy"), dir.join("f.npy"));
+    write_csv(&q_path, &q2, 2, Some("re,im"));
+    write_npy(&n_path, &n6, &[n as u64, 6]);
+    write_npy(&f_path, &f3, &[n as u64, 3]);
+    let mode = EvalMode::PotentialGradient;
+    let helmholtz = Helmholtz3d::new(8.0).unwrap();
+    let both: Vec<f64> = (0..n)
+        .flat_map(|i| {
+            q2[2 * i..2 * i + 2]
+                .iter()
+                .chain(&n6[6 * i..6 * i + 6])
+                .copied()
+        })
+        .collect();
+    let mut want_h = vec![0.0; 8 * n];
+    direct_sum_sources(
+        &helmholtz,
+        SourceKind::ChargeDipole,
+        mode,
+        &sources,
+        &both,
+        &sources,
+        &mut want_h,
+    );
+    let stokes = Stokes3d::default();
+    let mut want_s = vec![0.0; 12 * n];
+    direct_sum_sources(
+        &stokes,
+        SourceKind::Charge,
+        mode,
+        &sources,
+        &f3,
+        &sources,
+        &mut want_s,
+    );
+    let cases: [(&str, Vec<&str>, &Vec<f64>, usize); 2] = [
+        (
+            "helmholtz:8",
+            vec![
+                "--charges",
+                q_path.to_str().unwrap(),
+                "--dipoles",
+                n_path.to_str().unwrap(),
+            ],
+            &want_h,
+            helmholtz.values_per_target(mode),
+        ),
+        (
+            "stokes",
+            vec!["--charges", f_path.to_str().unwrap()],
+            &want_s,
+            stokes.values_per_target(mode),
+        ),
+    ];
+    for (kernel, inputs, want, width) in cases {
+        let out = dir.join("out.csv");
+        let mut args = vec![
+            "eval",
+            "--sources",
+            src.to_str().unwrap(),
+            "--kernel",
+            kernel,
+            "--gradients",
+            "--order",
+            "7",
+            "--check",
+            "100",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        args.extend(inputs);
+        let o = ferrofmm(&args);
+        let (stdout, stderr) = texts(&o);
+        assert!(o.status.success(), "{kernel}: {stderr}");
+        assert!(stdout.contains("potential"), "{stdout}");
+        let text = std::fs::read_to_string(&out).unwrap();
+        let header = text.lines().next().unwrap();
+        let expected = if kernel == "stokes" {
+            "potential_x,potential_y,potential_z,grad_x_x,grad_x_y,grad_x_z"
+        } else {
+            "potential_re,potential_im,grad_x_re,grad_x_im"
+        };
+        assert!(header.starts_with(expected), "{header}");
+        let values: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .flat_map(|l| {
+                l.split(',')
+                    .map(|v| v.parse::<f64>().unwrap())
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        assert_eq!(values.len(), width * n);
+        // Potential and gradient components at order 7 (about 1e-6).
+        for c in 0..width {
+            let e = relative_l2_columns(&values, want, width, c..c + 1);
+            assert!(e < 1e-4, "{kernel} column {c}: {e:e}");
+        }
+        std::fs::remove_file(&out).unwrap();
+    }
+    // The FFT scheme convolves scalar kernels only.
+    let out = dir.join("fft.npy");
+    let o = ferrofmm(&[
+        "eval",
+        "--sources",
+        src.to_str().unwrap(),
+        "--charges",
+        f_path.to_str().unwrap(),
+        "--kernel",
+        "stokes",
+        "--scheme",
+        "fft",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let (_, stderr) = texts(&o);
+    assert!(!o.status.success());
+    assert!(stderr.contains("svd or dense"), "{stderr}");
+    assert!(!out.exists());
 }

@@ -296,7 +296,7 @@ impl<T: Real> Operators<T> {
         let levels = LevelMap::new(homogeneity, domain_width, depth, 0)?;
         let child_levels = LevelMap::new(homogeneity, domain_width, depth, 1)?;
         let n = expansion_len(kernel, params.order);
-        let rcond = params.rcond_for(T::PRECISION);
+        let rcond = params.rcond_for_kernel(kernel, T::PRECISION);
         let n_child_sets = if depth >= 1 { child_levels.n_sets() } else { 0 };
 
         let mut key =

@@ -84,6 +84,19 @@ impl OperatorParams {
         }
     }
 
+    /// The cutoff used for `kernel` in float type `precision`: the one set,
+    /// else the larger of the precision's default and the kernel's
+    /// [`Kernel::pinv_rcond_floor`](ferrofmm_kernels::Kernel::pinv_rcond_floor).
+    pub fn rcond_for_kernel<K: ferrofmm_kernels::Kernel>(
+        &self,
+        kernel: &K,
+        precision: Precision,
+    ) -> f64 {
+        self.pinv_rcond.unwrap_or_else(|| {
+            default_pinv_rcond(precision).max(kernel.pinv_rcond_floor().unwrap_or(0.0))
+        })
+    }
+
     /// The cutoff actually used for float type `precision`.
     pub fn rcond_for(&self, precision: Precision) -> f64 {
         self.pinv_rcond

@@ -180,6 +180,18 @@ pub trait Kernel: Clone + Send + Sync + 'static {
         0.0
     }
 
+    /// The smallest relative cutoff the FMM's check-to-equivalent
+    /// pseudo-inverses should use when the user sets none (the library's
+    /// default is `1e-13` in `f64`, `1e-7` in `f32`; the larger of the two
+    /// is used). `None` (the default) for kernels whose equivalent-density
+    /// problem is merely ill-conditioned. A kernel whose single layer on a
+    /// closed surface has a null space (Stokes: a density along the normal
+    /// makes no flow outside) needs a cutoff above that null space's
+    /// rounding level, or the pseudo-inverse amplifies it.
+    fn pinv_rcond_floor(&self) -> Option<f64> {
+        None
+    }
+
     /// `K` at separation `d = target - source` (`|d| > 0`); for a kernel
     /// with `c > 1` components, the `(0, 0)` entry of its block (the real
     /// part of a complex kernel).

@@ -75,6 +75,7 @@ pub mod lanes;
 mod laplace;
 mod laplace_simd;
 mod oscillatory_helmholtz;
+mod oscillatory_helmholtz_p2p;
 mod real;
 pub mod reference;
 mod simd;

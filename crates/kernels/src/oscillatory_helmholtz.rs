@@ -29,7 +29,7 @@
 //! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs:
 //! the memory of NumPy `complex128` arrays.
 
-use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
+use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind};
 
 /// The 3D Helmholtz Green's function `G = e^{ikr} / (4 pi r)`, the
 /// outgoing solution of `(Delta + k^2) u = -delta`, as a complex kernel in
@@ -160,11 +160,95 @@ impl Kernel for Helmholtz3d {
     }
 
     /// `u_j += sum_i q_i f0 - f1 (n_i . d)` (and the gradient), in complex
-    /// arithmetic on `[re, im]` pairs; coincident pairs skipped.
+    /// arithmetic on `[re, im]` pairs, coincident pairs skipped: a
+    /// vectorised loop over target lanes with `sin` and `cos` on registers
+    /// (at [`SimdLevel::active`]).
     ///
     /// # Panics
     /// When lengths are inconsistent or `mode` asks for Hessians.
     fn evaluate_sources<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        self.evaluate_sources_with(
+            SimdLevel::active(),
+            kind,
+            mode,
+            sources,
+            densities,
+            targets,
+            out,
+        );
+    }
+
+    /// `[[Re G, -Im G], [Im G, Re G]]` blocks (`2 n_targets x 2 n_sources`,
+    /// row-major), zero for coincident pairs.
+    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
+        let ns = sources.len() / 3;
+        let nt = targets.len() / 3;
+        assert_eq!(matrix.len(), 4 * ns * nt, "helmholtz3d: matrix size");
+        let k = T::from_f64(self.k);
+        let cols = 2 * ns;
+        for (j, y) in targets.chunks_exact(3).enumerate() {
+            for (i, x) in sources.chunks_exact(3).enumerate() {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                let (gr, gi) = if r2 == T::ZERO {
+                    (T::ZERO, T::ZERO)
+                } else {
+                    let (gr, gi, _) = f0_parts(k, r2);
+                    (gr, gi)
+                };
+                let top = 2 * j * cols + 2 * i;
+                matrix[top] = gr;
+                matrix[top + 1] = -gi;
+                matrix[top + cols] = gi;
+                matrix[top + cols + 1] = gr;
+            }
+        }
+    }
+}
+
+impl Helmholtz3d {
+    /// [`Kernel::evaluate_sources`] at SIMD `level` (lowered to what the
+    /// CPU supports), for tests and benchmarks.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    #[allow(clippy::too_many_arguments)]
+    pub fn evaluate_sources_with<T: Real>(
+        &self,
+        level: SimdLevel,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        if let Err(e) =
+            crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
+        {
+            panic!("helmholtz3d: {e}");
+        }
+        assert!(
+            self.supports(kind, mode),
+            "helmholtz3d: no Hessians (Kernel::supports)"
+        );
+        crate::oscillatory_helmholtz_p2p::helmholtz_p2p_with(
+            level, self.k, kind, mode, sources, densities, targets, out,
+        );
+    }
+
+    /// The scalar pairwise loop (`f64::sin_cos`), the reference the
+    /// vectorised [`Kernel::evaluate_sources`] is tested against. Same
+    /// layout and panics.
+    pub fn evaluate_sources_pairwise<T: Real>(
         &self,
         kind: SourceKind,
         mode: EvalMode,
@@ -252,33 +336,6 @@ impl Kernel for Helmholtz3d {
             }
             for (o, a) in o.iter_mut().zip(acc) {
                 *o += a;
-            }
-        }
-    }
-
-    /// `[[Re G, -Im G], [Im G, Re G]]` blocks (`2 n_targets x 2 n_sources`,
-    /// row-major), zero for coincident pairs.
-    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
-        let ns = sources.len() / 3;
-        let nt = targets.len() / 3;
-        assert_eq!(matrix.len(), 4 * ns * nt, "helmholtz3d: matrix size");
-        let k = T::from_f64(self.k);
-        let cols = 2 * ns;
-        for (j, y) in targets.chunks_exact(3).enumerate() {
-            for (i, x) in sources.chunks_exact(3).enumerate() {
-                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
-                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                let (gr, gi) = if r2 == T::ZERO {
-                    (T::ZERO, T::ZERO)
-                } else {
-                    let (gr, gi, _) = f0_parts(k, r2);
-                    (gr, gi)
-                };
-                let top = 2 * j * cols + 2 * i;
-                matrix[top] = gr;
-                matrix[top + 1] = -gi;
-                matrix[top + cols] = gi;
-                matrix[top + cols + 1] = gr;
             }
         }
     }

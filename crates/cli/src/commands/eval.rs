@@ -58,6 +58,12 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     // of the inputs, a directory, or a directory that takes no new file.
     Format::of(&args.out)?;
     let kernel = KernelArg::parse(&args.fmm.kernel)?;
+    if args.dipoles.is_some() && !kernel.takes_dipoles() {
+        return Err(CliError::InvalidArgument(format!(
+            "--kernel {} does not support dipole sources (its sources are point forces: --charges)",
+            kernel.name()
+        )));
+    }
     let mut inputs = vec![("--sources", args.sources.as_path())];
     for (flag, path) in [
         ("--charges", &args.charges),
@@ -73,14 +79,15 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     let sources = io::read_points(&args.sources)?;
     let targets = args.targets.as_deref().map(io::read_points).transpose()?;
     let n_sources = sources.len() / 3;
+    let c = kernel.components();
     let charges = match &args.charges {
         Some(path) => {
-            let q = io::read_charges(path)?;
-            if q.len() != n_sources {
+            let q = io::read(path, Contents::Charges(c))?;
+            if q.len() != c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "charges",
                     charges_path: path.clone(),
-                    charges: q.len(),
+                    charges: q.len() / c,
                     sources_path: args.sources.clone(),
                     sources: n_sources,
                 });
@@ -91,12 +98,12 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     };
     let dipoles = match &args.dipoles {
         Some(path) => {
-            let n = io::read(path, Contents::Dipoles)?;
-            if n.len() != 3 * n_sources {
+            let n = io::read(path, Contents::Dipoles(c))?;
+            if n.len() != 3 * c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "dipoles",
                     charges_path: path.clone(),
-                    charges: n.len() / 3,
+                    charges: n.len() / (3 * c),
                     sources_path: args.sources.clone(),
                     sources: n_sources,
                 });

@@ -90,11 +90,19 @@ pub enum KernelArg {
     Laplace,
     /// Modified Helmholtz (Yukawa) `exp(-k r) / (4 pi r)` with `k >= 0`.
     Yukawa(f64),
+    /// Helmholtz `exp(i k r) / (4 pi r)` with `k >= 0`: complex charges and
+    /// outputs (two columns each, real and imaginary parts).
+    Helmholtz(f64),
+    /// The Stokeslet (unit viscosity): forces in, velocities out (three
+    /// columns each).
+    Stokes,
 }
 
 /// Help text of `--kernel`.
-pub const KERNEL_HELP: &str = "Kernel: `laplace` (1/(4 pi r), the default) or `yukawa:K` \
-(modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates)";
+pub const KERNEL_HELP: &str = "Kernel: `laplace` (1/(4 pi r), the default), `yukawa:K` \
+(modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates), \
+`helmholtz:K` (exp(iKr)/(4 pi r): complex charges and outputs as re, im columns) or `stokes` \
+(the Stokeslet, viscosity 1: forces fx, fy, fz in, velocities out)";
 
 impl KernelArg {
     /// Parse `--kernel` (`laplace`, `yukawa:K`; an unknown or invalid value
@@ -111,11 +119,21 @@ impl KernelArg {
                     .map(|_| KernelArg::Yukawa(k))
                     .map_err(|e| bad(e.to_string()))
             }
-            _ if value.starts_with("helmholtz") || value == "stokes" => Err(bad(
-                "not available yet (laplace and yukawa:K are)".to_string(),
+            Some(("helmholtz", k)) => {
+                let k: f64 = k
+                    .parse()
+                    .map_err(|_| bad(format!("the wavenumber `{k}` is not a number")))?;
+                ferrofmm_kernels::Helmholtz3d::new(k)
+                    .map(|_| KernelArg::Helmholtz(k))
+                    .map_err(|e| bad(e.to_string()))
+            }
+            None if value == "stokes" => Ok(KernelArg::Stokes),
+            None if value == "yukawa" || value == "helmholtz" => {
+                Err(bad(format!("give the wavenumber, e.g. {value}:2.5")))
+            }
+            _ => Err(bad(
+                "use laplace, yukawa:K, helmholtz:K or stokes".to_string()
             )),
-            None if value == "yukawa" => Err(bad("give the wavenumber, e.g. yukawa:2.5".into())),
-            _ => Err(bad("use laplace or yukawa:K".to_string())),
         }
     }
 
@@ -124,6 +142,30 @@ impl KernelArg {
         match self {
             KernelArg::Laplace => "laplace".to_string(),
             KernelArg::Yukawa(k) => format!("yukawa:{k}"),
+            KernelArg::Helmholtz(k) => format!("helmholtz:{k}"),
+            KernelArg::Stokes => "stokes".to_string(),
+        }
+    }
+
+    /// Values per charge and per output quantity: 1, or 2 (Helmholtz: re,
+    /// im), or 3 (Stokes: x, y, z).
+    pub fn components(self) -> usize {
+        self.component_names().len().max(1)
+    }
+
+    /// Whether the kernel takes dipole sources (`--dipoles`): all but
+    /// Stokes, whose sources are point forces.
+    pub fn takes_dipoles(self) -> bool {
+        self != KernelArg::Stokes
+    }
+
+    /// Suffixes of the output columns of one quantity: none for the scalar
+    /// kernels, `re, im` for Helmholtz, `x, y, z` for Stokes.
+    pub fn component_names(self) -> &'static [&'static str] {
+        match self {
+            KernelArg::Laplace | KernelArg::Yukawa(_) => &[],
+            KernelArg::Helmholtz(_) => &["re", "im"],
+            KernelArg::Stokes => &["x", "y", "z"],
         }
     }
 }

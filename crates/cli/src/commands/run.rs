@@ -15,7 +15,8 @@ use ferrofmm_fmm::{
 };
 use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor};
 use ferrofmm_kernels::{
-    EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, SourceKind,
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, SourceKind,
+    Stokes3d,
 };
 
 use super::{KernelArg, PrecisionArg, SchemeArg};
@@ -56,15 +57,19 @@ pub enum Input {
 
 /// The source kind and interleaved densities of charges and / or dipoles
 /// (`[q]`, `[nx, ny, nz]` or `[q, nx, ny, nz]` per source).
-pub fn densities(charges: Option<Vec<f64>>, dipoles: Option<Vec<f64>>) -> (SourceKind, Vec<f64>) {
+pub fn densities(
+    charges: Option<Vec<f64>>,
+    dipoles: Option<Vec<f64>>,
+    components: usize,
+) -> (SourceKind, Vec<f64>) {
     match (charges, dipoles) {
         (Some(q), None) => (SourceKind::Charge, q),
         (None, Some(n)) => (SourceKind::Dipole, n),
         (Some(q), Some(n)) => (
             SourceKind::ChargeDipole,
-            q.iter()
-                .zip(n.chunks_exact(3))
-                .flat_map(|(&q, n)| [q, n[0], n[1], n[2]])
+            q.chunks_exact(components)
+                .zip(n.chunks_exact(3 * components))
+                .flat_map(|(q, n)| q.iter().chain(n).copied())
                 .collect(),
         ),
         (None, None) => (SourceKind::Charge, Vec::new()),
@@ -123,6 +128,8 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         (p, _, _) => p,
     };
     let scheme = match (settings.scheme, settings.tolerance, &points) {
+        // The FFT scheme convolves scalar kernels only.
+        (SchemeArg::Auto, _, _) if settings.kernel.components() > 1 => Svd,
         (SchemeArg::Auto, Some(eps), Some((s, t))) => {
             auto_scheme(s, *t, eps, mode, precision, settings.cache_dir.is_some())?
         }
@@ -144,6 +151,14 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
             settings,
             output,
         ),
+        KernelArg::Helmholtz(k) => run_kernel(
+            Helmholtz3d::new(k)
+                .map_err(|e| crate::error::CliError::InvalidArgument(e.to_string()))?,
+            input,
+            settings,
+            output,
+        ),
+        KernelArg::Stokes => run_kernel(Stokes3d::default(), input, settings, output),
     }
 }
 
@@ -229,10 +244,25 @@ fn auto_precision(
     })
 }
 
-/// Column names of the output for a run of `mode`: `potential`, then
-/// `grad_x, grad_y, grad_z`, then `hess_xx, hess_yy, hess_zz, hess_xy,
-/// hess_xz, hess_yz`.
-pub fn output_names(mode: EvalMode) -> &'static [&'static str] {
+/// Column names of the output for a run of `mode` with `kernel`:
+/// `potential`, then `grad_x, grad_y, grad_z`, then `hess_xx, hess_yy,
+/// hess_zz, hess_xy, hess_xz, hess_yz`; for a kernel with components each
+/// quantity once per component, suffixed (`potential_re, potential_im,
+/// grad_x_re, ...` for Helmholtz; `potential_x, potential_y, potential_z,
+/// grad_x_x, grad_x_y, ...` for Stokes, where `grad_x_y` is `d u_y / d x`).
+pub fn output_names(mode: EvalMode, kernel: KernelArg) -> Vec<String> {
+    let quantities = quantity_names(mode);
+    match kernel.component_names() {
+        [] => quantities.iter().map(|q| q.to_string()).collect(),
+        comps => quantities
+            .iter()
+            .flat_map(|q| comps.iter().map(move |c| format!("{q}_{c}")))
+            .collect(),
+    }
+}
+
+/// The quantities of `mode`, one name each.
+fn quantity_names(mode: EvalMode) -> &'static [&'static str] {
     const ALL: [&str; 10] = [
         "potential",
         "grad_x",
@@ -329,7 +359,7 @@ where
                     geometry.points(n, seed),
                     None,
                     SourceKind::Charge,
-                    charges.generate(n, seed),
+                    charges.generate(n * settings.kernel.components(), seed),
                 )
             },
         ),
@@ -339,7 +369,7 @@ where
             charges,
             dipoles,
         } => {
-            let (kind, d) = densities(charges, dipoles);
+            let (kind, d) = densities(charges, dipoles, settings.kernel.components());
             (convert(sources), targets.map(convert), kind, convert(d))
         }
     };
@@ -430,7 +460,9 @@ where
 
     if let Some(path) = output {
         with_stage(format!("writing {}", path.display()), || {
-            io::write(path, as_values(&values), output_names(mode))
+            let names = output_names(mode, settings.kernel);
+            let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            io::write(path, as_values(&values), &names)
         })?;
     }
 

@@ -80,8 +80,15 @@ pub fn parse(text: &str, contents: Contents) -> Result<Vec<f64>, (usize, ParseEr
         if fields.len() != columns {
             let expected = match contents {
                 Contents::Points => "3 values (x, y, z)".to_string(),
-                Contents::Charges => "1 value (the charge)".to_string(),
-                Contents::Dipoles => "3 values (the dipole's nx, ny, nz)".to_string(),
+                Contents::Charges(1) => "1 value (the charge)".to_string(),
+                Contents::Charges(c) => format!("{c} values (the charge's components)"),
+                Contents::Dipoles(1) => "3 values (the dipole's nx, ny, nz)".to_string(),
+                Contents::Dipoles(c) => {
+                    format!(
+                        "{} values (the dipole's nx, ny, nz, {c} components each)",
+                        3 * c
+                    )
+                }
             };
             return Err((
                 line_no,
@@ -165,12 +172,12 @@ mod tests {
             vec![1.0, 2.0, 3.0, 4.5, -0.6, 7.0, 8.0, 9.0, 10.0]
         );
         assert_eq!(
-            parse("charge\n1\n2.5\n", Contents::Charges).unwrap(),
+            parse("charge\n1\n2.5\n", Contents::Charges(1)).unwrap(),
             vec![1.0, 2.5]
         );
-        assert_eq!(parse("", Contents::Charges).unwrap(), Vec::<f64>::new());
+        assert_eq!(parse("", Contents::Charges(1)).unwrap(), Vec::<f64>::new());
         assert_eq!(
-            parse("q\n\n", Contents::Charges).unwrap(),
+            parse("q\n\n", Contents::Charges(1)).unwrap(),
             Vec::<f64>::new()
         );
     }
@@ -186,7 +193,7 @@ mod tests {
             )
         );
         assert_eq!(
-            err("1\n2,3\n", Contents::Charges),
+            err("1\n2,3\n", Contents::Charges(1)),
             (
                 2,
                 ParseError::Message("expected 1 value (the charge), found 2".into())
@@ -207,7 +214,7 @@ mod tests {
             (2, ParseError::NonFinite { column: 3, .. })
         ));
         assert!(matches!(
-            err("inf\n", Contents::Charges),
+            err("inf\n", Contents::Charges(1)),
             (1, ParseError::NonFinite { column: 1, .. })
         ));
     }

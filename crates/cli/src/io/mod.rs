@@ -24,18 +24,22 @@ use crate::error::{CliError, Result};
 pub enum Contents {
     /// Points: three coordinates per record.
     Points,
-    /// Charges: one value per record.
-    Charges,
-    /// Dipole vectors: three components per record.
-    Dipoles,
+    /// Charges: one value per record for a scalar kernel, `c` for a kernel
+    /// with `c` components (`re, im` for Helmholtz, `fx, fy, fz` for
+    /// Stokes).
+    Charges(usize),
+    /// Dipole vectors: three values per record for a scalar kernel, `3 c`
+    /// for one with `c` components (`nx_re, nx_im, ny_re, ...`).
+    Dipoles(usize),
 }
 
 impl Contents {
     /// Values per record.
     pub fn columns(self) -> usize {
         match self {
-            Contents::Points | Contents::Dipoles => 3,
-            Contents::Charges => 1,
+            Contents::Points => 3,
+            Contents::Dipoles(c) => 3 * c,
+            Contents::Charges(c) => c,
         }
     }
 
@@ -43,8 +47,8 @@ impl Contents {
     pub fn noun(self) -> &'static str {
         match self {
             Contents::Points => "points",
-            Contents::Charges => "charges",
-            Contents::Dipoles => "dipoles",
+            Contents::Charges(_) => "charges",
+            Contents::Dipoles(_) => "dipoles",
         }
     }
 }
@@ -95,11 +99,6 @@ impl Values<'_> {
 /// Read points (interleaved, `3 n` values) from a `.csv` or `.npy` file.
 pub fn read_points(path: &Path) -> Result<Vec<f64>> {
     read(path, Contents::Points)
-}
-
-/// Read charges (one per point) from a `.csv` or `.npy` file.
-pub fn read_charges(path: &Path) -> Result<Vec<f64>> {
-    read(path, Contents::Charges)
 }
 
 /// Read `contents` from `path`, whatever its format.
@@ -170,7 +169,11 @@ mod tests {
             write(&pp, Values::F64(&p), &["x", "y", "z"]).unwrap();
             write(&qp, Values::F64(&q), &["charge"]).unwrap();
             assert_eq!(read_points(&pp).unwrap(), p, "{ext}: f64 points exact");
-            assert_eq!(read_charges(&qp).unwrap(), q, "{ext}: f64 charges exact");
+            assert_eq!(
+                read(&qp, Contents::Charges(1)).unwrap(),
+                q,
+                "{ext}: f64 charges exact"
+            );
             let p32: Vec<f32> = p.iter().map(|&x| x as f32).collect();
             write(&pp, Values::F32(&p32), &["x", "y", "z"]).unwrap();
             let back: Vec<f32> = read_points(&pp)
@@ -221,7 +224,10 @@ mod tests {
             .unwrap();
         w.extend([1.0f32, 2.0, 3.0]).unwrap();
         w.finish().unwrap();
-        assert_eq!(read_charges(&path).unwrap(), vec![1.0, 2.0, 3.0]);
+        assert_eq!(
+            read(&path, Contents::Charges(1)).unwrap(),
+            vec![1.0, 2.0, 3.0]
+        );
 
         // Integers are refused with the dtype named.
         let mut w = npyz::WriteOptions::new()
@@ -232,7 +238,7 @@ mod tests {
             .unwrap();
         w.extend([1i64, 2, 3]).unwrap();
         w.finish().unwrap();
-        let e = read_charges(&path).unwrap_err().to_string();
+        let e = read(&path, Contents::Charges(1)).unwrap_err().to_string();
         assert!(e.contains("unsupported dtype '<i8'"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
     }

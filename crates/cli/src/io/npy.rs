@@ -53,17 +53,18 @@ pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
             .join(", ")
     );
     let (rows, columns) = match (contents, shape.as_slice()) {
-        (Contents::Points | Contents::Dipoles, &[n, 3]) => (n, 3),
-        (Contents::Charges, &[n]) | (Contents::Charges, &[n, 1]) => (n, 1),
-        (Contents::Points | Contents::Dipoles, _) => {
-            return Err(bad(format!(
-                "expected an (N, 3) array of {}, found shape {shape_text}",
-                contents.noun()
-            )));
-        }
-        (Contents::Charges, _) => {
+        (Contents::Charges(1), &[n]) => (n, 1),
+        (_, &[n, c]) if c == contents.columns() as u64 => (n, contents.columns()),
+        (Contents::Charges(1), _) => {
             return Err(bad(format!(
                 "expected an (N,) array of charges, found shape {shape_text}"
+            )));
+        }
+        _ => {
+            return Err(bad(format!(
+                "expected an (N, {}) array of {}, found shape {shape_text}",
+                contents.columns(),
+                contents.noun()
             )));
         }
     };

@@ -163,6 +163,32 @@ impl CostModel {
     }
 }
 
+impl CostModel {
+    /// The model of a kernel with `c` [components](ferrofmm_kernels::Kernel::components):
+    /// expansions hold `c n` values, so the operator products per box and
+    /// the compressed M2L (whose ranks grow about `c`-fold) cost `c^2`
+    /// times as much, the gathers `c` times; the kernel evaluations are
+    /// [`CostModel::scaled_kernel`]'s to scale.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::CostModel;
+    /// let m = CostModel::default().with_components(2);
+    /// assert_eq!(m.m2l_flop, 4.0 * CostModel::default().m2l_flop);
+    /// assert_eq!(m.p2p_pair, CostModel::default().p2p_pair);
+    /// ```
+    pub fn with_components(self, c: usize) -> Self {
+        let c = c as f64;
+        CostModel {
+            dense: self.dense * c * c,
+            box_surface: self.box_surface * c,
+            m2l_flop: self.m2l_flop * c * c,
+            m2l_pair: self.m2l_pair * c,
+            m2l_box: self.m2l_box * c * c,
+            ..self
+        }
+    }
+}
+
 /// Predicted seconds, by kind of work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct CostPrediction {

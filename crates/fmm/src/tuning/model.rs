@@ -137,6 +137,127 @@ impl TuningModel for YukawaModel {
     }
 }
 
+/// The Helmholtz kernel `e^{ikr} / (4 pi r)` (complex, two components):
+/// the Laplace tables times the measured growth of the error with the
+/// number of wavelengths across the domain ([`helmholtz_error_factor`]),
+/// measured for `k W` up to [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH)
+/// (`examples/components_sweep.rs`, `docs/kernels.md`); costs are the
+/// Laplace model's with [`HELMHOLTZ_P2P_FACTOR`] per pair and two
+/// components.
+#[derive(Clone, Copy, Debug)]
+pub struct HelmholtzModel {
+    /// `k` times the domain width.
+    pub k_width: f64,
+}
+
+/// P2P cost of the complex Helmholtz kernel relative to Laplace's (a
+/// `sin`/`cos` pair and complex products per pair), measured on one AVX2
+/// core with `benches/p2p.rs` (`docs/kernels.md`).
+pub const HELMHOLTZ_P2P_FACTOR: f64 = 8.0;
+
+/// P2P cost of the Stokeslet relative to Laplace's (nine kernel entries
+/// per pair), measured as [`HELMHOLTZ_P2P_FACTOR`].
+pub const STOKES_P2P_FACTOR: f64 = 6.0;
+
+/// Factor on the Laplace error table of order `order` for the Helmholtz
+/// kernel at `k W = k_width`: 1 up to `k W = 10`, then the measured worst
+/// ratio (with a safety of about 2) of the Helmholtz error to the table at
+/// `k W` = 20, 30, 40 and orders 4, 6, 8 (N = 2e4, cube, charges and
+/// dipoles), interpolated in `log` between those points (orders below 4
+/// take the order-4 row, above 8 the order-8 row; beyond 40 the last
+/// column's growth continues).
+///
+/// ```
+/// use ferrofmm_fmm::tuning::helmholtz_error_factor;
+/// assert_eq!(helmholtz_error_factor(6, 5.0), 1.0);
+/// assert!(helmholtz_error_factor(4, 40.0) > helmholtz_error_factor(8, 40.0));
+/// assert!(helmholtz_error_factor(6, 30.0) > helmholtz_error_factor(6, 20.0));
+/// ```
+pub fn helmholtz_error_factor(order: usize, k_width: f64) -> f64 {
+    // Rows: orders 4, 6, 8; columns: k W = 10, 20, 30, 40.
+    const ROWS: [[f64; 4]; 3] = [
+        [1.0, 5.0, 60.0, 3200.0],
+        [1.0, 3.0, 25.0, 400.0],
+        [1.0, 3.0, 8.0, 130.0],
+    ];
+    let row_at = |p: f64| -> [f64; 4] {
+        let t = ((p - 4.0) / 2.0).clamp(0.0, 2.0);
+        let i = (t.floor() as usize).min(1);
+        let f = t - i as f64;
+        std::array::from_fn(|c| (ROWS[i][c].ln() * (1.0 - f) + ROWS[i + 1][c].ln() * f).exp())
+    };
+    let row = row_at(order as f64);
+    if k_width <= 10.0 {
+        return 1.0;
+    }
+    let x = (k_width - 10.0) / 10.0;
+    let i = (x.floor() as usize).min(2);
+    let f = x - i as f64;
+    (row[i].ln() * (1.0 - f) + row[i + 1].ln() * f).exp()
+}
+
+impl TuningModel for HelmholtzModel {
+    fn name(&self) -> String {
+        format!(
+            "helmholtz (laplace tables x wavelength factor, kW = {:.3})",
+            self.k_width
+        )
+    }
+
+    fn measured(&self) -> bool {
+        self.k_width <= crate::MAX_WAVENUMBER_WIDTH
+    }
+
+    fn error_model(&self, precision: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
+        let mut m = ErrorModel::laplace_for(precision, mode);
+        for (p, e) in m.order_errors.iter_mut() {
+            *e *= helmholtz_error_factor(*p, self.k_width);
+        }
+        m
+    }
+
+    fn cost_model(&self, mode: EvalMode, _: M2lCostShape) -> CostModel {
+        CostModel::default()
+            .for_mode(mode)
+            .scaled_kernel(HELMHOLTZ_P2P_FACTOR)
+            .with_components(2)
+    }
+}
+
+/// Factor on the Laplace error tables for the Stokeslet: its worst
+/// measured error over the order-4 and order-6 runs of
+/// `examples/components_sweep.rs` (cube with zero-mean forces, Plummer with
+/// positive ones; the velocity gradient on Plummer is the worst output)
+/// against the Laplace gradient table, with a safety of 2.
+pub const STOKES_ERROR_FACTOR: f64 = 10.0;
+
+/// The Stokeslet (three components): the Laplace tables times
+/// [`STOKES_ERROR_FACTOR`], Laplace costs with [`STOKES_P2P_FACTOR`] and
+/// three components.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct StokesModel;
+
+impl TuningModel for StokesModel {
+    fn name(&self) -> String {
+        "stokes (laplace tables x factor)".into()
+    }
+
+    fn error_model(&self, precision: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
+        let mut m = ErrorModel::laplace_for(precision, mode);
+        for (_, e) in m.order_errors.iter_mut() {
+            *e *= STOKES_ERROR_FACTOR;
+        }
+        m
+    }
+
+    fn cost_model(&self, mode: EvalMode, _: M2lCostShape) -> CostModel {
+        CostModel::default()
+            .for_mode(mode)
+            .scaled_kernel(STOKES_P2P_FACTOR)
+            .with_components(3)
+    }
+}
+
 /// Another kernel's model used for a kernel nobody measured (a user
 /// kernel without a model of its own): the same numbers, reported as
 /// borrowed ([`TuningModel::measured`] is `false`).
@@ -175,8 +296,10 @@ impl TuningModel for BorrowedModel {
 /// for `kernel` unless given one: [`LaplaceModel`] for
 /// [`Laplace3d`](ferrofmm_kernels::Laplace3d), [`YukawaModel`] for
 /// [`ModifiedHelmholtz3d`](ferrofmm_kernels::ModifiedHelmholtz3d) (with `k`
-/// times `domain_width`), and the Laplace model [borrowed](BorrowedModel)
-/// for any other kernel.
+/// times `domain_width`), [`HelmholtzModel`] for
+/// [`Helmholtz3d`](ferrofmm_kernels::Helmholtz3d), [`StokesModel`] for
+/// [`Stokes3d`](ferrofmm_kernels::Stokes3d), and the Laplace model
+/// [borrowed](BorrowedModel) for any other kernel.
 ///
 /// ```
 /// use ferrofmm_fmm::tuning::{TuningModel, default_model};
@@ -190,6 +313,10 @@ pub fn default_model<K: Kernel>(kernel: &K, domain_width: f64) -> Arc<dyn Tuning
         "modified_helmholtz3d" => Arc::new(YukawaModel {
             k_width: kernel.parameters().first().copied().unwrap_or(0.0) * domain_width,
         }),
+        "helmholtz3d" => Arc::new(HelmholtzModel {
+            k_width: kernel.wavenumber() * domain_width,
+        }),
+        "stokes3d" => Arc::new(StokesModel),
         other => Arc::new(BorrowedModel {
             kernel: other.to_string(),
             from: Arc::new(LaplaceModel),

@@ -1,0 +1,435 @@
+//! The vectorised P2P of the complex Helmholtz kernel ([`Helmholtz3d`]):
+//! target lanes as in [`lanes`](crate::lanes), with `sin` and `cos` on
+//! registers.
+//!
+//! # Maths
+//! Per pair, with `d = y - x`, `r = |d|` and `f0 = e^{ikr} / (4 pi r)`,
+//! `f1 = f0 (ikr - 1) / r^2`, `f2 = f0 (3 - 3ikr - k^2 r^2) / r^4` (see
+//! [`Helmholtz3d`]'s module):
+//!
+//! ```text
+//! u      += q f0 - f1 (n . d)
+//! grad u += (q f1 - f2 (n . d)) d - f1 n
+//! ```
+//!
+//! in complex arithmetic on `(re, im)` registers. Coincident pairs get
+//! `1/r = 0` from [`Simd::rsqrt_or_zero`], which zeroes `f0`, `f1`, `f2`.
+//!
+//! # `sin` and `cos` of `x = kr >= 0`
+//! `n = round(x / 2 pi)` (the round-to-integer step of adding and
+//! subtracting `1.5 2^(p-1)`), `y = x - 2 pi n` in `[-pi, pi]` with `2 pi`
+//! split in three parts (Cody-Waite; the first with 24 significant bits, so
+//! that its product with `n` is exact without FMA), `h = y / 2` in `[-pi/2, pi/2]`, Taylor
+//! polynomials `sin h = h sum_{j<10} (-h^2)^j / (2j+1)!` and `cos h =
+//! sum_{j<11} (-h^2)^j / (2j)!` (truncation below `3e-16` on that
+//! interval), then `sin y = 2 sin h cos h` and `cos y = 1 - 2 sin^2 h`:
+//! absolute errors of a few `1e-16` for `kr` up to the FMM's low-frequency
+//! limit (tests compare with `f64::sin_cos`).
+//!
+//! [`Helmholtz3d`]: crate::Helmholtz3d
+
+use crate::lanes::{LaneFloat, Simd, SimdTask, run_task};
+use crate::{EvalMode, INV_4PI, Real, SimdLevel, SourceKind};
+
+/// Taylor coefficients of `sin(h) / h` in `h^2`, highest degree first.
+const SIN_TAYLOR: [f64; 10] = [
+    -1.0 / 121_645_100_408_832_000.0,
+    1.0 / 355_687_428_096_000.0,
+    -1.0 / 1_307_674_368_000.0,
+    1.0 / 6_227_020_800.0,
+    -1.0 / 39_916_800.0,
+    1.0 / 362_880.0,
+    -1.0 / 5_040.0,
+    1.0 / 120.0,
+    -1.0 / 6.0,
+    1.0,
+];
+
+/// Taylor coefficients of `cos(h)` in `h^2`, highest degree first.
+const COS_TAYLOR: [f64; 11] = [
+    1.0 / 2_432_902_008_176_640_000.0,
+    -1.0 / 6_402_373_705_728_000.0,
+    1.0 / 20_922_789_888_000.0,
+    -1.0 / 87_178_291_200.0,
+    1.0 / 479_001_600.0,
+    -1.0 / 3_628_800.0,
+    1.0 / 40_320.0,
+    -1.0 / 720.0,
+    1.0 / 24.0,
+    -1.0 / 2.0,
+    1.0,
+];
+
+/// `2 pi - fl64(2 pi)`.
+const TWO_PI_F64_LO: f64 = 2.449_293_598_294_706_4e-16;
+
+/// Largest target block, in targets.
+const MAX_BLOCK: usize = 16;
+/// Registers per block with one-lane (portable) registers.
+const PORTABLE_BLOCK: usize = 16;
+
+/// Accumulate the field of `densities` (complex charges and/or dipoles,
+/// `[re, im]` pairs, layout of [`Helmholtz3d`](crate::Helmholtz3d)) at
+/// `targets` into `out`, vectorised at `level`. Lengths are the caller's
+/// to check.
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn helmholtz_p2p_with<T: Real>(
+    level: SimdLevel,
+    k: f64,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[T],
+    densities: &[T],
+    targets: &[T],
+    out: &mut [T],
+) {
+    if sources.is_empty() || targets.is_empty() {
+        return;
+    }
+    let grad = mode.has_gradient();
+    if let (Some(s), Some(q), Some(t)) = (
+        T::as_f64_slice(sources),
+        T::as_f64_slice(densities),
+        T::as_f64_slice(targets),
+    ) {
+        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
+        run_task(level, Task::new(k, kind, grad, s, q, t, o));
+    } else {
+        let s = T::as_f32_slice(sources).expect("a Real is f32 or f64");
+        let q = T::as_f32_slice(densities).expect("a Real is f32 or f64");
+        let t = T::as_f32_slice(targets).expect("a Real is f32 or f64");
+        let o = T::as_f32_slice_mut(out).expect("a Real is f32 or f64");
+        run_task(level, Task::new(k, kind, grad, s, q, t, o));
+    }
+}
+
+/// One P2P call as a [`SimdTask`].
+struct Task<'a, T> {
+    k: f64,
+    kind: SourceKind,
+    grad: bool,
+    sources: &'a [T],
+    densities: &'a [T],
+    targets: &'a [T],
+    out: &'a mut [T],
+}
+
+impl<'a, T: LaneFloat> Task<'a, T> {
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        k: f64,
+        kind: SourceKind,
+        grad: bool,
+        sources: &'a [T],
+        densities: &'a [T],
+        targets: &'a [T],
+        out: &'a mut [T],
+    ) -> Self {
+        Task {
+            k,
+            kind,
+            grad,
+            sources,
+            densities,
+            targets,
+            out,
+        }
+    }
+
+    /// All targets, `C` registers at a time: charges if `Q`, dipoles if
+    /// `N`, gradients if `G`.
+    #[inline(always)]
+    fn go<S: Simd<T>, const Q: bool, const N: bool, const G: bool>(self, s: S) {
+        if S::LANES == 1 {
+            self.blocks::<S, PORTABLE_BLOCK, Q, N, G>(s);
+        } else {
+            self.blocks::<S, 1, Q, N, G>(s);
+        }
+    }
+
+    #[inline(always)]
+    fn blocks<S: Simd<T>, const C: usize, const Q: bool, const N: bool, const G: bool>(self, s: S) {
+        let block = C * S::LANES;
+        debug_assert!(block <= MAX_BLOCK);
+        let w = if G { 8 } else { 2 };
+        let consts = Consts::new(s, self.k);
+        for (tb, ob) in self
+            .targets
+            .chunks(3 * block)
+            .zip(self.out.chunks_mut(w * block))
+        {
+            block_of::<T, S, C, Q, N, G>(s, &consts, self.sources, self.densities, tb, ob);
+        }
+    }
+}
+
+impl<T: LaneFloat> SimdTask<T> for Task<'_, T> {
+    type Output = ();
+
+    #[inline(always)]
+    fn run<S: Simd<T>>(self, s: S) {
+        use SourceKind::{Charge, ChargeDipole, Dipole};
+        match (self.kind, self.grad) {
+            (Charge, false) => self.go::<S, true, false, false>(s),
+            (Charge, true) => self.go::<S, true, false, true>(s),
+            (Dipole, false) => self.go::<S, false, true, false>(s),
+            (Dipole, true) => self.go::<S, false, true, true>(s),
+            (ChargeDipole, false) => self.go::<S, true, true, false>(s),
+            (ChargeDipole, true) => self.go::<S, true, true, true>(s),
+        }
+    }
+}
+
+/// The registers every pair uses, splatted once per call.
+struct Consts<V> {
+    k: V,
+    scale: V,
+    one: V,
+    two: V,
+    three: V,
+    half: V,
+    inv_two_pi: V,
+    magic: V,
+    neg_two_pi: [V; 3],
+    sin: [V; 10],
+    cos: [V; 11],
+}
+
+impl<V: Copy> Consts<V> {
+    #[inline(always)]
+    fn new<T: LaneFloat, S: Simd<T, V = V>>(s: S, k: f64) -> Self {
+        // 2 pi = hi + mid + lo: `hi` has 24 significant bits, so `n hi` is
+        // exact for the `n` met here even without FMA (the portable
+        // backend), `mid` is the rest of the f64 value, `lo` what rounding
+        // 2 pi to f64 left out.
+        let tau = std::f64::consts::TAU;
+        let hi = f64::from(tau as f32);
+        let mid = tau - hi;
+        let mid_t = T::from_f64(mid);
+        let lo = (mid - mid_t.to_f64()) + TWO_PI_F64_LO;
+        Consts {
+            k: s.splat(T::from_f64(k)),
+            scale: s.splat(T::from_f64(INV_4PI)),
+            one: s.splat(T::ONE),
+            two: s.splat(T::from_f64(2.0)),
+            three: s.splat(T::from_f64(3.0)),
+            half: s.splat(T::from_f64(0.5)),
+            inv_two_pi: s.splat(T::from_f64(1.0 / tau)),
+            magic: s.splat(T::EXP_MAGIC),
+            neg_two_pi: [
+                s.splat(T::from_f64(-hi)),
+                s.splat(-mid_t),
+                s.splat(T::from_f64(-lo)),
+            ],
+            sin: SIN_TAYLOR.map(|c| s.splat(T::from_f64(c))),
+            cos: COS_TAYLOR.map(|c| s.splat(T::from_f64(c))),
+        }
+    }
+}
+
+/// `(sin x, cos x)` for `0 <= x` well below `2^(p-2) 2 pi` (module docs).
+#[inline(always)]
+fn sin_cos<T: LaneFloat, S: Simd<T>>(s: S, c: &Consts<S::V>, x: S::V) -> (S::V, S::V) {
+    let n = s.sub(s.mul_add(x, c.inv_two_pi, c.magic), c.magic);
+    let mut y = x;
+    for &part in &c.neg_two_pi {
+        y = s.mul_add(n, part, y);
+    }
+    let h = s.mul(y, c.half);
+    let h2 = s.mul(h, h);
+    let mut ps = c.sin[0];
+    for &a in &c.sin[1..] {
+        ps = s.mul_add(ps, h2, a);
+    }
+    let sh = s.mul(ps, h);
+    let mut ch = c.cos[0];
+    for &a in &c.cos[1..] {
+        ch = s.mul_add(ch, h2, a);
+    }
+    let sin = s.mul(s.mul(c.two, sh), ch);
+    let cos = s.sub(c.one, s.mul(s.mul(c.two, sh), sh));
+    (sin, cos)
+}
+
+/// Complex product `(a + ib)(c + id)` on registers.
+#[inline(always)]
+fn cmul<T: LaneFloat, S: Simd<T>>(s: S, a: S::V, b: S::V, c: S::V, d: S::V) -> (S::V, S::V) {
+    (
+        s.sub(s.mul(a, c), s.mul(b, d)),
+        s.mul_add(a, d, s.mul(b, c)),
+    )
+}
+
+/// Up to `C * LANES` targets (`tb`, interleaved) against all sources.
+#[inline(always)]
+fn block_of<
+    T: LaneFloat,
+    S: Simd<T>,
+    const C: usize,
+    const Q: bool,
+    const N: bool,
+    const G: bool,
+>(
+    s: S,
+    k: &Consts<S::V>,
+    sources: &[T],
+    densities: &[T],
+    tb: &[T],
+    ob: &mut [T],
+) {
+    let l = S::LANES;
+    let nq = 2 * (usize::from(Q) + 3 * usize::from(N));
+    let w = if G { 8 } else { 2 };
+    let mut buf = [[T::ZERO; MAX_BLOCK]; 3];
+    for (j, p) in tb.chunks_exact(3).enumerate() {
+        buf[0][j] = p[0];
+        buf[1][j] = p[1];
+        buf[2][j] = p[2];
+    }
+    let zero = s.splat(T::ZERO);
+    let mut tx = [zero; C];
+    let mut ty = [zero; C];
+    let mut tz = [zero; C];
+    for c in 0..C {
+        tx[c] = s.load(&buf[0][c * l..]);
+        ty[c] = s.load(&buf[1][c * l..]);
+        tz[c] = s.load(&buf[2][c * l..]);
+    }
+    let mut acc = [[zero; C]; 8];
+    for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(nq)) {
+        let sx = s.splat(x[0]);
+        let sy = s.splat(x[1]);
+        let sz = s.splat(x[2]);
+        let (qr, qi) = if Q {
+            (s.splat(q[0]), s.splat(q[1]))
+        } else {
+            (zero, zero)
+        };
+        let o = if Q { 2 } else { 0 };
+        let mut n = [zero; 6];
+        if N {
+            for (v, &x) in n.iter_mut().zip(&q[o..o + 6]) {
+                *v = s.splat(x);
+            }
+        }
+        for c in 0..C {
+            let d = [s.sub(tx[c], sx), s.sub(ty[c], sy), s.sub(tz[c], sz)];
+            let r2 = s.mul_add(d[2], d[2], s.mul_add(d[1], d[1], s.mul(d[0], d[0])));
+            let rinv = s.rsqrt_or_zero(r2);
+            let kr = s.mul(k.k, s.mul(r2, rinv));
+            let (sn, cs) = sin_cos(s, k, kr);
+            let a = s.mul(k.scale, rinv);
+            let (gr, gi) = (s.mul(cs, a), s.mul(sn, a));
+            let rinv2 = s.mul(rinv, rinv);
+            // f1 = f0 (-1 + i kr) / r^2
+            let (f1r, f1i) = if G || N {
+                let (a, b) = cmul(s, gr, gi, s.sub(zero, k.one), kr);
+                (s.mul(a, rinv2), s.mul(b, rinv2))
+            } else {
+                (zero, zero)
+            };
+            let (mut pr, mut pi) = (zero, zero);
+            let (mut cr, mut ci) = (zero, zero);
+            if Q {
+                (pr, pi) = cmul(s, gr, gi, qr, qi);
+                if G {
+                    (cr, ci) = cmul(s, f1r, f1i, qr, qi);
+                }
+            }
+            if N {
+                let ndr = s.mul_add(n[4], d[2], s.mul_add(n[2], d[1], s.mul(n[0], d[0])));
+                let ndi = s.mul_add(n[5], d[2], s.mul_add(n[3], d[1], s.mul(n[1], d[0])));
+                let (a, b) = cmul(s, f1r, f1i, ndr, ndi);
+                pr = s.sub(pr, a);
+                pi = s.sub(pi, b);
+                if G {
+                    // f2 = f0 ((3 - k^2 r^2) - 3i kr) / r^4
+                    let re = s.sub(k.three, s.mul(kr, kr));
+                    let im = s.sub(zero, s.mul(k.three, kr));
+                    let (a, b) = cmul(s, gr, gi, re, im);
+                    let rinv4 = s.mul(rinv2, rinv2);
+                    let (f2r, f2i) = (s.mul(a, rinv4), s.mul(b, rinv4));
+                    let (a, b) = cmul(s, f2r, f2i, ndr, ndi);
+                    cr = s.sub(cr, a);
+                    ci = s.sub(ci, b);
+                }
+            }
+            acc[0][c] = s.add(acc[0][c], pr);
+            acc[1][c] = s.add(acc[1][c], pi);
+            if G {
+                for m in 0..3 {
+                    let mut gre = s.mul_add(cr, d[m], acc[2 + 2 * m][c]);
+                    let mut gim = s.mul_add(ci, d[m], acc[3 + 2 * m][c]);
+                    if N {
+                        let (a, b) = cmul(s, f1r, f1i, n[2 * m], n[2 * m + 1]);
+                        gre = s.sub(gre, a);
+                        gim = s.sub(gim, b);
+                    }
+                    acc[2 + 2 * m][c] = gre;
+                    acc[3 + 2 * m][c] = gim;
+                }
+            }
+        }
+    }
+    let mut res = [[T::ZERO; MAX_BLOCK]; 8];
+    for c in 0..C {
+        for v in 0..w {
+            s.store(acc[v][c], &mut res[v][c * l..]);
+        }
+    }
+    for (j, o) in ob.chunks_exact_mut(w).enumerate() {
+        for (v, r) in o.iter_mut().zip(&res) {
+            *v += r[j];
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The register `sin` and `cos` against `f64::sin_cos` over the range
+    /// the FMM uses (`kr` up to 100), at every level the CPU has.
+    #[test]
+    fn register_sin_cos_matches_the_library() {
+        struct Probe<'a>(&'a [f64], &'a mut [f64], &'a mut [f64]);
+        impl SimdTask<f64> for Probe<'_> {
+            type Output = ();
+            fn run<S: Simd<f64>>(self, s: S) {
+                let c = Consts::new(s, 1.0);
+                let l = S::LANES;
+                for ((x, sn), cs) in self
+                    .0
+                    .chunks_exact(l)
+                    .zip(self.1.chunks_exact_mut(l))
+                    .zip(self.2.chunks_exact_mut(l))
+                {
+                    let (a, b) = sin_cos(s, &c, s.load(x));
+                    s.store(a, sn);
+                    s.store(b, cs);
+                }
+            }
+        }
+        let x: Vec<f64> = (0..16_000)
+            .map(|i| i as f64 * 0.00625 + 1e-3 * (i % 7) as f64)
+            .collect();
+        for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
+            let mut sn = vec![0.0; x.len()];
+            let mut cs = vec![0.0; x.len()];
+            run_task(level, Probe(&x, &mut sn, &mut cs));
+            for (i, &v) in x.iter().enumerate() {
+                let (a, b) = v.sin_cos();
+                assert!(
+                    (sn[i] - a).abs() < 2e-15,
+                    "{level:?} sin({v}): {} vs {a}",
+                    sn[i]
+                );
+                assert!(
+                    (cs[i] - b).abs() < 2e-15,
+                    "{level:?} cos({v}): {} vs {b}",
+                    cs[i]
+                );
+            }
+        }
+    }
+}
