@@ -1,8 +1,9 @@
 //! P2P throughput of the Laplace kernel (interactions per second, single
 //! thread) for every SIMD level this CPU supports, plus the dense assembly,
-//! the modified Helmholtz loop, and every source kind x output of both
-//! kernels (`p2p/sources/{laplace,yukawa}/{charge,dipole,charge+dipole}/
-//! {potential,gradient,hessian}/dispatch`, f64).
+//! the modified Helmholtz loop, and every source kind x output of every
+//! kernel (`p2p/sources/{laplace,yukawa,helmholtz,stokes}/{charge,dipole,
+//! charge+dipole}/{potential,gradient,hessian}/dispatch`, f64; the complex
+//! Helmholtz kernel at k = 10, the Stokeslet with forces only).
 //!
 //! Ids: `p2p/laplace/{f64,f32}/{potential,potential+gradient}/{level}/{ns}x{nt}`
 //! where `level` is `scalar` (portable code, forced), `avx2` or `avx512`
@@ -17,8 +18,8 @@ use std::hint::black_box;
 
 use criterion::{BenchmarkId, Criterion, Throughput, criterion_group, criterion_main};
 use ferrofmm::kernels::{
-    EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SimdLevel, SourceKind,
-    laplace_assemble_with, laplace_p2p_with, modified_helmholtz_p2p_with,
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SimdLevel, SourceKind,
+    Stokes3d, laplace_assemble_with, laplace_p2p_with, modified_helmholtz_p2p_with,
 };
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
@@ -147,8 +148,9 @@ fn bench_yukawa(c: &mut Criterion) {
     group.finish();
 }
 
-/// Every source kind x output through `Kernel::evaluate_sources`, as the
-/// FMM calls it (best level of the CPU), f64, 1024 x 1024.
+/// Every source kind x output the kernel supports through
+/// `Kernel::evaluate_sources`, as the FMM calls it (best level of the CPU),
+/// f64, 1024 x 1024 (complex and vector kernels: pairs, not components).
 fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
     let mut rng = StdRng::seed_from_u64(11);
     let n = 1024;
@@ -161,14 +163,18 @@ fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
         SourceKind::Dipole,
         SourceKind::ChargeDipole,
     ] {
-        let (d, _) = points::<f64>(&mut rng, n * kind.values_per_source());
-        let d = &d[..n * kind.values_per_source()];
+        let per_source = kernel.values_per_source(kind);
+        let (d, _) = points::<f64>(&mut rng, n * per_source);
+        let d = &d[..n * per_source];
         for mode in [
             EvalMode::Potential,
             EvalMode::PotentialGradient,
             EvalMode::PotentialGradientHessian,
         ] {
-            let mut out = vec![0.0f64; mode.values_per_target() * n];
+            if !kernel.supports(kind, mode) {
+                continue;
+            }
+            let mut out = vec![0.0f64; kernel.values_per_target(mode) * n];
             let id = BenchmarkId::new(
                 format!("sources/{name}/{}/{}/dispatch", kind.name(), mode.name()),
                 format!("{n}x{n}"),
@@ -197,6 +203,8 @@ fn benches(c: &mut Criterion) {
     bench_yukawa(c);
     bench_sources(c, &Laplace3d, "laplace");
     bench_sources(c, &ModifiedHelmholtz3d::new(1.0).unwrap(), "yukawa");
+    bench_sources(c, &Helmholtz3d::new(10.0).unwrap(), "helmholtz");
+    bench_sources(c, &Stokes3d::default(), "stokes");
 }
 
 criterion_group!(p2p, benches);

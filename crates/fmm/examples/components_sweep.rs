@@ -10,6 +10,7 @@
 //!
 //! ```text
 //! cargo run --release -p ferrofmm-fmm --example components_sweep -- 20000 > components.csv
+//! cargo run --release -p ferrofmm-fmm --example components_sweep -- 20000 '' stokes
 //! ```
 //!
 //! `k W` is the wavenumber times the width of the points' bounding cube
@@ -32,6 +33,9 @@ fn main() {
         .next()
         .map(|s| s.split(',').filter_map(|k| k.parse().ok()).collect())
         .unwrap_or_else(|| vec![1.0, 5.0, 10.0, 20.0, 30.0, 40.0]);
+    // A third argument picks the second part's kernels: `helmholtz`,
+    // `stokes` or (the default) both.
+    let which = args.next().unwrap_or_else(|| "both".to_string());
     println!("kernel,k,geometry,densities,order,potential,gradient,build_s,evaluate_s");
     for &k in &ks {
         let h = Helmholtz3d::new(k).expect("valid k");
@@ -48,16 +52,14 @@ fn main() {
         (Geometry::Cube, Charges::Signed),
         (Geometry::Plummer, Charges::Positive),
     ] {
-        let h = Helmholtz3d::new(10.0).expect("valid k");
-        sweep(&h, 10.0, geometry, sign, SourceKind::Charge, n);
-        sweep(
-            &Stokes3d::default(),
-            0.0,
-            geometry,
-            sign,
-            SourceKind::Charge,
-            n,
-        );
+        if which != "stokes" {
+            let h = Helmholtz3d::new(10.0).expect("valid k");
+            sweep(&h, 10.0, geometry, sign, SourceKind::Charge, n);
+        }
+        if which != "helmholtz" {
+            let stokes = Stokes3d::default();
+            sweep(&stokes, 0.0, geometry, sign, SourceKind::Charge, n);
+        }
     }
 }
 

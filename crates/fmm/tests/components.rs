@@ -10,7 +10,7 @@
 //! order inside the low-frequency limit.
 
 use ferrofmm_fmm::{
-    Charges, ErrorReport, FmmBuilder, FmmError, Geometry, MAX_WAVENUMBER_WIDTH,
+    Charges, ErrorReport, FmmBuilder, FmmError, Geometry, MAX_WAVENUMBER_WIDTH, Verification,
     relative_errors_sources, sample_indices,
 };
 use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, SourceKind, Stokes3d};
@@ -142,6 +142,39 @@ fn stokes_meets_its_order_bound() {
         );
         let b = bound(1.5e-2, order);
         assert!(e.worst() <= b, "stokes p={order}: {e:?} above {b:.1e}");
+    }
+}
+
+/// Build for `eps` and verify the first evaluation: `(verification, order)`.
+fn verified<K: Kernel>(kernel: K, mode: EvalMode, eps: f64) -> (Verification, usize) {
+    let points: Vec<f64> = Geometry::Sphere.points(3000, 9);
+    let q: Vec<f64> =
+        Charges::Signed.generate(3000 * kernel.values_per_source(SourceKind::Charge), 2);
+    let mut fmm = FmmBuilder::new(&points)
+        .kernel(kernel)
+        .tolerance(eps)
+        .mode(mode)
+        .build_svd()
+        .unwrap();
+    let v = fmm.evaluate_verified(&q).unwrap().verification;
+    (
+        v.expect("the first evaluation of a tolerance is verified"),
+        fmm.order(),
+    )
+}
+
+/// A requested accuracy is met for both kernels: the models pick the
+/// order, the first evaluation measures the error.
+#[test]
+fn tolerances_are_met() {
+    let cases = [
+        verified(Helmholtz3d::new(15.0).unwrap(), EvalMode::Potential, 1e-4),
+        verified(Stokes3d::default(), EvalMode::PotentialGradient, 1e-6),
+    ];
+    for (eps, (v, order)) in [1e-4, 1e-6].into_iter().zip(cases) {
+        eprintln!("eps {eps:e}: p={order} {v:?}");
+        assert!(v.met, "{eps:e}: {v:?}");
+        assert!(v.measured().worst() <= eps, "{eps:e}: {v:?}");
     }
 }
 

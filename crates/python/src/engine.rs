@@ -10,7 +10,9 @@ use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SourceKind};
+use ferrofmm_kernels::{
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SourceKind, Stokes3d,
+};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -183,6 +185,20 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
 enum KernelChoice {
     Laplace,
     Yukawa(f64),
+    Helmholtz(f64),
+    Stokes,
+}
+
+impl KernelChoice {
+    /// Values per charge and per output quantity (2 for the complex
+    /// Helmholtz kernel, 3 for Stokes).
+    fn components(self) -> usize {
+        match self {
+            KernelChoice::Laplace | KernelChoice::Yukawa(_) => 1,
+            KernelChoice::Helmholtz(_) => 2,
+            KernelChoice::Stokes => 3,
+        }
+    }
 }
 
 /// The M2L schemes the module offers.
@@ -221,6 +237,10 @@ fn build<T: Float>(
         KernelChoice::Yukawa(k) => {
             build_with(ModifiedHelmholtz3d::new(k)?, o, monitor, sources, targets)
         }
+        KernelChoice::Helmholtz(k) => {
+            build_with(Helmholtz3d::new(k)?, o, monitor, sources, targets)
+        }
+        KernelChoice::Stokes => build_with(Stokes3d::default(), o, monitor, sources, targets),
     }
 }
 
@@ -253,6 +273,8 @@ fn build_with<T: Float, K: Kernel>(
         b = b.cache_dir(dir);
     }
     let scheme = match (o.scheme, o.eps) {
+        // The FFT scheme convolves scalar kernels only.
+        (SchemeChoice::Auto, _) if o.kernel.components() > 1 => SchemeChoice::Svd,
         (SchemeChoice::Auto, Some(eps)) => {
             let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
             let (src, tgt) = (up(sources), targets.map(up));
@@ -323,20 +345,27 @@ impl NativeFmm {
         };
         let kernel = match (kernel, k) {
             ("laplace", None) => KernelChoice::Laplace,
-            ("laplace", Some(_)) => {
-                return Err(PyValueError::new_err(
-                    "k is a parameter of the yukawa kernel, not laplace",
-                ));
+            ("stokes", None) => KernelChoice::Stokes,
+            (name @ ("laplace" | "stokes"), Some(_)) => {
+                return Err(PyValueError::new_err(format!(
+                    "k is a parameter of the yukawa and helmholtz kernels, not {name}"
+                )));
             }
             ("yukawa", Some(k)) => KernelChoice::Yukawa(k),
+            ("helmholtz", Some(k)) => KernelChoice::Helmholtz(k),
             ("yukawa", None) => {
                 return Err(PyValueError::new_err(
                     "the yukawa kernel exp(-k r) / (4 pi r) needs k (k >= 0)",
                 ));
             }
+            ("helmholtz", None) => {
+                return Err(PyValueError::new_err(
+                    "the helmholtz kernel exp(i k r) / (4 pi r) needs k (k >= 0)",
+                ));
+            }
             (other, _) => {
                 return Err(PyValueError::new_err(format!(
-                    "unknown kernel {other:?}: use \"laplace\" or \"yukawa\""
+                    "unknown kernel {other:?}: use \"laplace\", \"yukawa\", \"helmholtz\" or \"stokes\""
                 )));
             }
         };
@@ -428,7 +457,7 @@ impl NativeFmm {
     ) -> PyResult<(Bound<'py, PyAny>, String)> {
         let charges = Floats::from_numpy("charges", charges)?;
         let n_sources = self.read().n_sources();
-        let per = self.options.source_kind.values_per_source();
+        let per = self.options.kernel.components() * self.options.source_kind.values_per_source();
         if n_vectors == 0 || charges.len() != n_vectors * n_sources * per {
             return Err(PyValueError::new_err(format!(
                 "expected {} values ({n_vectors} vector(s) of {per} per source for {} sources, {n_sources} sources), got {}",

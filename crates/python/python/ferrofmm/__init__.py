@@ -6,8 +6,10 @@ and M targets y_j,
     phi(y_j) = sum_i q_i K(x_i, y_j) + n_i . grad_x K(x_i, y_j)   (K(x, x) := 0)
 
 and optionally grad phi(y_j) and its Hessian, in O(N + M) work to a
-requested accuracy, for the Laplace kernel K = 1 / (4 pi r) and the Yukawa
-(modified Helmholtz) kernel K = exp(-k r) / (4 pi r).
+requested accuracy, for the Laplace kernel K = 1 / (4 pi r), the Yukawa
+(modified Helmholtz) kernel K = exp(-k r) / (4 pi r), the Helmholtz kernel
+K = exp(i k r) / (4 pi r) (complex charges and results, :func:`helmholtz`)
+and the Stokeslet (forces in, velocities out, :func:`stokes`).
 
 One call::
 
@@ -48,6 +50,8 @@ __version__: str = _ferrofmm.__version__
 __all__ = [
     "laplace",
     "yukawa",
+    "helmholtz",
+    "stokes",
     "Fmm",
     "FmmResult",
     "Octree",
@@ -97,6 +101,23 @@ def _as_float_array(name: str, value: Any) -> np.ndarray:
         )
     if a.dtype not in _FLOATS:
         raise TypeError(f"{name} must be float32 or float64, got {a.dtype}")
+    return a
+
+
+_COMPONENTS = {"laplace": 1, "yukawa": 1, "helmholtz": 2, "stokes": 3}
+
+
+def _as_complex_array(name: str, value: Any) -> np.ndarray:
+    """``value`` as a complex array (real input allowed), rejecting non-numbers and non-finite values."""
+    try:
+        a = np.asarray(value)
+    except Exception as e:  # noqa: BLE001 - anything numpy cannot take
+        raise TypeError(f"{name} must be an array of numbers: {e}") from None
+    if a.dtype.kind not in "biufc":
+        raise TypeError(f"{name} must hold numbers, got dtype {a.dtype}")
+    a = a.astype(np.complex128)
+    if not np.all(np.isfinite(a)):
+        raise ValueError(f"{name} holds NaN or infinite values")
     return a
 
 
@@ -195,10 +216,17 @@ class Fmm:
     targets : array_like, shape (m, 3), optional
         Where to evaluate; the sources when ``None`` (then a source does
         not act on itself).
-    kernel : {"laplace", "yukawa"}
-        ``1 / (4 pi r)`` or ``exp(-k r) / (4 pi r)`` (give ``k``).
+    kernel : {"laplace", "yukawa", "helmholtz", "stokes"}
+        ``1 / (4 pi r)``, ``exp(-k r) / (4 pi r)`` (give ``k``),
+        ``exp(i k r) / (4 pi r)`` (give ``k``; complex charges, dipoles and
+        results) or the Stokeslet ``(I / r + d d^T / r^3) / (8 pi)``
+        (viscosity 1: forces ``(n, 3)`` in, velocities ``(m, 3)`` and
+        velocity gradients ``(m, 3, 3)`` out, ``[..., a, c] = d u_a / d x_c``).
     k : float, optional
-        The Yukawa kernel's screening wavenumber (``k >= 0``).
+        The wavenumber of the yukawa (screening) or helmholtz (oscillation)
+        kernel (``k >= 0``). Helmholtz is the low-frequency method: ``k``
+        times the domain width is limited (about 6 wavelengths), beyond
+        it the build raises ``ValueError`` naming the limit.
     eps : float, optional
         Requested relative L2 error of the potential (and of the gradient
         when ``gradient=True``). The order and leaf size are chosen from it;
@@ -291,6 +319,7 @@ class Fmm:
             source,
         )
         self._dtype = run
+        self._kernel = kernel
         self._hessian = bool(hessian)
         self._gradient = bool(gradient) or self._hessian
         self._charges = charges
@@ -338,10 +367,13 @@ class Fmm:
                     f"this Fmm's sources carry no {name} (only {carried}): "
                     f"build it with {flag}=True"
                 )
-            a = _as_float_array(name, value)
-            tail = () if name == "charges" else (3,)
-            one = "(n,)" if name == "charges" else "(n, 3)"
-            many = "(k, n)" if name == "charges" else "(k, n, 3)"
+            if self._kernel == "helmholtz":
+                a = _as_complex_array(name, value)
+            else:
+                a = _as_float_array(name, value)
+            tail = () if name == "charges" and self._kernel != "stokes" else (3,)
+            one = "(n,)" if tail == () else "(n, 3)"
+            many = "(k, n)" if tail == () else "(k, n, 3)"
             if a.ndim == 1 + len(tail):
                 batched = False
                 a = a[None]
@@ -350,9 +382,9 @@ class Fmm:
             else:
                 raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
             if a.shape[1:] != (n,) + tail:
-                if name == "charges" and not batched:
+                if name == "charges" and tail == () and not batched:
                     raise ValueError(f"charges has {a.shape[1]} values but there are {n} sources")
-                if name == "charges":
+                if name == "charges" and tail == ():
                     raise ValueError(
                         f"charges must have shape (k, {n}) (one row per charge vector), "
                         f"got {a.shape}"
@@ -364,6 +396,9 @@ class Fmm:
             if a.shape[0] == 0:
                 what = "charge vector" if name == "charges" else "dipole vector set"
                 raise ValueError(f"{name} holds no {what} (shape {a.shape})")
+            if self._kernel == "helmholtz":
+                # Complex values as (re, im) pairs, the kernel's layout.
+                a = np.stack((a.real, a.imag), axis=-1)
             parts.append(a.reshape(a.shape[0], n, -1))
             shapes.append((a.shape[0], batched))
         if len(set(shapes)) > 1:
@@ -377,10 +412,23 @@ class Fmm:
         self._last_info = info
         m = self.n_targets
         per = 10 if self._hessian else 4 if self._gradient else 1
-        v = values.reshape(k, m, per)
-        potential = np.ascontiguousarray(v[:, :, 0])
-        gradient = np.ascontiguousarray(v[:, :, 1:4]) if self._gradient else None
-        hessian = np.ascontiguousarray(v[:, :, 4:]) if self._hessian else None
+        comps = _COMPONENTS[self._kernel]
+        v = values.reshape(k, m, per, comps)
+        if self._kernel == "helmholtz":
+            v = (v[..., 0] + 1j * v[..., 1])[..., None]
+        if self._kernel == "stokes":
+            # (k, m, quantity, component): velocity, then its derivatives;
+            # the gradient as [a, c] = d u_a / d x_c.
+            potential = np.ascontiguousarray(v[:, :, 0, :])
+            gradient = (
+                np.ascontiguousarray(np.swapaxes(v[:, :, 1:4, :], 2, 3)) if self._gradient else None
+            )
+            hessian = None
+        else:
+            v = v[..., 0]
+            potential = np.ascontiguousarray(v[:, :, 0])
+            gradient = np.ascontiguousarray(v[:, :, 1:4]) if self._gradient else None
+            hessian = np.ascontiguousarray(v[:, :, 4:]) if self._hessian else None
         if not batched:
             potential = potential[0]
             gradient = None if gradient is None else gradient[0]
@@ -514,6 +562,87 @@ def yukawa(
         "yukawa", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
         leaf_size=leaf_size, scheme=scheme, verify=verify,
+    )
+
+
+def helmholtz(
+    sources: Any,
+    charges: Any = None,
+    *,
+    k: float,
+    dipoles: Any = None,
+    targets: Any = None,
+    eps: Optional[float] = None,
+    order: Optional[int] = None,
+    gradient: bool = False,
+    dtype: Any = None,
+    threads: Optional[int] = None,
+    leaf_size: Optional[int] = None,
+    verify: bool = True,
+) -> FmmResult:
+    """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
+
+    ``r = |y - x_i|``, ``k >= 0`` the wavenumber. ``charges`` is complex
+    ``(n,)`` or ``(k, n)``, ``dipoles`` complex ``(n, 3)`` or ``(k, n, 3)``
+    (real arrays are taken as complex); ``.potential`` is complex ``(m,)``,
+    ``.gradient`` complex ``(m, 3)``. The low-frequency method: ``k`` times
+    the width of the points' bounding cube is limited (about 6 wavelengths
+    across), beyond it ``ValueError`` names the limit. No Hessians. The
+    M2L scheme is the SVD one (the FFT scheme handles scalar kernels). The
+    other parameters are as for :func:`laplace`.
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> x = np.random.default_rng(0).random((2000, 3))
+    >>> r = ferrofmm.helmholtz(x, np.ones(2000) + 0.5j, k=10.0, eps=1e-6)
+    >>> r.potential.dtype
+    dtype('complex128')
+    """
+    return _one_call(
+        "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
+        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
+        scheme="svd", verify=verify,
+    )
+
+
+def stokes(
+    sources: Any,
+    forces: Any,
+    *,
+    targets: Any = None,
+    eps: Optional[float] = None,
+    order: Optional[int] = None,
+    gradient: bool = False,
+    dtype: Any = None,
+    threads: Optional[int] = None,
+    leaf_size: Optional[int] = None,
+    verify: bool = True,
+) -> FmmResult:
+    """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
+
+    ``G(d) = (I / r + d d^T / r^3) / (8 pi)`` (viscosity 1; for viscosity
+    ``mu`` divide the result by ``mu``; FMM3D's ``stfmm3d`` is this times
+    ``4 pi``). ``forces`` is ``(n, 3)`` or ``(k, n, 3)``; ``.potential`` is
+    the velocity ``(m, 3)``, ``.gradient`` the velocity gradient
+    ``(m, 3, 3)`` with ``[j, a, c] = d u_a / d x_c`` at target ``j``. No
+    dipoles (stresslets) and no Hessians. The M2L scheme is the SVD one.
+    The other parameters are as for :func:`laplace`.
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> x = np.random.default_rng(0).random((2000, 3))
+    >>> r = ferrofmm.stokes(x, np.ones((2000, 3)), eps=1e-6, gradient=True)
+    >>> r.potential.shape, r.gradient.shape
+    ((2000, 3), (2000, 3, 3))
+    """
+    if forces is None:
+        raise ValueError("give the forces, shape (n, 3)")
+    return _one_call(
+        "stokes", None, sources, forces, None, targets=targets, eps=eps, order=order,
+        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
+        scheme="svd", verify=verify,
     )
 
 
