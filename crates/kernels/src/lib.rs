@@ -80,6 +80,7 @@ mod real;
 pub mod reference;
 mod simd;
 mod stokes;
+mod stokes_p2p;
 
 pub use direct::{
     DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,

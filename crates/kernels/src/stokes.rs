@@ -15,8 +15,8 @@
 //! d_c u_a = [ -f_a d_c + delta_ac (d . f) + d_a f_c - 3 d_a d_c (d . f) / r^2 ] / (8 pi mu r^3).
 //! ```
 //!
-//! FMM3D's `stfmm3d` uses `G = delta/(2r) + d d / (2 r^3)`, which is this
-//! kernel with `mu = 1 / (4 pi)`.
+//! FMM3D's `stfmm3d` uses the same normalisation with `mu = 1`, and its
+//! `grad[i, j] = d_i u_j` is the storage order below.
 //!
 //! # Layout
 //! Three [components](Kernel::components): forces `[f0x, f0y, f0z, f1x, ...]`
@@ -24,7 +24,7 @@
 //! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
 //! as every kernel's outputs: the quantity, then its components).
 
-use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};
+use crate::{EvalMode, Kernel, KernelError, Real, SimdLevel, SourceKind};
 
 /// The Stokeslet `G = (I / r + d d^T / r^3) / (8 pi mu)`: forces in,
 /// velocities (and velocity gradients) out. See the [module docs](self).
@@ -64,6 +64,113 @@ impl Stokes3d {
                 value: viscosity,
                 expected: "finite and > 0",
             })
+        }
+    }
+
+    /// [`Kernel::evaluate`] at SIMD `level` (lowered to what the CPU
+    /// supports), for tests and benchmarks.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    pub fn evaluate_with<T: Real>(
+        &self,
+        level: SimdLevel,
+        mode: EvalMode,
+        sources: &[T],
+        charges: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        if let Err(e) = crate::direct::check_lengths(
+            3,
+            SourceKind::Charge,
+            mode,
+            sources,
+            charges,
+            targets,
+            out,
+        ) {
+            panic!("stokes3d: {e}");
+        }
+        assert!(
+            !mode.has_hessian(),
+            "stokes3d: no Hessians (Kernel::supports)"
+        );
+        crate::stokes_p2p::stokes_p2p_with(
+            level,
+            self.scale(),
+            mode,
+            sources,
+            charges,
+            targets,
+            out,
+        );
+    }
+
+    /// The scalar pairwise loop, the reference the vectorised
+    /// [`Kernel::evaluate`] is tested against. Same layout and panics.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    pub fn evaluate_pairwise<T: Real>(
+        &self,
+        mode: EvalMode,
+        sources: &[T],
+        charges: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        if let Err(e) = crate::direct::check_lengths(
+            3,
+            SourceKind::Charge,
+            mode,
+            sources,
+            charges,
+            targets,
+            out,
+        ) {
+            panic!("stokes3d: {e}");
+        }
+        assert!(
+            !mode.has_hessian(),
+            "stokes3d: no Hessians (Kernel::supports)"
+        );
+        let scale = T::from_f64(self.scale());
+        let three = T::from_f64(3.0);
+        let w = 3 * mode.values_per_target();
+        let grad = mode.has_gradient();
+        for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
+            let mut acc = [T::ZERO; 12];
+            for (x, f) in sources.chunks_exact(3).zip(charges.chunks_exact(3)) {
+                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 == T::ZERO {
+                    continue;
+                }
+                let rinv = T::ONE / r2.sqrt();
+                let rinv2 = rinv * rinv;
+                let df = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
+                let s = scale * rinv;
+                let t = df * rinv2;
+                for a in 0..3 {
+                    acc[a] += s * (f[a] + d[a] * t);
+                }
+                if grad {
+                    let s3 = s * rinv2;
+                    for c in 0..3 {
+                        for a in 0..3 {
+                            let mut v = d[a] * f[c] - f[a] * d[c] - three * d[a] * d[c] * t;
+                            if a == c {
+                                v += df;
+                            }
+                            acc[3 + 3 * c + a] += s3 * v;
+                        }
+                    }
+                }
+            }
+            for (o, a) in o.iter_mut().zip(acc) {
+                *o += a;
+            }
         }
     }
 
@@ -135,7 +242,8 @@ impl Kernel for Stokes3d {
     }
 
     /// Point forces, `[u]` or `[u, d_x u, d_y u, d_z u]` per target (each a
-    /// 3-vector); coincident pairs skipped.
+    /// 3-vector); coincident pairs skipped. A vectorised loop over target
+    /// lanes at [`SimdLevel::active`].
     ///
     /// # Panics
     /// When lengths are inconsistent or `mode` asks for Hessians.
@@ -147,58 +255,7 @@ impl Kernel for Stokes3d {
         targets: &[T],
         out: &mut [T],
     ) {
-        if let Err(e) = crate::direct::check_lengths(
-            3,
-            SourceKind::Charge,
-            mode,
-            sources,
-            charges,
-            targets,
-            out,
-        ) {
-            panic!("stokes3d: {e}");
-        }
-        assert!(
-            !mode.has_hessian(),
-            "stokes3d: no Hessians (Kernel::supports)"
-        );
-        let scale = T::from_f64(self.scale());
-        let three = T::from_f64(3.0);
-        let w = 3 * mode.values_per_target();
-        let grad = mode.has_gradient();
-        for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
-            let mut acc = [T::ZERO; 12];
-            for (x, f) in sources.chunks_exact(3).zip(charges.chunks_exact(3)) {
-                let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
-                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                if r2 == T::ZERO {
-                    continue;
-                }
-                let rinv = T::ONE / r2.sqrt();
-                let rinv2 = rinv * rinv;
-                let df = d[0] * f[0] + d[1] * f[1] + d[2] * f[2];
-                let s = scale * rinv;
-                let t = df * rinv2;
-                for a in 0..3 {
-                    acc[a] += s * (f[a] + d[a] * t);
-                }
-                if grad {
-                    let s3 = s * rinv2;
-                    for c in 0..3 {
-                        for a in 0..3 {
-                            let mut v = d[a] * f[c] - f[a] * d[c] - three * d[a] * d[c] * t;
-                            if a == c {
-                                v += df;
-                            }
-                            acc[3 + 3 * c + a] += s3 * v;
-                        }
-                    }
-                }
-            }
-            for (o, a) in o.iter_mut().zip(acc) {
-                *o += a;
-            }
-        }
+        self.evaluate_with(SimdLevel::active(), mode, sources, charges, targets, out);
     }
 
     /// Point forces with potentials or gradients.

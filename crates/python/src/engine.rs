@@ -126,10 +126,12 @@ trait Engine: Send + Sync {
 impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
     fn evaluate(&self, charges: Floats, n_vectors: usize) -> Result<Evaluated, FmmError> {
         let q = T::unwrap(charges);
-        let per_vector = self.n_targets() * self.mode().values_per_target();
+        let per_vector = self.n_targets() * self.kernel().values_per_target(self.mode());
         let mut values = Vec::with_capacity(n_vectors * per_vector);
         let mut timings = EvalTimings::default();
-        for one in q.chunks_exact(self.n_sources() * self.source_kind().values_per_source()) {
+        for one in
+            q.chunks_exact(self.n_sources() * self.kernel().values_per_source(self.source_kind()))
+        {
             let (v, t) = self.evaluate_timed(one)?;
             values.extend_from_slice(&v);
             timings.accumulate(&t);
@@ -147,7 +149,7 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         n_vectors: usize,
     ) -> Result<Evaluated, FmmError> {
         let q = T::unwrap(charges);
-        let n = self.n_sources() * self.source_kind().values_per_source();
+        let n = self.n_sources() * self.kernel().values_per_source(self.source_kind());
         let first = Fmm::evaluate_verified(self, &q[..n])?;
         let mut values = first.values;
         let mut timings = first.timings;

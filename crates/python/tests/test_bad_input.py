@@ -105,7 +105,7 @@ def test_bad_dtypes(dtype, exc):
 
 def test_bad_kernels():
     with pytest.raises(ValueError, match="unknown kernel"):
-        ferrofmm.Fmm(X, kernel="stokes", order=4)
+        ferrofmm.Fmm(X, kernel="maxwell", order=4)
     with pytest.raises(ValueError, match="needs k"):
         ferrofmm.Fmm(X, kernel="yukawa", order=4)
     with pytest.raises(ValueError, match="k"):

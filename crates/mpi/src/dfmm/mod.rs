@@ -94,7 +94,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     /// # Errors
     /// The same [`DistError`] on every rank: options that differ between
     /// ranks, or an FMM setup error on any rank (order out of range,
-    /// ill-conditioned operators, not enough memory).
+    /// ill-conditioned operators, not enough memory), or a kernel with
+    /// several [components](Kernel::components) (complex or vector
+    /// kernels run on one machine only, for now).
     pub fn build<C: Communicator>(
         comm: &C,
         dtree: &DistributedTree,
@@ -102,6 +104,17 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         config: &S::Config,
         options: &DistFmmOptions,
     ) -> Result<Self, DistError> {
+        if kernel.components() != 1 {
+            // Same on every rank: the kernel is.
+            return Err(DistError::Fmm {
+                rank: 0,
+                message: format!(
+                    "kernel {} has {} components; the distributed FMM handles scalar kernels",
+                    kernel.name(),
+                    kernel.components()
+                ),
+            });
+        }
         let me = comm.rank() as usize;
         let mut setup = SetupStats::default();
         let mine = [

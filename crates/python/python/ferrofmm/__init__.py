@@ -622,8 +622,8 @@ def stokes(
     """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
 
     ``G(d) = (I / r + d d^T / r^3) / (8 pi)`` (viscosity 1; for viscosity
-    ``mu`` divide the result by ``mu``; FMM3D's ``stfmm3d`` is this times
-    ``4 pi``). ``forces`` is ``(n, 3)`` or ``(k, n, 3)``; ``.potential`` is
+    ``mu`` divide the result by ``mu``; FMM3D's ``stfmm3d`` uses the same
+    normalisation). ``forces`` is ``(n, 3)`` or ``(k, n, 3)``; ``.potential`` is
     the velocity ``(m, 3)``, ``.gradient`` the velocity gradient
     ``(m, 3, 3)`` with ``[j, a, c] = d u_a / d x_c`` at target ``j``. No
     dipoles (stresslets) and no Hessians. The M2L scheme is the SVD one.
