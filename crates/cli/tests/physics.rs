@@ -358,3 +358,90 @@ fn helmholtz_and_stokes_outputs_match_direct_summation() {
     assert!(stderr.contains("svd or dense"), "{stderr}");
     assert!(!out.exists());
 }
+
+/// `--out-sources`: values at the sources (each excluding itself) and at
+/// the targets from one run, each against direct summation; the two paths
+/// must differ.
+#[test]
+fn out_sources_writes_values_at_sources_and_targets() {
+    let dir = scratch("physics-pg");
+    let n = 1500;
+    let sources = points(n, 21);
+    let q = charges(n, 22);
+    let targets: Vec<f64> = points(300, 23).iter().map(|x| x + 0.5).collect();
+    let (src, chg, tgt) = (dir.join("s.npy"), dir.join("q.npy"), dir.join("t.npy"));
+    write_npy(&src, &sources, &[n as u64, 3]);
+    write_npy(&chg, &q, &[n as u64]);
+    write_npy(&tgt, &targets, &[300, 3]);
+    let (out_t, out_s) = (dir.join("t_out.npy"), dir.join("s_out.csv"));
+    let args = [
+        "eval",
+        "--sources",
+        src.to_str().unwrap(),
+        "--charges",
+        chg.to_str().unwrap(),
+        "--targets",
+        tgt.to_str().unwrap(),
+        "--gradients",
+        "--order",
+        "8",
+        "--out",
+        out_t.to_str().unwrap(),
+        "--out-sources",
+        out_s.to_str().unwrap(),
+    ];
+    let o = ferrofmm(&args);
+    let (stdout, stderr) = texts(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.contains("s_out.csv"), "{stdout}");
+    let (shape, at_targets) = read_npy(&out_t);
+    assert_eq!(shape, vec![300, 4]);
+    let text = std::fs::read_to_string(&out_s).unwrap();
+    let at_sources: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .flat_map(|l| {
+            l.split(',')
+                .map(|v| v.parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    assert_eq!(at_sources.len(), 4 * n);
+    let mode = EvalMode::PotentialGradient;
+    for (at, got) in [(&targets, &at_targets), (&sources, &at_sources)] {
+        let mut want = vec![0.0; got.len()];
+        direct_sum_sources(
+            &Laplace3d,
+            SourceKind::Charge,
+            mode,
+            &sources,
+            &q,
+            at,
+            &mut want,
+        );
+        for c in 0..4 {
+            let e = relative_l2_columns(got, &want, 4, c..c + 1);
+            assert!(e < 1e-5, "column {c}: {e:e}");
+        }
+    }
+    // The same file twice, or without --targets: refused.
+    let mut same = args.to_vec();
+    let last = same.len() - 1;
+    same[last] = out_t.to_str().unwrap();
+    let o = ferrofmm(&same);
+    assert!(!o.status.success());
+    assert!(texts(&o).1.contains("same file"), "{}", texts(&o).1);
+    let o = ferrofmm(&[
+        "eval",
+        "--sources",
+        src.to_str().unwrap(),
+        "--charges",
+        chg.to_str().unwrap(),
+        "--out",
+        out_t.to_str().unwrap(),
+        "--out-sources",
+        out_s.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(texts(&o).1.contains("--targets"), "{}", texts(&o).1);
+}

@@ -28,7 +28,7 @@
 //!
 //! [`Helmholtz3d`]: crate::Helmholtz3d
 
-use crate::lanes::{LaneFloat, Simd, SimdTask, run_task};
+use crate::lanes::{LaneFloat, Simd, SimdTask, run_on_floats};
 use crate::{EvalMode, INV_4PI, Real, SimdLevel, SourceKind};
 
 /// Taylor coefficients of `sin(h) / h` in `h^2`, highest degree first.
@@ -87,20 +87,8 @@ pub(crate) fn helmholtz_p2p_with<T: Real>(
         return;
     }
     let grad = mode.has_gradient();
-    if let (Some(s), Some(q), Some(t)) = (
-        T::as_f64_slice(sources),
-        T::as_f64_slice(densities),
-        T::as_f64_slice(targets),
-    ) {
-        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
-        run_task(level, Task::new(k, kind, grad, s, q, t, o));
-    } else {
-        let s = T::as_f32_slice(sources).expect("a Real is f32 or f64");
-        let q = T::as_f32_slice(densities).expect("a Real is f32 or f64");
-        let t = T::as_f32_slice(targets).expect("a Real is f32 or f64");
-        let o = T::as_f32_slice_mut(out).expect("a Real is f32 or f64");
-        run_task(level, Task::new(k, kind, grad, s, q, t, o));
-    }
+    let (s, q, t, o) = (sources, densities, targets, out);
+    run_on_floats!(level, (s, q, t, o) => Task::new(k, kind, grad, s, q, t, o));
 }
 
 /// One P2P call as a [`SimdTask`].
@@ -387,6 +375,7 @@ fn block_of<
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::lanes::run_task;
 
     /// The register `sin` and `cos` against `f64::sin_cos` over the range
     /// the FMM uses (`kr` up to 100), at every level the CPU has.

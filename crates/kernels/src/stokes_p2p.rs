@@ -10,7 +10,7 @@
 //! d_c u_a += s / r^2 (d_a f_c - f_a d_c - 3 d_a d_c t + delta_ac (d . f))
 //! ```
 
-use crate::lanes::{LaneFloat, Simd, SimdTask, run_task};
+use crate::lanes::{LaneFloat, Simd, SimdTask, run_on_floats};
 use crate::{EvalMode, Real, SimdLevel};
 
 /// Largest target block, in targets.
@@ -34,20 +34,8 @@ pub(crate) fn stokes_p2p_with<T: Real>(
         return;
     }
     let grad = mode.has_gradient();
-    if let (Some(s), Some(f), Some(t)) = (
-        T::as_f64_slice(sources),
-        T::as_f64_slice(forces),
-        T::as_f64_slice(targets),
-    ) {
-        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
-        run_task(level, Task::new(scale, grad, s, f, t, o));
-    } else {
-        let s = T::as_f32_slice(sources).expect("a Real is f32 or f64");
-        let f = T::as_f32_slice(forces).expect("a Real is f32 or f64");
-        let t = T::as_f32_slice(targets).expect("a Real is f32 or f64");
-        let o = T::as_f32_slice_mut(out).expect("a Real is f32 or f64");
-        run_task(level, Task::new(scale, grad, s, f, t, o));
-    }
+    let (s, f, t, o) = (sources, forces, targets, out);
+    run_on_floats!(level, (s, f, t, o) => Task::new(scale, grad, s, f, t, o));
 }
 
 /// One P2P call as a [`SimdTask`].

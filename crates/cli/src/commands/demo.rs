@@ -78,6 +78,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
         force: args.fmm.force,
+        out_sources: None,
     };
     let report = run(input, &settings, None)?;
     if args.json {

@@ -34,6 +34,11 @@ pub struct EvalArgs {
     /// replaced only once fully written.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// With --targets: also write the values at the sources (each source
+    /// excluding itself) to this file, in the same run (FMM3D's `pg` and
+    /// `pgt` together). The sources are evaluated as extra targets.
+    #[arg(long, value_name = "FILE", requires = "targets")]
+    pub out_sources: Option<PathBuf>,
     #[command(flatten)]
     pub fmm: FmmArgs,
     /// Also evaluate the gradient with respect to the target.
@@ -75,6 +80,19 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         }
     }
     io::output::check(&args.out, &inputs)?;
+    if let Some(path) = &args.out_sources {
+        Format::of(path)?;
+        io::output::check(path, &inputs)?;
+        let absolute = |p: &std::path::Path| {
+            let p = io::output::resolve(p);
+            std::path::absolute(&p).unwrap_or(p)
+        };
+        if absolute(path) == absolute(&args.out) {
+            return Err(CliError::InvalidArgument(
+                "--out-sources and --out name the same file".to_string(),
+            ));
+        }
+    }
 
     let sources = io::read_points(&args.sources)?;
     let targets = args.targets.as_deref().map(io::read_points).transpose()?;
@@ -113,6 +131,17 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         None => None,
     };
 
+    // Values at the sources too: the sources lead the targets (a target on
+    // a source skips that source: K(x, x) := 0, so each source's value
+    // excludes itself, as without --targets).
+    let split = args
+        .out_sources
+        .as_ref()
+        .map(|path| (path.clone(), n_sources));
+    let targets = match (targets, &split) {
+        (Some(t), Some(_)) => Some(sources.iter().chain(&t).copied().collect()),
+        (t, _) => t,
+    };
     let input = Input::Given {
         sources,
         targets,
@@ -134,11 +163,20 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
         force: args.fmm.force,
+        out_sources: split,
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {
         io::stdout::println(&report.json())
     } else {
-        io::stdout::print(&format!("{}wrote {}\n", report.table(), args.out.display()))
+        let also = match &args.out_sources {
+            Some(p) => format!(" and {}", p.display()),
+            None => String::new(),
+        };
+        io::stdout::print(&format!(
+            "{}wrote {}{also}\n",
+            report.table(),
+            args.out.display()
+        ))
     }
 }

@@ -270,7 +270,7 @@ pub struct FmmArgs {
     /// Directory of the on-disk operator cache (off by default).
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
-    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K", help = KERNEL_HELP)]
+    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K|helmholtz:K|stokes", help = KERNEL_HELP)]
     pub kernel: String,
     /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
     /// gradients) of the gradient: the order, leaf size and SVD rank are

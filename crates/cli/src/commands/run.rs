@@ -107,6 +107,9 @@ pub struct Settings {
     pub verify: bool,
     /// Precompute even beyond the memory limit (`--force`).
     pub force: bool,
+    /// `eval --out-sources`: the first `n` targets are the sources, whose
+    /// values go to this file (the rest to the output).
+    pub out_sources: Option<(PathBuf, usize)>,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
@@ -462,7 +465,14 @@ where
         with_stage(format!("writing {}", path.display()), || {
             let names = output_names(mode, settings.kernel);
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
-            io::write(path, as_values(&values), &names)
+            match &settings.out_sources {
+                Some((at_sources, n)) => {
+                    let split = n * names.len();
+                    io::write(at_sources, as_values(&values[..split]), &names)?;
+                    io::write(path, as_values(&values[split..]), &names)
+                }
+                None => io::write(path, as_values(&values), &names),
+            }
         })?;
     }
 

@@ -73,7 +73,7 @@ pub struct SweepArgs {
     /// Evaluate Hessians too (implies gradients).
     #[arg(long)]
     pub hessians: bool,
-    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K", help = super::KERNEL_HELP)]
+    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K|helmholtz:K|stokes", help = super::KERNEL_HELP)]
     pub kernel: String,
     /// Random seed of the points and charges.
     #[arg(long, default_value_t = 1)]

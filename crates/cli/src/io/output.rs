@@ -119,7 +119,7 @@ pub fn write_atomically(
 
 /// `path`, or the file it links to when it is a symbolic link to an
 /// existing file (so that the link is kept and its target replaced).
-fn resolve(path: &Path) -> PathBuf {
+pub fn resolve(path: &Path) -> PathBuf {
     match fs::symlink_metadata(path) {
         Ok(m) if m.file_type().is_symlink() => {
             fs::canonicalize(path).unwrap_or_else(|_| path.to_path_buf())

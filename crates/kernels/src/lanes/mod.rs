@@ -304,6 +304,30 @@ where
     task.run(Portable)
 }
 
+/// Runs `$task` (an expression naming the slices `$s, $q, $t, $o`) with
+/// [`run_task`] at `$level` on the caller's `Real` slices as `f64` or as
+/// `f32`, whichever they are: one place for the float-type split of every
+/// vectorised loop (the expression is compiled once per type).
+macro_rules! run_on_floats {
+    ($level:expr, ($s:ident, $q:ident, $t:ident, $o:ident) => $task:expr) => {
+        if let (Some($s), Some($q), Some($t)) = (
+            $crate::Real::as_f64_slice($s),
+            $crate::Real::as_f64_slice($q),
+            $crate::Real::as_f64_slice($t),
+        ) {
+            let $o = $crate::Real::as_f64_slice_mut($o).expect("same type as the inputs");
+            $crate::lanes::run_task($level, $task)
+        } else {
+            let $s = $crate::Real::as_f32_slice($s).expect("a Real is f32 or f64");
+            let $q = $crate::Real::as_f32_slice($q).expect("a Real is f32 or f64");
+            let $t = $crate::Real::as_f32_slice($t).expect("a Real is f32 or f64");
+            let $o = $crate::Real::as_f32_slice_mut($o).expect("a Real is f32 or f64");
+            $crate::lanes::run_task($level, $task)
+        }
+    };
+}
+pub(crate) use run_on_floats;
+
 /// Accumulate the kernel's potentials (and gradients) of `sources` with
 /// `charges` at `targets` into `out` (layout of [`Kernel::evaluate`]) with
 /// the vectorised loop at [`SimdLevel::active`].

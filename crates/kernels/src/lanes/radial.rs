@@ -42,7 +42,6 @@
 
 use super::{
     LaneFloat, LaneKernel, MAX_BLOCK, PORTABLE_BLOCK, SIMD_BLOCK, Simd, SimdTask, evaluate_with,
-    run_task,
 };
 use crate::{EvalMode, Real, SimdLevel, SourceKind};
 
@@ -147,20 +146,8 @@ pub fn composed_with<K: RadialLaneKernel, T: Real>(
     if sources.is_empty() || targets.is_empty() {
         return;
     }
-    if let (Some(s), Some(q), Some(t)) = (
-        T::as_f64_slice(sources),
-        T::as_f64_slice(densities),
-        T::as_f64_slice(targets),
-    ) {
-        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
-        run_task(level, Composed::new(kernel, kind, mode, s, q, t, o));
-    } else {
-        let s = T::as_f32_slice(sources).expect("a Real is f32 or f64");
-        let q = T::as_f32_slice(densities).expect("a Real is f32 or f64");
-        let t = T::as_f32_slice(targets).expect("a Real is f32 or f64");
-        let o = T::as_f32_slice_mut(out).expect("a Real is f32 or f64");
-        run_task(level, Composed::new(kernel, kind, mode, s, q, t, o));
-    }
+    let (s, q, t, o) = (sources, densities, targets, out);
+    super::run_on_floats!(level, (s, q, t, o) => Composed::new(kernel, kind, mode, s, q, t, o));
 }
 
 /// One composed P2P call as a [`SimdTask`].
