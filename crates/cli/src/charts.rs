@@ -157,6 +157,15 @@ impl<'a> SweepData<'a> {
         COLORS[index % COLORS.len()]
     }
 
+    /// Targets sampled for the errors (the most of any run).
+    fn sampled(&self) -> usize {
+        self.runs
+            .iter()
+            .filter_map(|r| r.errors.as_ref().map(|e| e.n_sampled))
+            .max()
+            .unwrap_or(0)
+    }
+
     fn orders(&self) -> (usize, usize) {
         let min = self.runs.iter().map(|r| r.order).min().unwrap_or(0);
         let max = self.runs.iter().map(|r| r.order).max().unwrap_or(0);
@@ -304,9 +313,15 @@ impl Chart for TimeVsError<'_> {
         chart
             .configure_mesh()
             .x_desc(if checked.iter().any(|r| gradient(r).is_some()) {
-                "relative L2 error (1000 sampled targets): potential solid, gradient dashed"
+                format!(
+                    "relative L2 error ({} sampled targets): potential solid, gradient dashed",
+                    data.sampled()
+                )
             } else {
-                "relative L2 error of the potential (1000 sampled targets)"
+                format!(
+                    "relative L2 error of the potential ({} sampled targets)",
+                    data.sampled()
+                )
             })
             .y_desc("evaluation time [s]")
             .x_label_formatter(&sci)
@@ -524,7 +539,10 @@ impl Chart for ErrorVsOrder<'_> {
         chart
             .configure_mesh()
             .x_desc("expansion order p")
-            .y_desc("relative L2 error (1000 sampled targets)")
+            .y_desc(format!(
+                "relative L2 error ({} sampled targets)",
+                data.sampled()
+            ))
             .x_labels(max_order - min_order + 2)
             .x_label_formatter(&order_label)
             .y_label_formatter(&sci)

@@ -118,3 +118,23 @@ def test_bad_input_is_a_value_error(rng):
         ferrofmm.helmholtz(x, np.full(200, np.nan + 0j), k=1.0, order=4)
     with pytest.raises(TypeError):
         ferrofmm.helmholtz(x, np.array(["a"] * 200), k=1.0, order=4)
+
+
+def test_values_at_sources_and_targets_in_one_run(rng):
+    x = rng.random((N, 3))
+    t = rng.random((400, 3)) + 0.5
+    f = rng.random((N, 3)) - 0.5
+    r = ferrofmm.stokes(x, f, targets=t, order=7, at_sources=True)
+    assert r.potential.shape == (400, 3)
+    assert r.at_sources.potential.shape == (N, 3)
+    assert rel(r.potential, stokes_direct(x, t, f)) < 1e-5
+    idx = np.random.default_rng(8).choice(N, SAMPLE, replace=False)
+    assert rel(r.at_sources.potential[idx], stokes_direct(x, x[idx], f)) < 1e-5
+    q = rng.random(N) - 0.5
+    fmm = ferrofmm.Fmm(x, t, order=7, gradient=True, at_sources=True)
+    assert fmm.n_targets == 400
+    r = fmm.evaluate(np.stack([q, -q]))
+    assert r.potential.shape == (2, 400) and r.gradient.shape == (2, 400, 3)
+    assert r.at_sources.gradient.shape == (2, N, 3)
+    assert np.allclose(r.at_sources.potential[0], -r.at_sources.potential[1])
+    assert ferrofmm.laplace(x, q, targets=t, order=5).at_sources is None

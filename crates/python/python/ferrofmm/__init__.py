@@ -175,6 +175,10 @@ class FmmResult:
         ``(m, 6)`` or ``(k, m, 6)``: the second derivatives with respect to
         the target, ``xx, yy, zz, xy, xz, yz``; ``None`` unless
         ``hessian=True``.
+    at_sources : FmmResult or None
+        With ``at_sources=True`` and separate targets: the values at the
+        sources (each excluding itself) from the same run, as an
+        ``FmmResult`` of their own (FMM3D's ``pg`` with ``pgt``).
     info : dict
         ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``dtype``,
         ``eps``, ``predicted_error``, ``measured_error`` (estimated on a
@@ -183,7 +187,7 @@ class FmmResult:
         and ``timings`` (seconds, ``setup`` and ``evaluate`` per operator).
     """
 
-    __slots__ = ("potential", "gradient", "hessian", "info")
+    __slots__ = ("potential", "gradient", "hessian", "info", "at_sources")
 
     def __init__(
         self,
@@ -196,6 +200,7 @@ class FmmResult:
         self.gradient = gradient
         self.hessian = hessian
         self.info = info
+        self.at_sources: Optional["FmmResult"] = None
 
     def __repr__(self) -> str:
         g = None if self.gradient is None else self.gradient.shape
@@ -262,6 +267,10 @@ class Fmm:
         Check ``eps`` on the first evaluation (a few percent of its time).
     cache_dir : str or os.PathLike, optional
         Directory for the on-disk operator cache.
+    at_sources : bool
+        With ``targets``: also evaluate at the sources in the same run
+        (each source excluding itself); ``evaluate`` then returns them as
+        ``result.at_sources``. The sources are added as targets.
     """
 
     def __init__(
@@ -283,6 +292,7 @@ class Fmm:
         hessian: bool = False,
         charges: bool = True,
         dipoles: bool = False,
+        at_sources: bool = False,
     ) -> None:
         charges, dipoles = bool(charges), bool(dipoles)
         if not (charges or dipoles):
@@ -292,6 +302,11 @@ class Fmm:
         ]
         src = _points("sources", sources)
         tgt = None if targets is None else _points("targets", targets)
+        # Values at the sources too: the sources lead the targets (a target
+        # on a source skips it, K(x, x) := 0).
+        self._n_at_sources = len(src) if (at_sources and tgt is not None) else 0
+        if self._n_at_sources:
+            tgt = np.concatenate([src, tgt.astype(src.dtype, copy=False)])
         run = _float_dtype(dtype) or src.dtype
         _check_eps_order(eps, order)
         if eps is None and order is None:
@@ -333,8 +348,8 @@ class Fmm:
 
     @property
     def n_targets(self) -> int:
-        """Number of targets."""
-        return self._native.n_targets
+        """Number of targets (without the sources added by ``at_sources``)."""
+        return self._native.n_targets - self._n_at_sources
 
     @property
     def dtype(self) -> np.dtype:
@@ -410,7 +425,7 @@ class Fmm:
         values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
         info = json.loads(info_json)
         self._last_info = info
-        m = self.n_targets
+        m = self._native.n_targets
         per = 10 if self._hessian else 4 if self._gradient else 1
         comps = _COMPONENTS[self._kernel]
         v = values.reshape(k, m, per, comps)
@@ -433,7 +448,26 @@ class Fmm:
             potential = potential[0]
             gradient = None if gradient is None else gradient[0]
             hessian = None if hessian is None else hessian[0]
-        return FmmResult(potential, gradient, info, hessian)
+        ns = self._n_at_sources
+        if not ns:
+            return FmmResult(potential, gradient, info, hessian)
+
+        # The target axis is the last of the potential's axes.
+        def split(a: Optional[np.ndarray], lo: int, hi: Optional[int]) -> Optional[np.ndarray]:
+            if a is None:
+                return None
+            axis = potential.ndim - (1 if self._kernel != "stokes" else 2)
+            index = [slice(None)] * a.ndim
+            index[axis] = slice(lo, hi)
+            return np.ascontiguousarray(a[tuple(index)])
+
+        result = FmmResult(
+            split(potential, ns, None), split(gradient, ns, None), info, split(hessian, ns, None)
+        )
+        result.at_sources = FmmResult(
+            split(potential, 0, ns), split(gradient, 0, ns), info, split(hessian, 0, ns)
+        )
+        return result
 
     def summary(self) -> Dict[str, Any]:
         """Tree, operator and parameter figures (a dict; as the CLI's ``--json``)."""
@@ -477,6 +511,7 @@ def laplace(
     leaf_size: Optional[int] = None,
     scheme: str = "auto",
     verify: bool = True,
+    at_sources: bool = False,
 ) -> FmmResult:
     """Laplace potentials ``phi(y) = sum_i q_i / (4 pi |y - x_i|)`` by the FMM.
 
@@ -514,6 +549,10 @@ def laplace(
         given); with ``order``, ``"svd"``.
     verify : bool
         Estimate the achieved error against direct summation on a sample.
+    at_sources : bool
+        With ``targets``: also the values at the sources (each excluding
+        itself) from the same run, as ``result.at_sources`` (FMM3D's ``pg``
+        with ``pgt``).
 
     Returns
     -------
@@ -532,7 +571,7 @@ def laplace(
     return _one_call(
         "laplace", None, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
-        leaf_size=leaf_size, scheme=scheme, verify=verify,
+        leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
     )
 
 
@@ -552,6 +591,7 @@ def yukawa(
     leaf_size: Optional[int] = None,
     scheme: str = "auto",
     verify: bool = True,
+    at_sources: bool = False,
 ) -> FmmResult:
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
 
@@ -561,7 +601,7 @@ def yukawa(
     return _one_call(
         "yukawa", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
-        leaf_size=leaf_size, scheme=scheme, verify=verify,
+        leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
     )
 
 
@@ -579,6 +619,7 @@ def helmholtz(
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
     verify: bool = True,
+    at_sources: bool = False,
 ) -> FmmResult:
     """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
 
@@ -602,7 +643,7 @@ def helmholtz(
     return _one_call(
         "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme="svd", verify=verify,
+        scheme="svd", verify=verify, at_sources=at_sources,
     )
 
 
@@ -618,6 +659,7 @@ def stokes(
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
     verify: bool = True,
+    at_sources: bool = False,
 ) -> FmmResult:
     """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
 
@@ -642,7 +684,7 @@ def stokes(
     return _one_call(
         "stokes", None, sources, forces, None, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme="svd", verify=verify,
+        scheme="svd", verify=verify, at_sources=at_sources,
     )
 
 
