@@ -41,15 +41,24 @@ impl ModifiedHelmholtz3d {
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        if k.is_finite() && k >= 0.0 {
-            Ok(ModifiedHelmholtz3d { k })
-        } else {
-            Err(KernelError::InvalidParameter {
-                name: "k",
-                value: k,
-                expected: "finite and >= 0",
-            })
-        }
+        check_wavenumber(k).map(|k| ModifiedHelmholtz3d { k })
+    }
+}
+
+/// `k` when it is a valid wavenumber (finite and `>= 0`) of either
+/// Helmholtz kernel.
+///
+/// # Errors
+/// [`KernelError::InvalidParameter`] otherwise.
+pub(crate) fn check_wavenumber(k: f64) -> Result<f64, KernelError> {
+    if k.is_finite() && k >= 0.0 {
+        Ok(k)
+    } else {
+        Err(KernelError::InvalidParameter {
+            name: "k",
+            value: k,
+            expected: "finite and >= 0",
+        })
     }
 }
 

@@ -66,15 +66,7 @@ impl Helmholtz3d {
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        if k.is_finite() && k >= 0.0 {
-            Ok(Helmholtz3d { k })
-        } else {
-            Err(KernelError::InvalidParameter {
-                name: "k",
-                value: k,
-                expected: "finite and >= 0",
-            })
-        }
+        crate::helmholtz::check_wavenumber(k).map(|k| Helmholtz3d { k })
     }
 }
 

@@ -81,21 +81,7 @@ impl Stokes3d {
         targets: &[T],
         out: &mut [T],
     ) {
-        if let Err(e) = crate::direct::check_lengths(
-            3,
-            SourceKind::Charge,
-            mode,
-            sources,
-            charges,
-            targets,
-            out,
-        ) {
-            panic!("stokes3d: {e}");
-        }
-        assert!(
-            !mode.has_hessian(),
-            "stokes3d: no Hessians (Kernel::supports)"
-        );
+        assert_evaluation(mode, sources, charges, targets, out);
         crate::stokes_p2p::stokes_p2p_with(
             level,
             self.scale(),
@@ -120,21 +106,7 @@ impl Stokes3d {
         targets: &[T],
         out: &mut [T],
     ) {
-        if let Err(e) = crate::direct::check_lengths(
-            3,
-            SourceKind::Charge,
-            mode,
-            sources,
-            charges,
-            targets,
-            out,
-        ) {
-            panic!("stokes3d: {e}");
-        }
-        assert!(
-            !mode.has_hessian(),
-            "stokes3d: no Hessians (Kernel::supports)"
-        );
+        assert_evaluation(mode, sources, charges, targets, out);
         let scale = T::from_f64(self.scale());
         let three = T::from_f64(3.0);
         let w = 3 * mode.values_per_target();
@@ -290,4 +262,27 @@ impl Kernel for Stokes3d {
             }
         }
     }
+}
+
+/// The contract of every Stokes evaluation: consistent lengths (three
+/// values per force and per output quantity) and no Hessians.
+///
+/// # Panics
+/// When it is broken.
+fn assert_evaluation<T: Real>(
+    mode: EvalMode,
+    sources: &[T],
+    forces: &[T],
+    targets: &[T],
+    out: &[T],
+) {
+    if let Err(e) =
+        crate::direct::check_lengths(3, SourceKind::Charge, mode, sources, forces, targets, out)
+    {
+        panic!("stokes3d: {e}");
+    }
+    assert!(
+        !mode.has_hessian(),
+        "stokes3d: no Hessians (Kernel::supports)"
+    );
 }
