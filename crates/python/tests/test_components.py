@@ -58,11 +58,13 @@ def test_helmholtz_charges_and_dipoles_meet_eps(rng):
     assert r.potential.shape == (N,) and r.potential.dtype == np.complex128
     assert r.gradient.shape == (N, 3) and r.gradient.dtype == np.complex128
     assert r.info["kernel"] == "helmholtz3d"
+    assert r.info["scheme"] == "fft"  # "auto" for a kernel with components
     idx = np.random.default_rng(5).choice(N, SAMPLE, replace=False)
     u, _ = helmholtz_direct(x, x[idx], k, q, n)
     assert rel(r.potential[idx], u) < 1e-5
-    # Charges alone: the gradient too.
-    r = ferrofmm.helmholtz(x, q, k=k, eps=1e-6, gradient=True)
+    # Charges alone, through SVD: the gradient too.
+    r = ferrofmm.helmholtz(x, q, k=k, eps=1e-6, gradient=True, scheme="svd")
+    assert r.info["scheme"] == "svd"
     u, g = helmholtz_direct(x, x[idx], k, q)
     assert rel(r.potential[idx], u) < 1e-5
     assert rel(r.gradient[idx], g) < 1e-5

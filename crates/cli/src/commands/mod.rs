@@ -60,7 +60,7 @@ pub enum SchemeArg {
     /// With --tolerance: svd or fft, whichever the cost model predicts
     /// faster for these points (tree, one evaluation and the SVD
     /// precomputation, which counts unless --cache-dir is given); without a
-    /// tolerance: svd.
+    /// tolerance: svd. For helmholtz:K and stokes: fft.
     Auto,
 }
 

@@ -262,7 +262,8 @@ class Fmm:
         M2L translation scheme. ``"auto"`` (default): with ``eps``, the
         SVD or the FFT scheme, whichever the cost model predicts faster for
         these points (the SVD precomputation counts unless ``cache_dir`` is
-        given); with ``order``, ``"svd"``.
+        given); with ``order``, ``"svd"``. For the Helmholtz and Stokes
+        kernels, ``"fft"``.
     verify : bool
         Check ``eps`` on the first evaluation (a few percent of its time).
     cache_dir : str or os.PathLike, optional
@@ -546,7 +547,8 @@ def laplace(
         M2L translation scheme. ``"auto"`` (default): with ``eps``, the
         SVD or the FFT scheme, whichever the cost model predicts faster for
         these points (the SVD precomputation counts unless ``cache_dir`` is
-        given); with ``order``, ``"svd"``.
+        given); with ``order``, ``"svd"``. For the Helmholtz and Stokes
+        kernels, ``"fft"``.
     verify : bool
         Estimate the achieved error against direct summation on a sample.
     at_sources : bool
@@ -618,6 +620,7 @@ def helmholtz(
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
+    scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
 ) -> FmmResult:
@@ -628,9 +631,10 @@ def helmholtz(
     (real arrays are taken as complex); ``.potential`` is complex ``(m,)``,
     ``.gradient`` complex ``(m, 3)``. The low-frequency method: ``k`` times
     the width of the points' bounding cube is limited (about 6 wavelengths
-    across), beyond it ``ValueError`` names the limit. No Hessians. The
-    M2L scheme is the SVD one (the FFT scheme handles scalar kernels). The
-    other parameters are as for :func:`laplace`.
+    across), beyond it ``ValueError`` names the limit. No Hessians.
+    ``scheme="auto"`` is the FFT scheme (its precomputation is 20-50x
+    cheaper than SVD's at equal accuracy). The other parameters are as for
+    :func:`laplace`.
 
     Examples
     --------
@@ -643,7 +647,7 @@ def helmholtz(
     return _one_call(
         "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme="svd", verify=verify, at_sources=at_sources,
+        scheme=scheme, verify=verify, at_sources=at_sources,
     )
 
 
@@ -658,6 +662,7 @@ def stokes(
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
+    scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
 ) -> FmmResult:
@@ -668,8 +673,9 @@ def stokes(
     normalisation). ``forces`` is ``(n, 3)`` or ``(k, n, 3)``; ``.potential`` is
     the velocity ``(m, 3)``, ``.gradient`` the velocity gradient
     ``(m, 3, 3)`` with ``[j, a, c] = d u_a / d x_c`` at target ``j``. No
-    dipoles (stresslets) and no Hessians. The M2L scheme is the SVD one.
-    The other parameters are as for :func:`laplace`.
+    dipoles (stresslets) and no Hessians. ``scheme="auto"`` is the FFT
+    scheme (as for :func:`helmholtz`). The other parameters are as for
+    :func:`laplace`.
 
     Examples
     --------
@@ -684,7 +690,7 @@ def stokes(
     return _one_call(
         "stokes", None, sources, forces, None, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme="svd", verify=verify, at_sources=at_sources,
+        scheme=scheme, verify=verify, at_sources=at_sources,
     )
 
 

@@ -38,6 +38,23 @@
 //! computed and kept in one checksummed `f64` file (kind `m2l-fft`, shared
 //! by `f32` and `f64`); a damaged file is rebuilt.
 //!
+//! # Kernels with several components
+//!
+//! For a kernel with `c` [components](ferrofmm_kernels::Kernel::components)
+//! (a complex kernel in its real `2 x 2` form, the `3 x 3` Stokeslet) the
+//! densities and check potentials are `c` lattice functions per box, and
+//!
+//! ```text
+//! check_a[j] = sum_b sum_i T_{v,ab}[j - i] phi_b[i],    a, b < c,
+//! ```
+//!
+//! `c^2` convolutions per pair: `c` forward FFTs per source box, `c`
+//! inverse FFTs per target box, `c^2` kernel spectra per vector and `c^2`
+//! pointwise products per frequency, against `c^2 n^2` for the dense
+//! scheme (the same ratio as for `c = 1`). A complex kernel pays twice
+//! what one complex convolution would (its four real spectra hold the
+//! real and imaginary parts twice), for one code path for every kernel.
+//!
 //! # Siblings together
 //!
 //! The products are organised by parent (as in PVFMM, ExaFMM-T and kifmm):
@@ -62,7 +79,7 @@ use ferrofmm_kernels::{Kernel, Real, SimdLevel};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
-use self::hadamard::{FREQ_BLOCK, Products, SLAB_VECTORS, W, block_tables};
+use self::hadamard::{FREQ_BLOCK, Many, One, Products, SLAB_VECTORS, W, block_tables};
 use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::cache::{
     CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
@@ -99,7 +116,10 @@ pub struct FftConfig;
 /// assert!(check.iter().all(|&x| x > 0.0));
 /// ```
 pub struct FftM2l<T: Real> {
+    /// Surface points `n` (an expansion is `c n` values).
     n: usize,
+    /// Components `c` of the kernel.
+    components: usize,
     /// Expansion order `p`: lattice points per axis.
     order: usize,
     levels: LevelMap,
@@ -109,7 +129,7 @@ pub struct FftM2l<T: Real> {
     /// Frequency blocks of a spectrum.
     blocks: usize,
     /// `slabs[set]`: the kernel spectra `That_v` of the set, frequency
-    /// block by frequency block (`[block][SLAB_VECTORS][W]`, see
+    /// block by frequency block (`[block][SLAB_VECTORS][c][c][W]`, see
     /// [`hadamard`]).
     slabs: Vec<Vec<f64>>,
     /// `present[set][v]`: whether `That_v` was computed.
@@ -119,19 +139,21 @@ pub struct FftM2l<T: Real> {
 }
 
 /// What a cached FFT scheme holds: one kernel slab per set, each
-/// `blocks x SLAB_VECTORS x W` values (always `f64`, whatever `T`; every
-/// vector of every set).
+/// `blocks x SLAB_VECTORS x c^2 x W` values (always `f64`, whatever `T`;
+/// every vector of every set).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 struct FftLayout {
     /// Frequency blocks of a spectrum.
     blocks: usize,
     /// Operator sets.
     sets: usize,
+    /// Components `c` of the kernel.
+    components: usize,
 }
 
 impl FftLayout {
     fn slab_len(&self) -> usize {
-        self.blocks * SLAB_VECTORS * W
+        self.blocks * SLAB_VECTORS * self.components * self.components * W
     }
 }
 
@@ -169,14 +191,16 @@ impl CachePayload<f64> for FftSlabs {
 }
 
 impl<T: Real> FftM2l<T> {
-    /// The kernel grid `T_v` at half-width `h`, transformed.
-    fn kernel_spectrum<K: Kernel>(
+    /// The kernel grids `T_v` at half-width `h`, transformed: `c^2`
+    /// spectra, entry `(a, b)` of the `c x c` block at `a c + b`.
+    fn kernel_spectra<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         fft: &Fft3d,
         h: f64,
         v: [i32; 3],
-    ) -> Result<Vec<Complex<f64>>, FieldError> {
+    ) -> Result<Vec<Vec<Complex<f64>>>, FieldError> {
+        let c = kernel.components();
         let p = params.order as i32;
         let grid = grid_size(params.order);
         let r = params.radii.upward_equivalent;
@@ -189,7 +213,8 @@ impl<T: Real> FftM2l<T> {
             .iter()
             .flat_map(|m| (0..3).map(move |d| -r * h + delta * m[d] as f64))
             .collect();
-        let mut values = vec![0.0f64; offsets.len()];
+        // One source: row `c m + a`, column `b` at `(c m + a) c + b`.
+        let mut values = vec![0.0f64; offsets.len() * c * c];
         kernel.assemble::<f64>(&source, &targets, &mut values);
         if values.iter().any(|x| !x.is_finite()) {
             return Err(FieldError::NonFiniteKernel {
@@ -198,17 +223,23 @@ impl<T: Real> FftM2l<T> {
             });
         }
         let wrap = |m: i32| m.rem_euclid(grid as i32) as usize;
+        let mut work = fft.workspace();
         let mut real = vec![0.0f64; fft.real_len()];
-        for (m, value) in offsets.iter().zip(values) {
-            real[(wrap(m[0]) * grid + wrap(m[1])) * grid + wrap(m[2])] = value;
-        }
-        let mut spectrum = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
-        fft.forward(&real, &mut spectrum, grid, &mut fft.workspace());
-        Ok(spectrum)
+        let spectra = (0..c * c)
+            .map(|ab| {
+                for (m, block) in offsets.iter().zip(values.chunks_exact(c * c)) {
+                    real[(wrap(m[0]) * grid + wrap(m[1])) * grid + wrap(m[2])] = block[ab];
+                }
+                let mut spectrum = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
+                fft.forward(&real, &mut spectrum, grid, &mut work);
+                spectrum
+            })
+            .collect();
+        Ok(spectra)
     }
 
     /// The spectra of the source boxes of sibling group `g` (missing
-    /// children zero) into `out` (`[block][8][W]`). `scratch.grid` must be
+    /// children zero) into `out` (`[block][8][c][W]`). `scratch.grid` must be
     /// zero off the lattice: a scratch used only here is (only lattice
     /// points are ever written to it; the inverse transforms use their own).
     fn source_group(
@@ -219,22 +250,25 @@ impl<T: Real> FftM2l<T> {
         scratch: &mut Scratch,
         out: &mut [f64],
     ) {
-        let n = self.n;
+        let c = self.components;
+        let len = c * self.n;
         for cs in 0..8 {
             let Some(col) = siblings.source_column(8 * g + cs) else {
                 continue;
             };
-            let phi = &multipoles[col * n..(col + 1) * n];
-            for (&at, &x) in self.lattice.iter().zip(phi) {
-                scratch.grid[at] = x.to_f64();
-            }
-            let spectrum = &mut scratch.spectrum;
-            self.fft
-                .forward(&scratch.grid, spectrum, self.order, &mut scratch.work);
-            for (f, c) in spectrum.iter().enumerate() {
-                let at = ((f / FREQ_BLOCK) * 8 + cs) * W + f % FREQ_BLOCK;
-                out[at] = c.re;
-                out[at + FREQ_BLOCK] = c.im;
+            let phi = &multipoles[col * len..(col + 1) * len];
+            for b in 0..c {
+                for (&at, x) in self.lattice.iter().zip(phi[b..].iter().step_by(c)) {
+                    scratch.grid[at] = x.to_f64();
+                }
+                let spectrum = &mut scratch.spectrum;
+                self.fft
+                    .forward(&scratch.grid, spectrum, self.order, &mut scratch.work);
+                for (f, z) in spectrum.iter().enumerate() {
+                    let at = (((f / FREQ_BLOCK) * 8 + cs) * c + b) * W + f % FREQ_BLOCK;
+                    out[at] = z.re;
+                    out[at + FREQ_BLOCK] = z.im;
+                }
             }
         }
     }
@@ -328,14 +362,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     ) -> Result<Self, FieldError> {
         params.validate()?;
         check_radii(params)?;
-        if kernel.components() != 1 {
-            return Err(FieldError::UnsupportedKernel {
-                scheme: "fft",
-                kernel: kernel.name(),
-                reason: "the FFT scheme convolves scalar kernels only; use the svd or dense scheme",
-            });
-        }
         params.monitor.check()?;
+        let c = kernel.components();
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
         let grid = grid_size(params.order);
         let fft = Fft3d::new(grid);
@@ -353,25 +381,29 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         // only the used vectors (with one, `planned_sets` gives all 316).
         let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
         let n_sets = sets.len();
-        let slab_len = blocks * SLAB_VECTORS * W;
+        let cc = c * c;
+        let slab_len = blocks * SLAB_VECTORS * cc * W;
         let compute_set = |set: usize, wanted: &[usize]| -> Result<Vec<f64>, FieldError> {
             let h = levels.set_half_width(set);
-            let computed: Vec<(usize, Vec<Complex<f64>>)> = wanted
+            let computed: Vec<(usize, Vec<Vec<Complex<f64>>>)> = wanted
                 .par_iter()
                 .map(|&vi| {
                     params.monitor.check()?;
                     Ok((
                         vi,
-                        Self::kernel_spectrum(kernel, params, &fft, h, vectors[vi])?,
+                        Self::kernel_spectra(kernel, params, &fft, h, vectors[vi])?,
                     ))
                 })
                 .collect::<Result<_, FieldError>>()?;
             let mut slab = vec![0.0f64; slab_len];
-            for (vi, spectrum) in computed {
-                for (f, c) in spectrum.iter().enumerate() {
-                    let at = ((f / FREQ_BLOCK) * SLAB_VECTORS + vi) * W + f % FREQ_BLOCK;
-                    slab[at] = c.re;
-                    slab[at + FREQ_BLOCK] = c.im;
+            for (vi, spectra) in computed {
+                for (ab, spectrum) in spectra.iter().enumerate() {
+                    for (f, z) in spectrum.iter().enumerate() {
+                        let at =
+                            (((f / FREQ_BLOCK) * SLAB_VECTORS + vi) * cc + ab) * W + f % FREQ_BLOCK;
+                        slab[at] = z.re;
+                        slab[at + FREQ_BLOCK] = z.im;
+                    }
                 }
             }
             Ok(slab)
@@ -385,6 +417,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             let layout = FftLayout {
                 blocks,
                 sets: n_sets,
+                components: c,
             };
             let compute = || -> Result<FftSlabs, FieldError> {
                 let slabs = sets
@@ -417,6 +450,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             .collect();
         Ok(FftM2l {
             n: n_surface_points(params.order),
+            components: c,
             order: params.order,
             levels,
             fft,
@@ -437,25 +471,29 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         usage: &M2lUsage,
     ) -> PrecomputeEstimate {
         let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
+        // `c^2` kernel spectra per vector.
+        let cc = (kernel.components() * kernel.components()) as f64;
         let m: usize = sets.iter().map(Vec::len).sum();
         let grid = grid_size(params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
         let threads = effective_threads() as f64;
         // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
-        let flops = m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
+        let flops = cc * m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
         // The slabs hold every vector of a used set; each computed spectrum
         // is held once more until it is filed.
         let used_sets = sets.iter().filter(|w| !w.is_empty()).count() as f64;
         PrecomputeEstimate {
             matrices: m,
-            peak_bytes: ((used_sets * SLAB_VECTORS as f64 + m as f64) * spectrum * 16.0) as u64,
+            peak_bytes: ((used_sets * SLAB_VECTORS as f64 + m as f64) * cc * spectrum * 16.0)
+                as u64,
             flops,
             seconds: flops / (crate::precompute::FLOPS_PER_THREAD * threads),
         }
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
-        let n = self.n;
+        let c = self.components;
+        let n = c * self.n;
         check_lengths(n, interactions, multipoles, check);
         if interactions.is_empty() {
             return;
@@ -464,7 +502,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         self.assert_present(set, interactions);
         let siblings = interactions.sibling_blocks();
         let tables = block_tables(siblings);
-        let group_len = self.blocks * 8 * W;
+        let group_len = self.blocks * 8 * c * W;
         let scratch = || Scratch {
             grid: vec![0.0f64; self.fft.real_len()],
             spectrum: vec![Complex::new(0.0, 0.0); self.fft.spectrum_len()],
@@ -501,18 +539,21 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             |(scratch, targets), (groups, col0, out)| {
                 targets.clear();
                 targets.resize(groups.len() * group_len, 0.0);
-                run_task(
-                    level_simd,
-                    Products {
-                        kernels,
-                        sources: &sources,
-                        siblings,
-                        tables: &tables,
-                        first: groups.start,
-                        targets,
-                        blocks: self.blocks,
-                    },
-                );
+                let products = Products {
+                    components: One,
+                    kernels,
+                    sources: &sources,
+                    siblings,
+                    tables: &tables,
+                    first: groups.start,
+                    targets,
+                    blocks: self.blocks,
+                };
+                if c == 1 {
+                    run_task(level_simd, products);
+                } else {
+                    run_task(level_simd, products.with_components(Many(c)));
+                }
                 for (i, g) in groups.enumerate() {
                     let hit = siblings.targets_hit(g);
                     for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
@@ -520,19 +561,21 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                             .target_column(8 * g + ct)
                             .expect("a target slot with pairs has a column");
                         let y = &targets[i * group_len..(i + 1) * group_len];
-                        for (f, c) in scratch.spectrum.iter_mut().enumerate() {
-                            let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
-                            *c = Complex::new(y[at], y[at + FREQ_BLOCK]);
-                        }
-                        let Scratch {
-                            grid,
-                            spectrum,
-                            work,
-                        } = scratch;
-                        self.fft.inverse(spectrum, grid, self.order, work);
                         let column = &mut out[(col - col0) * n..(col - col0 + 1) * n];
-                        for (o, &at) in column.iter_mut().zip(&self.lattice) {
-                            *o += T::from_f64(scale * grid[at]);
+                        for a in 0..c {
+                            for (f, z) in scratch.spectrum.iter_mut().enumerate() {
+                                let at = (((f / FREQ_BLOCK) * 8 + ct) * c + a) * W + f % FREQ_BLOCK;
+                                *z = Complex::new(y[at], y[at + FREQ_BLOCK]);
+                            }
+                            let Scratch {
+                                grid,
+                                spectrum,
+                                work,
+                            } = scratch;
+                            self.fft.inverse(spectrum, grid, self.order, work);
+                            for (o, &at) in column[a..].iter_mut().step_by(c).zip(&self.lattice) {
+                                *o += T::from_f64(scale * grid[at]);
+                            }
                         }
                     }
                 }
@@ -550,6 +593,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
-        8.0 * self.fft.spectrum_len() as f64 * interactions.len() as f64
+        let cc = (self.components * self.components) as f64;
+        8.0 * cc * self.fft.spectrum_len() as f64 * interactions.len() as f64
     }
 }

@@ -1,0 +1,13 @@
+//! Integration tests of the `ferrofmm` command, in one binary: each file below is a module, so the generic
+//! driver is compiled once for all of them instead of once per file.
+
+mod bad_input;
+mod common;
+mod demo;
+mod eval;
+mod output_safety;
+mod physics;
+mod pipes;
+mod precompute;
+mod reporting;
+mod sweep;

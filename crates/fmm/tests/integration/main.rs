@@ -1,0 +1,21 @@
+//! Integration tests of ferrofmm-fmm, in one binary: each file below is a module, so the generic
+//! driver is compiled once for all of them instead of once per file.
+
+mod accuracy;
+mod components;
+mod concurrency;
+mod determinism;
+mod errors;
+mod fft_scheme;
+mod memory;
+mod outliers;
+mod proptest_fmm;
+mod sources;
+mod stability_cache;
+mod stability_common;
+mod stability_geometry;
+mod stability_input;
+mod stability_numerics;
+mod svd_truncation;
+mod tolerance;
+mod tree_fmm;
