@@ -66,8 +66,9 @@ pub enum FieldError {
         reason: String,
     },
 
-    /// The M2L scheme cannot translate this kernel (e.g. the FFT scheme and
-    /// a kernel with several components).
+    /// The M2L scheme cannot translate this kernel (for a scheme written
+    /// outside the crate, say, for scalar kernels only; the built-in
+    /// schemes take every kernel).
     #[error("the {scheme} M2L scheme does not handle kernel `{kernel}`: {reason}")]
     UnsupportedKernel {
         /// The scheme's name.

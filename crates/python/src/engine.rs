@@ -275,8 +275,8 @@ fn build_with<T: Float, K: Kernel>(
         b = b.cache_dir(dir);
     }
     let scheme = match (o.scheme, o.eps) {
-        // Kernels with several components: FFT (a precomputation 20-50x
-        // cheaper than SVD's at equal accuracy; docs/kernels.md).
+        // Kernels with several components: FFT (builds 7-40x faster
+        // than SVD at N = 2e4, equal accuracy; docs/kernels.md).
         (SchemeChoice::Auto, _) if o.kernel.components() > 1 => SchemeChoice::Fft,
         (SchemeChoice::Auto, Some(eps)) => {
             let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();

@@ -131,10 +131,10 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         (p, _, _) => p,
     };
     let scheme = match (settings.scheme, settings.tolerance, &points) {
-        // Kernels with several components: FFT, whose precomputation is
-        // 20-50x cheaper than SVD's `c n`-row factorisations at equal
-        // accuracy, and whose M2L is within 1.6x of SVD's either way
-        // (docs/kernels.md).
+        // Kernels with several components: FFT, which builds 7-40x faster
+        // than SVD (no factorisations of `c n` rows) to the same accuracy,
+        // and whose M2L is within 1.5x of SVD's either way (N = 2e4,
+        // docs/kernels.md).
         (SchemeArg::Auto, _, _) if settings.kernel.components() > 1 => SchemeArg::Fft,
         (SchemeArg::Auto, Some(eps), Some((s, t))) => {
             auto_scheme(s, *t, eps, mode, precision, settings.cache_dir.is_some())?

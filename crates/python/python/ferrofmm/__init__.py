@@ -632,8 +632,8 @@ def helmholtz(
     ``.gradient`` complex ``(m, 3)``. The low-frequency method: ``k`` times
     the width of the points' bounding cube is limited (about 6 wavelengths
     across), beyond it ``ValueError`` names the limit. No Hessians.
-    ``scheme="auto"`` is the FFT scheme (its precomputation is 20-50x
-    cheaper than SVD's at equal accuracy). The other parameters are as for
+    ``scheme="auto"`` is the FFT scheme (it builds 7-40x faster
+    than SVD at N = 2e4, to the same accuracy). The other parameters are as for
     :func:`laplace`.
 
     Examples
