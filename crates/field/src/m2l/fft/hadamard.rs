@@ -249,12 +249,13 @@ fn dense_blocks<S: Simd<f64>, C: Components>(
     let l = S::LANES;
     // Target rows per pass: eight with 8 lanes (16 accumulators), four
     // with fewer (so that accumulators and operands fit the register file).
+    // A constant of the instruction set, and a divisor of the `8 c` rows,
+    // so every pass is full and its loops unroll.
     let per_pass = if l >= FREQ_BLOCK { 8 } else { 4 };
     let rows = 8 * c;
     let zero = s.splat(0.0);
     for lane0 in (0..FREQ_BLOCK).step_by(l) {
         for r0 in (0..rows).step_by(per_pass) {
-            let pass = per_pass.min(rows - r0);
             // Target child and component of each row of the pass.
             let child: [usize; 8] = std::array::from_fn(|i| (r0 + i) / c);
             let comp: [usize; 8] = std::array::from_fn(|i| (r0 + i) % c);
@@ -268,7 +269,7 @@ fn dense_blocks<S: Simd<f64>, C: Components>(
                         let xr = s.load(&x[q + lane0..]);
                         let xi = s.load(&x[q + FREQ_BLOCK + lane0..]);
                         let nxi = s.sub(zero, xi);
-                        for (i, a) in acc.iter_mut().enumerate().take(pass) {
+                        for (i, a) in acc.iter_mut().enumerate().take(per_pass) {
                             let entry = table.entries[cs][child[i]] as usize;
                             let k = &slab[((entry * c + comp[i]) * c + b) * W..][..W];
                             let kr = s.load(&k[lane0..]);
@@ -279,7 +280,7 @@ fn dense_blocks<S: Simd<f64>, C: Components>(
                     }
                 }
             }
-            for (i, a) in acc.iter().enumerate().take(pass) {
+            for (i, a) in acc.iter().enumerate().take(per_pass) {
                 s.store(a[0], &mut out[(r0 + i) * W + lane0..]);
                 s.store(a[1], &mut out[(r0 + i) * W + FREQ_BLOCK + lane0..]);
             }
