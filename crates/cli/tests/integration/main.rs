@@ -1,5 +1,6 @@
-//! Integration tests of the `ferrofmm` command, in one binary: each file below is a module, so the generic
-//! driver is compiled once for all of them instead of once per file.
+//! Integration tests of the `ferrofmm` command, in one binary: each file below
+//! is a module, so the generic driver is compiled once for all of them instead
+//! of once per file.
 
 mod bad_input;
 mod common;

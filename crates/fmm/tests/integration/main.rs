@@ -1,5 +1,6 @@
-//! Integration tests of ferrofmm-fmm, in one binary: each file below is a module, so the generic
-//! driver is compiled once for all of them instead of once per file.
+//! Integration tests of ferrofmm-fmm, in one binary: each file below is a
+//! module, so the generic driver is compiled once for all of them instead of
+//! once per file.
 
 mod accuracy;
 mod components;

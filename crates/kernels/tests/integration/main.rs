@@ -1,5 +1,7 @@
-//! Integration tests of ferrofmm-kernels (the process-global SIMD override has its own binary, `simd_level`), in one binary: each file below is a module, so the generic
-//! driver is compiled once for all of them instead of once per file.
+//! Integration tests of ferrofmm-kernels (the process-global SIMD override has
+//! its own binary, `simd_level`), in one binary: each file below is a module,
+//! so the generic driver is compiled once for all of them instead of once per
+//! file.
 
 mod assemble;
 mod common;
