@@ -167,23 +167,29 @@ impl CostModel {
     /// The model of a kernel with `c` [components](ferrofmm_kernels::Kernel::components):
     /// expansions hold `c n` values, so the operator products per box and
     /// the compressed M2L (whose ranks grow about `c`-fold) cost `c^2`
-    /// times as much, the gathers `c` times; the kernel evaluations are
+    /// times as much, the gathers `c` times; the FFT scheme's pointwise
+    /// products (`c^2` spectra per pair) `c^2` times, its transforms (`c`
+    /// per box each way) `c` times; the kernel evaluations are
     /// [`CostModel::scaled_kernel`]'s to scale.
     ///
     /// ```
     /// use ferrofmm_fmm::tuning::CostModel;
-    /// let m = CostModel::default().with_components(2);
-    /// assert_eq!(m.m2l_flop, 4.0 * CostModel::default().m2l_flop);
-    /// assert_eq!(m.p2p_pair, CostModel::default().p2p_pair);
+    /// let (one, m) = (CostModel::default(), CostModel::default().with_components(3));
+    /// assert_eq!(m.m2l_flop, 9.0 * one.m2l_flop);
+    /// assert_eq!(m.fft_pair, 9.0 * one.fft_pair);
+    /// assert_eq!(m.fft_box, 3.0 * one.fft_box);
+    /// assert_eq!(m.p2p_pair, one.p2p_pair);
     /// ```
     pub fn with_components(self, c: usize) -> Self {
         let c = c as f64;
         CostModel {
-            dense: self.dense * c * c,
+            dense: self.dense * (c * c),
             box_surface: self.box_surface * c,
-            m2l_flop: self.m2l_flop * c * c,
+            m2l_flop: self.m2l_flop * (c * c),
             m2l_pair: self.m2l_pair * c,
-            m2l_box: self.m2l_box * c * c,
+            m2l_box: self.m2l_box * (c * c),
+            fft_pair: self.fft_pair * (c * c),
+            fft_box: self.fft_box * c,
             ..self
         }
     }
