@@ -29,7 +29,7 @@ use std::ops::Range;
 use std::time::Instant;
 
 use ferrofmm_field::{M2lScheme, M2lUsage, MAX_ORDER, MIN_ORDER, OperatorParams};
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use ferrofmm_tree::Octree;
 
 use crate::FmmError;
@@ -69,6 +69,7 @@ pub struct LocalTree<'a> {
 pub struct TreeFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     kernel: K,
     mode: EvalMode,
+    kind: SourceKind,
     unit_surface: Vec<f64>,
     part: TreePart<T, S>,
     setup: SetupTimings,
@@ -152,6 +153,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         Ok(TreeFmm {
             kernel,
             mode,
+            kind: SourceKind::Charge,
             unit_surface,
             part: TreePart {
                 tree,
@@ -172,9 +174,25 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         Ctx {
             kernel: &self.kernel,
             mode: self.mode,
-            kind: ferrofmm_kernels::SourceKind::Charge,
+            kind: self.kind,
             unit_surface: &self.unit_surface,
         }
+    }
+
+    /// The same passes for sources of `kind` (charges, the default;
+    /// dipoles; or both): the charge vectors the passes take then hold
+    /// [`Kernel::values_per_source`] values per source, interleaved
+    /// (`c` per charge, `3 c` per dipole for a kernel with `c`
+    /// components). The operators do not depend on it.
+    #[must_use]
+    pub fn with_source_kind(mut self, kind: SourceKind) -> Self {
+        self.kind = kind;
+        self
+    }
+
+    /// What each source carries.
+    pub fn source_kind(&self) -> SourceKind {
+        self.kind
     }
 
     /// The tree.
@@ -221,7 +239,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     }
 
     fn check_charges(&self, charges: &[T]) -> Result<(), FmmError> {
-        let expected = self.part.sources.len() / 3;
+        let expected = self.kernel.values_per_source(self.kind) * self.part.sources.len() / 3;
         if charges.len() != expected {
             return Err(FmmError::ChargeCount {
                 expected,
@@ -232,8 +250,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     }
 
     /// P2M and M2M: the multipole (upward equivalent density) of every box,
-    /// `n` values per box in box order, from one charge per source (in the
-    /// order of the tree's source ranges).
+    /// `n` values per box in box order, from the densities of the sources
+    /// in the order of the tree's source ranges
+    /// ([`Kernel::values_per_source`] each for the [source
+    /// kind](TreeFmm::with_source_kind): one charge per source for a scalar
+    /// kernel).
     ///
     /// # Errors
     /// [`FmmError::ChargeCount`] for a charge vector of the wrong length.

@@ -66,6 +66,7 @@
 
 #![warn(missing_docs)]
 
+mod choice;
 mod direct;
 mod error;
 mod helmholtz;
@@ -82,6 +83,7 @@ mod simd;
 mod stokes;
 mod stokes_p2p;
 
+pub use choice::{KernelChoice, KernelVisitor, ParseKernelError};
 pub use direct::{
     DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,
     direct_sum_checked, direct_sum_sources, direct_sum_sources_checked,

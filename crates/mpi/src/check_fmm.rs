@@ -6,7 +6,9 @@
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::FmmBuilder;
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d};
+use ferrofmm_kernels::{
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, SourceKind, Stokes3d,
+};
 use ferrofmm_mpi::{
     CHECK_GEOMETRIES, DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree,
     Geometry, InputProblem,
@@ -24,7 +26,10 @@ pub struct FmmCheckArgs {
     #[arg(long, default_value = "all")]
     geometry: String,
     /// Kernel and scheme pairs (comma-separated) or `all`: laplace-svd,
-    /// laplace-dense, laplace-fft, helmholtz-svd, helmholtz-fft.
+    /// laplace-dense, laplace-fft, helmholtz-svd, helmholtz-fft (modified
+    /// Helmholtz, k = 3), oscillatory-svd, oscillatory-fft (Helmholtz
+    /// exp(ikr)/(4 pi r), k = 4: complex charges), stokes-svd, stokes-fft
+    /// (forces), dipoles-svd (Laplace, charges and dipoles).
     #[arg(long, default_value = "all")]
     method: String,
     /// Layouts of the input points over the ranks (see `check`).
@@ -47,29 +52,50 @@ pub struct FmmCheckArgs {
     seed: u64,
 }
 
-const METHODS: [&str; 5] = [
+const METHODS: [&str; 10] = [
     "laplace-svd",
     "laplace-dense",
     "laplace-fft",
     "helmholtz-svd",
     "helmholtz-fft",
+    "oscillatory-svd",
+    "oscillatory-fft",
+    "stokes-svd",
+    "stokes-fft",
+    "dipoles-svd",
 ];
 
-/// Zero-mean charges, uniform in `[-0.5, 0.5)` (`ferrofmm_fmm::charges`).
-fn charges(n: usize, seed: u64) -> Vec<f64> {
-    ferrofmm_fmm::charges(n, seed)
+/// Zero-mean densities, uniform in `[-0.5, 0.5)` (`ferrofmm_fmm::charges`),
+/// `nq` per point.
+fn charges(n: usize, nq: usize, seed: u64) -> Vec<f64> {
+    ferrofmm_fmm::charges(nq * n, seed)
+}
+
+/// The densities of the points `ids`, `nq` each.
+fn pick(q: &[f64], ids: &[usize], nq: usize) -> Vec<f64> {
+    ids.iter()
+        .flat_map(|&i| q[nq * i..nq * (i + 1)].iter().copied())
+        .collect()
 }
 
 /// Relative L2 differences (potential, gradient) over all ranks, of
-/// `got[i]` (4 values per point) against `want[ids[i]]`.
-fn differences(world: &SimpleCommunicator, got: &[f64], want: &[f64], ids: &[usize]) -> [f64; 2] {
+/// `got[i]` (`w` values per point, the first `c` the potential) against
+/// `want[ids[i]]`.
+fn differences(
+    world: &SimpleCommunicator,
+    got: &[f64],
+    want: &[f64],
+    ids: &[usize],
+    w: usize,
+    c: usize,
+) -> [f64; 2] {
     let mut s = [0.0f64; 4];
     for (i, &id) in ids.iter().enumerate() {
-        for c in 0..4 {
-            let (g, w) = (got[4 * i + c], want[4 * id + c]);
-            let k = usize::from(c > 0);
-            s[2 * k] += (g - w) * (g - w);
-            s[2 * k + 1] += w * w;
+        for j in 0..w {
+            let (g, x) = (got[w * i + j], want[w * id + j]);
+            let k = usize::from(j >= c);
+            s[2 * k] += (g - x) * (g - x);
+            s[2 * k + 1] += x * x;
         }
     }
     let mut all = [0.0f64; 4];
@@ -88,8 +114,9 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
     layout: &str,
     a: &FmmCheckArgs,
     kernel: K,
-    config: S::Config,
+    sources: SourceKind,
 ) -> Result<f64, String> {
+    let config = S::Config::default();
     let n = all.len() / 3;
     let all_shares = shares(layout, n, world.size() as usize);
     let share = &all_shares[world.rank() as usize];
@@ -100,9 +127,12 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
     let dtree = DistributedTree::build(world, &mine, &DistOptions::adaptive(a.leaf_size))
         .map_err(|e| e.to_string())?;
     let options = DistFmmOptions {
-        order: a.order,
-        mode: EvalMode::PotentialGradient,
+        sources,
+        ..DistFmmOptions::new(a.order, EvalMode::PotentialGradient)
     };
+    let c = kernel.components();
+    let nq = kernel.values_per_source(sources);
+    let w = kernel.values_per_target(EvalMode::PotentialGradient);
     let dfmm = DistributedFmm::<f64, K, S>::build(world, &dtree, kernel.clone(), &config, &options)
         .map_err(|e| e.to_string())?;
     let single = FmmBuilder::new(all)
@@ -111,6 +141,7 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
         .leaf_size(a.leaf_size)
         .order(a.order)
         .mode(EvalMode::PotentialGradient)
+        .source_kind(sources)
         .build_with::<S>(config)
         .map_err(|e| e.to_string())?;
     if single.n_clusters() != 1 {
@@ -119,11 +150,12 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
     let mut worst = 0.0f64;
     // Two charge vectors on one build, in input order; then one in tree order.
     for (k, seed) in [a.seed + 100, a.seed + 200].into_iter().enumerate() {
-        let q = charges(n, seed);
+        let q = charges(n, nq, seed);
         let want = single.evaluate(&q).map_err(|e| e.to_string())?;
-        let my_q: Vec<f64> = share.iter().map(|&i| q[i]).collect();
-        let (got, _) = dfmm.evaluate(world, &my_q).map_err(|e| e.to_string())?;
-        let d = differences(world, &got, &want, share);
+        let (got, _) = dfmm
+            .evaluate(world, &pick(&q, share, nq))
+            .map_err(|e| e.to_string())?;
+        let d = differences(world, &got, &want, share, w, c);
         worst = worst.max(d[0]).max(d[1]);
         if k == 1 {
             // Tree order: global ids index the concatenation of the shares.
@@ -134,15 +166,43 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
                 .iter()
                 .map(|&id| order[id as usize])
                 .collect();
-            let q_sorted: Vec<f64> = ids.iter().map(|&i| q[i]).collect();
             let (got, _) = dfmm
-                .evaluate_sorted(world, &q_sorted)
+                .evaluate_sorted(world, &pick(&q, &ids, nq))
                 .map_err(|e| e.to_string())?;
-            let d = differences(world, &got, &want, &ids);
+            let d = differences(world, &got, &want, &ids, w, c);
             worst = worst.max(d[0]).max(d[1]);
         }
     }
     Ok(worst)
+}
+
+/// One kernel-and-scheme pair of [`METHODS`].
+fn run_method(
+    world: &SimpleCommunicator,
+    all: &[f64],
+    layout: &str,
+    a: &FmmCheckArgs,
+    method: &str,
+) -> Result<f64, String> {
+    let yukawa = ModifiedHelmholtz3d::new(3.0).map_err(|e| e.to_string())?;
+    let oscillatory = Helmholtz3d::new(4.0).map_err(|e| e.to_string())?;
+    let stokes = Stokes3d::default();
+    let charge = SourceKind::Charge;
+    match method {
+        "laplace-svd" => case::<_, SvdM2l<f64>>(world, all, layout, a, Laplace3d, charge),
+        "laplace-dense" => case::<_, DenseM2l<f64>>(world, all, layout, a, Laplace3d, charge),
+        "laplace-fft" => case::<_, FftM2l<f64>>(world, all, layout, a, Laplace3d, charge),
+        "helmholtz-svd" => case::<_, SvdM2l<f64>>(world, all, layout, a, yukawa, charge),
+        "helmholtz-fft" => case::<_, FftM2l<f64>>(world, all, layout, a, yukawa, charge),
+        "oscillatory-svd" => case::<_, SvdM2l<f64>>(world, all, layout, a, oscillatory, charge),
+        "oscillatory-fft" => case::<_, FftM2l<f64>>(world, all, layout, a, oscillatory, charge),
+        "stokes-svd" => case::<_, SvdM2l<f64>>(world, all, layout, a, stokes, charge),
+        "stokes-fft" => case::<_, FftM2l<f64>>(world, all, layout, a, stokes, charge),
+        "dipoles-svd" => {
+            case::<_, SvdM2l<f64>>(world, all, layout, a, Laplace3d, SourceKind::ChargeDipole)
+        }
+        other => Err(format!("unknown method {other}")),
+    }
 }
 
 /// Runs every case; prints `FMM CHECK PASSED` (rank 0) when all agree.
@@ -161,50 +221,7 @@ pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
         let all = geom.points::<f64>(a.n, a.seed);
         for layout in &layouts {
             for m in &methods {
-                let helmholtz = ModifiedHelmholtz3d::new(3.0).expect("a valid wavenumber");
-                let r = match m.as_str() {
-                    "laplace-svd" => case::<_, SvdM2l<f64>>(
-                        world,
-                        &all,
-                        layout,
-                        a,
-                        Laplace3d,
-                        Default::default(),
-                    ),
-                    "laplace-dense" => case::<_, DenseM2l<f64>>(
-                        world,
-                        &all,
-                        layout,
-                        a,
-                        Laplace3d,
-                        Default::default(),
-                    ),
-                    "laplace-fft" => case::<_, FftM2l<f64>>(
-                        world,
-                        &all,
-                        layout,
-                        a,
-                        Laplace3d,
-                        Default::default(),
-                    ),
-                    "helmholtz-svd" => case::<_, SvdM2l<f64>>(
-                        world,
-                        &all,
-                        layout,
-                        a,
-                        helmholtz,
-                        Default::default(),
-                    ),
-                    "helmholtz-fft" => case::<_, FftM2l<f64>>(
-                        world,
-                        &all,
-                        layout,
-                        a,
-                        helmholtz,
-                        Default::default(),
-                    ),
-                    other => Err(format!("unknown method {other}")),
-                };
+                let r = run_method(world, &all, layout, a, m);
                 let ok = matches!(r, Ok(d) if d <= a.tolerance);
                 failures += usize::from(!ok);
                 if me == 0 {
@@ -233,10 +250,7 @@ pub fn run(world: &SimpleCommunicator, a: &FmmCheckArgs) -> i32 {
                     &t,
                     Laplace3d,
                     &Default::default(),
-                    &DistFmmOptions {
-                        order: a.order,
-                        mode: EvalMode::Potential,
-                    },
+                    &DistFmmOptions::new(a.order, EvalMode::Potential),
                 )
                 .map_err(|e| e.to_string())?;
                 let mut q = vec![0.1; share.len()];

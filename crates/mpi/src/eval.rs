@@ -1,22 +1,30 @@
-//! The `eval` subcommand: the distributed FMM on points and charges from
-//! files (each rank reads its rows of a `.npy` file) or generated, the
-//! result written in the input order, and per-rank figures.
+//! The `eval` subcommand: the distributed FMM on points and densities from
+//! files (each rank reads its rows of a `.npy` file) or generated, for any
+//! built-in kernel, at a given order or a requested accuracy (chosen from a
+//! sample, then verified), the result written in the input order, and
+//! per-rank figures.
 
 use std::path::PathBuf;
 
 use clap::Args;
-use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
+use ferrofmm_field::{DenseM2l, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l};
+use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real};
-use ferrofmm_mpi::{
-    DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry, agree_message,
+use ferrofmm_kernels::{
+    EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
 };
-use mpi::collective::SystemOperation;
-
-use crate::eval_io::{my_rows, read_slice, write_out};
-use crate::eval_report::{FIGURES, figures, report};
+use ferrofmm_mpi::{
+    DistChoice, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry,
+    agree_message, choose_parameters, sampled_errors,
+};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+
+use crate::eval_io::{my_rows, read_slice, write_out};
+use crate::eval_report::{Attempt, FIGURES, RunInfo, figures, report};
+
+/// Targets a verification samples when `--check` does not say.
+const VERIFY_SAMPLE: usize = 200;
 
 /// Arguments of `eval`.
 #[derive(Args)]
@@ -26,34 +34,56 @@ pub struct EvalArgs {
     /// every rank reads the file and keeps its rows).
     #[arg(long, value_name = "FILE", required_unless_present = "generate")]
     pub(crate) sources: Option<PathBuf>,
-    /// Charges, one per source: .npy (N) or .csv (one per line).
-    #[arg(long, value_name = "FILE", required_unless_present = "generate")]
+    /// Charges, one per source: .npy (N, or N x c for a kernel with c
+    /// components: re, im for helmholtz:K; fx, fy, fz for stokes) or .csv.
+    #[arg(long, value_name = "FILE", required_unless_present_any = ["generate", "dipoles"])]
     pub(crate) charges: Option<PathBuf>,
-    /// Output file, .npy or .csv: one potential per point, or potential and
-    /// gradient (N x 4) with --gradients, float64, in the input order.
+    /// Dipole vectors, one per source: .npy or .csv (N x 3, or N x 3c:
+    /// nx_re, nx_im, ny_re, ... for helmholtz:K); with --charges, both.
+    #[arg(long, value_name = "FILE")]
+    pub(crate) dipoles: Option<PathBuf>,
+    /// Output file, .npy or .csv: the potential (c columns), and the
+    /// gradient (3c more) with --gradients, float64, in the input order.
     /// Written to a temporary name and renamed once complete.
     #[arg(long, value_name = "FILE")]
     pub(crate) out: Option<PathBuf>,
     /// Instead of files: N points of this geometry (uniform, sphere,
     /// plummer, two-clusters; each rank generates its share) with zero-mean
     /// charges uniform in [-0.5, 0.5).
-    #[arg(long, value_name = "GEOMETRY", conflicts_with_all = ["sources", "charges"])]
+    #[arg(long, value_name = "GEOMETRY", conflicts_with_all = ["sources", "charges", "dipoles"])]
     pub(crate) generate: Option<String>,
     /// Number of points with --generate (all ranks together).
     #[arg(long, default_value_t = 1_000_000)]
     pub(crate) n: usize,
-    /// Expansion order p.
-    #[arg(long, short = 'p', default_value_t = DEFAULT_ORDER)]
-    pub(crate) order: usize,
-    /// Largest number of points in a leaf box.
-    #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
-    pub(crate) leaf_size: usize,
-    /// M2L scheme: svd, dense or fft.
-    #[arg(long, default_value = "svd")]
+    /// Kernel: laplace, yukawa:K, helmholtz:K (complex) or stokes.
+    #[arg(long, default_value = "laplace")]
+    pub(crate) kernel: String,
+    /// Expansion order p (default 6; not with --tolerance).
+    #[arg(long, short = 'p', conflicts_with = "tolerance")]
+    pub(crate) order: Option<usize>,
+    /// Largest number of points in a leaf box (default 150; not with
+    /// --tolerance).
+    #[arg(long, conflicts_with = "tolerance")]
+    pub(crate) leaf_size: Option<usize>,
+    /// Requested relative L2 error: order, leaf size and SVD tolerance
+    /// chosen from a sample of the points (at most 200,000, gathered on
+    /// rank 0), and the error checked afterwards (see --verify).
+    #[arg(long, value_name = "EPS")]
+    pub(crate) tolerance: Option<f64>,
+    /// With --tolerance: `on` (default) compares the result with direct
+    /// summation at sampled points (--check of them, or 200) and raises
+    /// the order, at most twice, while the error is above EPS; `off`
+    /// trusts the prediction.
+    #[arg(long, default_value = "on", value_parser = ["on", "off"])]
+    pub(crate) verify: String,
+    /// M2L scheme: auto, svd, dense or fft. auto: fft for helmholtz:K and
+    /// stokes; with --tolerance the faster predicted of svd and fft; else
+    /// svd.
+    #[arg(long, default_value = "auto", value_parser = ["auto", "svd", "dense", "fft"])]
     pub(crate) scheme: String,
     /// Float type of the run: f64 or f32 (inputs are read as f64 and
     /// rounded; the output is written as float64 either way).
-    #[arg(long, default_value = "f64")]
+    #[arg(long, default_value = "f64", value_parser = ["f64", "f32"])]
     pub(crate) precision: String,
     /// Also evaluate the gradient.
     #[arg(long)]
@@ -64,168 +94,373 @@ pub struct EvalArgs {
     pub(crate) repeats: usize,
     /// Compare this many sampled points with direct summation over all
     /// points (relative L2 error of the potential and the gradient; 0: no
-    /// check).
+    /// check, unless --tolerance verifies).
     #[arg(long, default_value_t = 0, value_name = "TARGETS")]
     pub(crate) check: usize,
+    /// Directory of the operator cache: rank 0 computes (or loads) the
+    /// operators, the other ranks load them.
+    #[arg(long, value_name = "DIR")]
+    pub(crate) cache_dir: Option<PathBuf>,
+    /// Threads per rank (default: RAYON_NUM_THREADS, else the node's cores
+    /// divided among the ranks on it).
+    #[arg(long, value_name = "T")]
+    pub(crate) threads: Option<usize>,
     /// Print one JSON object with per-rank figures (rank 0, last line of
     /// stdout) instead of the table.
     #[arg(long)]
     pub(crate) json: bool,
 }
 
-/// This rank's points and charges.
-fn inputs(a: &EvalArgs, me: usize, size: usize) -> Result<(Vec<f64>, Vec<f64>), String> {
+/// This rank's points and densities (`kind`, `kernel.values_per_source`
+/// per point), as read or generated.
+struct Inputs {
+    points: Vec<f64>,
+    densities: Vec<f64>,
+    kind: SourceKind,
+}
+
+fn inputs(a: &EvalArgs, c: usize, me: usize, size: usize) -> Result<Inputs, String> {
     if let Some(g) = &a.generate {
         let geom = Geometry::from_name(g).ok_or_else(|| format!("unknown geometry {g}"))?;
         let r = my_rows(a.n as u64, me, size);
         let n = (r.end - r.start) as usize;
-        let points = geom.points::<f64>(n, 1000 + me as u64);
-        let q = ferrofmm_fmm::charges(n, 2000 + me as u64);
-        return Ok((points, q));
+        return Ok(Inputs {
+            points: geom.points::<f64>(n, 1000 + me as u64),
+            densities: ferrofmm_fmm::charges(c * n, 2000 + me as u64),
+            kind: SourceKind::Charge,
+        });
     }
-    let (Some(s), Some(c)) = (&a.sources, &a.charges) else {
-        return Err("give --sources and --charges, or --generate".into());
+    let Some(s) = &a.sources else {
+        return Err("give --sources and --charges (or --dipoles), or --generate".into());
     };
-    for input in [s, c] {
+    for input in [Some(s), a.charges.as_ref(), a.dipoles.as_ref()]
+        .into_iter()
+        .flatten()
+    {
         if a.out.as_deref() == Some(input.as_path()) {
             return Err(format!("--out {} is an input file", input.display()));
         }
     }
     let (points, n) = read_slice(s, 3, me, size)?;
-    let (q, m) = read_slice(c, 1, me, size)?;
-    if n != m {
-        return Err(format!(
-            "{} holds {m} charges for the {n} points of {}",
-            c.display(),
-            s.display()
-        ));
-    }
-    Ok((points, q))
+    let read = |path: &Option<PathBuf>, columns: usize, what: &str| {
+        let Some(p) = path else { return Ok(None) };
+        let (v, m) = read_slice(p, columns as u64, me, size)?;
+        if m != n {
+            return Err(format!(
+                "{} holds {m} {what} for the {n} points of {}",
+                p.display(),
+                s.display()
+            ));
+        }
+        Ok(Some(v))
+    };
+    let charges = read(&a.charges, c, "charges")?;
+    let dipoles = read(&a.dipoles, 3 * c, "dipoles")?;
+    let (kind, densities) = match (charges, dipoles) {
+        (Some(q), None) => (SourceKind::Charge, q),
+        (None, Some(d)) => (SourceKind::Dipole, d),
+        (Some(q), Some(d)) => (
+            SourceKind::ChargeDipole,
+            q.chunks_exact(c)
+                .zip(d.chunks_exact(3 * c))
+                .flat_map(|(q, d)| q.iter().chain(d).copied())
+                .collect(),
+        ),
+        (None, None) => return Err("give --charges or --dipoles".into()),
+    };
+    Ok(Inputs {
+        points,
+        densities,
+        kind,
+    })
+}
+
+/// Threads of this rank: `--threads`, else `RAYON_NUM_THREADS`, else the
+/// cores of the node shared evenly among its ranks (at least 1).
+fn set_threads(world: &SimpleCommunicator, a: &EvalArgs) -> Result<usize, String> {
+    let on_node = world.split_shared(world.rank()).size().max(1) as usize;
+    let env = std::env::var("RAYON_NUM_THREADS")
+        .ok()
+        .and_then(|s| s.parse::<usize>().ok())
+        .filter(|&t| t > 0);
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    let threads = match a.threads {
+        Some(0) => return Err("--threads must be at least 1".into()),
+        Some(t) => t,
+        None => env.unwrap_or((cores / on_node).max(1)),
+    };
+    // Fails only when the pool was already built (not in this program).
+    let _ = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build_global();
+    Ok(rayon::current_num_threads())
 }
 
 /// Runs `eval` (a collective); returns the exit status.
 pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
-    match (a.precision.as_str(), a.scheme.as_str()) {
-        ("f64", "svd") => run_with::<f64, SvdM2l<f64>>(world, a),
-        ("f64", "dense") => run_with::<f64, DenseM2l<f64>>(world, a),
-        ("f64", "fft") => run_with::<f64, FftM2l<f64>>(world, a),
-        ("f32", "svd") => run_with::<f32, SvdM2l<f32>>(world, a),
-        ("f32", "dense") => run_with::<f32, DenseM2l<f32>>(world, a),
-        ("f32", "fft") => run_with::<f32, FftM2l<f32>>(world, a),
-        (p, s) => {
-            if world.rank() == 0 {
-                eprintln!("unknown --precision {p} or --scheme {s}: f64 or f32; svd, dense or fft");
-            }
-            2
+    let fail = |e: String| {
+        if world.rank() == 0 {
+            eprintln!("error: {e}");
         }
-    }
-}
-
-fn run_with<T: Real, S: M2lScheme<T>>(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
-    match eval::<T, S>(world, a) {
+        1
+    };
+    // Every rank parses the same arguments: the same outcome everywhere.
+    let kernel = match KernelChoice::parse(&a.kernel) {
+        Ok(k) => k,
+        Err(e) => return fail(format!("--kernel {e}")),
+    };
+    let threads = match set_threads(world, a) {
+        Ok(t) => t,
+        Err(e) => return fail(e),
+    };
+    match kernel.visit(WithKernel { world, a, threads }) {
         Ok(()) => 0,
-        Err(e) => {
-            if world.rank() == 0 {
-                eprintln!("error: {e}");
+        Err(e) => fail(e),
+    }
+}
+
+/// The rest of `eval` for the kernel `--kernel` names.
+struct WithKernel<'a> {
+    world: &'a SimpleCommunicator,
+    a: &'a EvalArgs,
+    threads: usize,
+}
+
+/// What the parameters were: given, or chosen for a tolerance.
+#[derive(Clone)]
+pub(crate) struct Plan {
+    pub(crate) order: usize,
+    pub(crate) leaf_size: usize,
+    pub(crate) scheme: &'static str,
+    pub(crate) svd_tolerance: Option<f64>,
+    pub(crate) choice: Option<DistChoice>,
+}
+
+impl KernelVisitor for WithKernel<'_> {
+    type Output = Result<(), String>;
+
+    fn visit<K: Kernel>(self, kernel: K) -> Result<(), String> {
+        let (world, a) = (self.world, self.a);
+        let me = world.rank() as usize;
+        let size = world.size() as usize;
+        let t0 = std::time::Instant::now();
+        let c = kernel.components();
+        let input = agree_message(world, inputs(a, c, me, size)).map_err(|e| e.to_string())?;
+        let read_s = t0.elapsed().as_secs_f64();
+        let mode = if a.gradients {
+            EvalMode::PotentialGradient
+        } else {
+            EvalMode::Potential
+        };
+        if !kernel.supports(input.kind, mode) {
+            return Err(format!(
+                "kernel {} does not take {} sources",
+                kernel.name(),
+                input.kind.name()
+            ));
+        }
+        let precision = if a.precision == "f32" {
+            Precision::F32
+        } else {
+            Precision::F64
+        };
+        let plan = match a.tolerance {
+            Some(eps) => {
+                let shape = match a.scheme.as_str() {
+                    "svd" => Some(M2lCostShape::Compressed),
+                    "fft" => Some(M2lCostShape::Fft),
+                    "dense" => Some(M2lCostShape::Dense),
+                    _ => None,
+                };
+                let choice = choose_parameters(
+                    world,
+                    &input.points,
+                    &kernel,
+                    eps,
+                    precision,
+                    mode,
+                    shape,
+                    a.cache_dir.is_some(),
+                )
+                .map_err(|e| e.to_string())?;
+                Plan {
+                    order: choice.order,
+                    leaf_size: choice.leaf_size,
+                    scheme: match choice.shape {
+                        M2lCostShape::Fft => "fft",
+                        M2lCostShape::Dense => "dense",
+                        _ => "svd",
+                    },
+                    svd_tolerance: Some(choice.svd_tolerance),
+                    choice: Some(choice),
+                }
             }
-            1
+            None => Plan {
+                order: a.order.unwrap_or(DEFAULT_ORDER),
+                leaf_size: a.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
+                scheme: match a.scheme.as_str() {
+                    "auto" if c > 1 => "fft",
+                    "auto" | "svd" => "svd",
+                    "dense" => "dense",
+                    _ => "fft",
+                },
+                svd_tolerance: None,
+                choice: None,
+            },
+        };
+        let run = Run {
+            world,
+            a,
+            kernel,
+            input,
+            mode,
+            plan,
+            read_s,
+            threads: self.threads,
+        };
+        match (precision, run.plan.scheme) {
+            (Precision::F64, "svd") => run.go::<f64, SvdM2l<f64>>(),
+            (Precision::F64, "dense") => run.go::<f64, DenseM2l<f64>>(),
+            (Precision::F64, _) => run.go::<f64, FftM2l<f64>>(),
+            (_, "svd") => run.go::<f32, SvdM2l<f32>>(),
+            (_, "dense") => run.go::<f32, DenseM2l<f32>>(),
+            (_, _) => run.go::<f32, FftM2l<f32>>(),
         }
     }
 }
 
-fn eval<T: Real, S: M2lScheme<T>>(world: &SimpleCommunicator, a: &EvalArgs) -> Result<(), String> {
-    let me = world.rank() as usize;
-    let size = world.size() as usize;
-    let t0 = std::time::Instant::now();
-    let (points, q) = agree_message(world, inputs(a, me, size)).map_err(|e| e.to_string())?;
-    let read_s = t0.elapsed().as_secs_f64();
-    let dtree = DistributedTree::build(world, &points, &DistOptions::adaptive(a.leaf_size))
-        .map_err(|e| e.to_string())?;
-    let mode = if a.gradients {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
-    let options = DistFmmOptions {
-        order: a.order,
-        mode,
-    };
-    let dfmm =
-        DistributedFmm::<T, _, S>::build(world, &dtree, Laplace3d, &Default::default(), &options)
-            .map_err(|e| e.to_string())?;
-    let q_t: Vec<T> = q.iter().map(|&x| T::from_f64(x)).collect();
-    let mut last = None;
-    for _ in 0..a.repeats.max(1) {
-        last = Some(dfmm.evaluate(world, &q_t).map_err(|e| e.to_string())?);
-    }
-    let Some((values, stats)) = last else {
-        return Err("no evaluation".into());
-    };
-    let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
-    if let Some(out) = &a.out {
-        let first: u64 = dtree.input_counts[..me].iter().sum();
-        let total: u64 = dtree.input_counts.iter().sum();
-        write_out(world, out, &values, mode.values_per_target(), first, total)?;
-    }
-    let errors = (a.check > 0).then(|| {
-        let first: u64 = dtree.input_counts[..me].iter().sum();
-        let total: u64 = dtree.input_counts.iter().sum();
-        check_direct(world, &points, &q, &values, mode, first, total, a.check)
-    });
-    drop(points);
-    let mut mine = figures(&dtree, &dfmm, &stats);
-    mine.push(stats.compute_cpu_seconds);
-    let mut all = vec![0.0f64; FIGURES * size];
-    world.all_gather_into(&mine[..], &mut all[..]);
-    if me == 0 {
-        report(a, &all, size, read_s, errors);
-    }
-    Ok(())
+/// The configuration of a scheme for an SVD tolerance (`None`: the
+/// scheme's default; only the SVD scheme has one).
+trait SchemeConfig<T: Real>: M2lScheme<T> {
+    fn config(svd_tolerance: Option<f64>) -> Self::Config;
 }
 
-/// Relative L2 errors `[potential, gradient]` of `values` (this rank's
-/// input points, `w` values each) at `k` points sampled evenly over the
-/// global input order, against direct summation over all points (a
-/// collective: each rank sums its own points' field at the sample, then
-/// one `all_reduce`). The gradient error is 0 without gradients.
-#[allow(clippy::too_many_arguments)]
-fn check_direct(
-    world: &SimpleCommunicator,
-    points: &[f64],
-    q: &[f64],
-    values: &[f64],
+impl<T: Real> SchemeConfig<T> for SvdM2l<T> {
+    fn config(svd_tolerance: Option<f64>) -> SvdConfig {
+        SvdConfig {
+            rank: None,
+            tolerance: svd_tolerance.unwrap_or(0.0),
+        }
+    }
+}
+
+impl<T: Real> SchemeConfig<T> for DenseM2l<T> {
+    fn config(_: Option<f64>) -> Self::Config {
+        Default::default()
+    }
+}
+
+impl<T: Real> SchemeConfig<T> for FftM2l<T> {
+    fn config(_: Option<f64>) -> Self::Config {
+        Default::default()
+    }
+}
+
+/// One `eval` with its inputs and parameters settled.
+struct Run<'a, K> {
+    world: &'a SimpleCommunicator,
+    a: &'a EvalArgs,
+    kernel: K,
+    input: Inputs,
     mode: EvalMode,
-    first: u64,
-    total: u64,
-    k: usize,
-) -> [f64; 2] {
-    let w = mode.values_per_target();
-    let k = k.min(total as usize);
-    let ids: Vec<u64> = (0..k as u64).map(|j| j * total / k as u64).collect();
-    // Sample coordinates and FMM values, from their owners to all.
-    let mut mine = vec![0.0; (3 + w) * k];
-    for (j, &id) in ids.iter().enumerate() {
-        if id >= first && id < first + (q.len() as u64) {
-            let i = (id - first) as usize;
-            mine[3 * j..3 * j + 3].copy_from_slice(&points[3 * i..3 * i + 3]);
-            mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&values[w * i..w * (i + 1)]);
+    plan: Plan,
+    read_s: f64,
+    threads: usize,
+}
+
+impl<K: Kernel> Run<'_, K> {
+    fn go<T: Real, S: SchemeConfig<T>>(self) -> Result<(), String> {
+        let Run {
+            world,
+            a,
+            kernel,
+            input,
+            mode,
+            mut plan,
+            read_s,
+            threads,
+        } = self;
+        let me = world.rank() as usize;
+        let size = world.size() as usize;
+        let dtree =
+            DistributedTree::build(world, &input.points, &DistOptions::adaptive(plan.leaf_size))
+                .map_err(|e| e.to_string())?;
+        let q_t: Vec<T> = input.densities.iter().map(|&x| T::from_f64(x)).collect();
+        let verify = a.tolerance.filter(|_| a.verify == "on");
+        let samples = if a.check > 0 {
+            a.check
+        } else if verify.is_some() {
+            VERIFY_SAMPLE
+        } else {
+            0
+        };
+        let mut attempts = Vec::new();
+        loop {
+            let options = DistFmmOptions {
+                sources: input.kind,
+                cache_dir: a.cache_dir.clone(),
+                ..DistFmmOptions::new(plan.order, mode)
+            };
+            let config = S::config(plan.svd_tolerance);
+            let dfmm =
+                DistributedFmm::<T, K, S>::build(world, &dtree, kernel.clone(), &config, &options)
+                    .map_err(|e| e.to_string())?;
+            let mut last = None;
+            for _ in 0..a.repeats.max(1) {
+                last = Some(dfmm.evaluate(world, &q_t).map_err(|e| e.to_string())?);
+            }
+            let Some((values, stats)) = last else {
+                return Err("no evaluation".into());
+            };
+            let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
+            let errors = (samples > 0).then(|| {
+                sampled_errors(
+                    world,
+                    &kernel,
+                    input.kind,
+                    mode,
+                    &input.points,
+                    &input.densities,
+                    &values,
+                    samples,
+                )
+            });
+            let worst = errors.map_or(0.0, |e| e[0].max(e[1]));
+            attempts.push(Attempt {
+                order: plan.order,
+                errors,
+            });
+            let retry = verify.is_some_and(|eps| worst > eps)
+                && attempts.len() <= MAX_VERIFY_RETRIES
+                && plan.order < ferrofmm_field::MAX_ORDER;
+            if retry {
+                // The tree stays; the operators are rebuilt one order up
+                // (the SVD tolerance then the order's default).
+                plan.order += 1;
+                plan.svd_tolerance = None;
+                continue;
+            }
+            if let Some(out) = &a.out {
+                let first: u64 = dtree.input_counts[..me].iter().sum();
+                let total: u64 = dtree.input_counts.iter().sum();
+                write_out(world, out, &values, dfmm.values_per_target(), first, total)?;
+            }
+            let mut mine = figures(&dtree, &dfmm, &stats);
+            mine.push(stats.compute_cpu_seconds);
+            let mut all = vec![0.0f64; FIGURES * size];
+            world.all_gather_into(&mine[..], &mut all[..]);
+            if me == 0 {
+                let info = RunInfo {
+                    kernel: a.kernel.clone(),
+                    plan: &plan,
+                    attempts: &attempts,
+                    samples,
+                    read_s,
+                    threads,
+                };
+                report(a, &info, &all, size);
+            }
+            return Ok(());
         }
     }
-    let mut shared = vec![0.0; mine.len()];
-    world.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
-    let (sample, fmm) = shared.split_at(3 * k);
-    let mut direct = vec![0.0; w * k];
-    Laplace3d.evaluate(mode, points, q, sample, &mut direct);
-    let mut sum = vec![0.0; w * k];
-    world.all_reduce_into(&direct[..], &mut sum[..], SystemOperation::sum());
-    let mut s = [0.0f64; 4];
-    for (f, d) in fmm.chunks_exact(w).zip(sum.chunks_exact(w)) {
-        for c in 0..w {
-            let g = usize::from(c > 0);
-            s[2 * g] += (f[c] - d[c]) * (f[c] - d[c]);
-            s[2 * g + 1] += d[c] * d[c];
-        }
-    }
-    let rel = |num: f64, den: f64| if den > 0.0 { (num / den).sqrt() } else { 0.0 };
-    [rel(s[0], s[1]), rel(s[2], s[3])]
 }

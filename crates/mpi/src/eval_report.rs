@@ -2,10 +2,27 @@
 //! their report (a table, or one JSON object) on rank 0.
 
 use ferrofmm_field::M2lScheme;
-use ferrofmm_kernels::{Laplace3d, Real};
+use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_mpi::{DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, PHASES};
 
-use crate::eval::EvalArgs;
+use crate::eval::{EvalArgs, Plan};
+
+/// One evaluation of a run: its order and, when checked, the relative L2
+/// errors `[potential, gradient]` against direct summation.
+pub(crate) struct Attempt {
+    pub(crate) order: usize,
+    pub(crate) errors: Option<[f64; 2]>,
+}
+
+/// What rank 0 reports besides the per-rank figures.
+pub(crate) struct RunInfo<'a> {
+    pub(crate) kernel: String,
+    pub(crate) plan: &'a Plan,
+    pub(crate) attempts: &'a [Attempt],
+    pub(crate) samples: usize,
+    pub(crate) read_s: f64,
+    pub(crate) threads: usize,
+}
 
 /// Figures of one rank, gathered on all: points, ghost points, boxes of the
 /// local tree, send and receive partners, tree phase seconds (6) and bytes
@@ -14,9 +31,9 @@ use crate::eval::EvalArgs;
 /// the compute phases ([`EvalStats::compute_cpu_seconds`]).
 pub(crate) const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
 
-pub(crate) fn figures<T: Real, S: M2lScheme<T>>(
+pub(crate) fn figures<T: Real, K: Kernel, S: M2lScheme<T>>(
     dtree: &DistributedTree,
-    dfmm: &DistributedFmm<T, Laplace3d, S>,
+    dfmm: &DistributedFmm<T, K, S>,
     stats: &EvalStats,
 ) -> Vec<f64> {
     let s = dfmm.setup_stats();
@@ -49,13 +66,13 @@ fn imbalance(rows: &[&[f64]], f: impl Fn(&[f64]) -> f64) -> f64 {
     if mean > 0.0 { max / mean } else { 1.0 }
 }
 
-pub(crate) fn report(
-    a: &EvalArgs,
-    all: &[f64],
-    size: usize,
-    read_s: f64,
-    errors: Option<[f64; 2]>,
-) {
+pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize) {
+    let plan = info.plan;
+    let errors = info.attempts.last().and_then(|t| t.errors);
+    let tolerance_met = a
+        .tolerance
+        .zip(errors)
+        .map(|(eps, e)| e[0].max(e[1]) <= eps);
     let rows: Vec<&[f64]> = all.chunks_exact(FIGURES).collect();
     let eval_s = |r: &[f64]| r[21..29].iter().sum::<f64>();
     let points_imb = imbalance(&rows, |r| r[0]);
@@ -98,21 +115,38 @@ pub(crate) fn report(
             "command": "eval",
             "ranks": size,
             "n": rows.iter().map(|r| r[0]).sum::<f64>(),
-            "order": a.order,
-            "leaf_size": a.leaf_size,
-            "scheme": a.scheme,
+            "kernel": info.kernel,
+            "order": plan.order,
+            "leaf_size": plan.leaf_size,
+            "scheme": plan.scheme,
+            "svd_tolerance": plan.svd_tolerance,
             "precision": a.precision,
             "gradients": a.gradients,
             "input": a.generate.clone().unwrap_or_else(|| "files".into()),
-            "threads_per_rank": rayon_threads(),
-            "read_seconds": read_s,
+            "threads_per_rank": info.threads,
+            "tolerance": a.tolerance,
+            "chosen": plan.choice.as_ref().map(|c| serde_json::json!({
+                "order": c.order,
+                "leaf_size": c.leaf_size,
+                "svd_tolerance": c.svd_tolerance,
+                "predicted_error": c.predicted_error,
+                "sample_points": c.sample,
+                "model": c.chosen.as_ref().map(|p| p.model.clone()),
+            })),
+            "attempts": info.attempts.iter().map(|t| serde_json::json!({
+                "order": t.order,
+                "potential_error": t.errors.map(|e| e[0]),
+                "gradient_error": t.errors.filter(|_| a.gradients).map(|e| e[1]),
+            })).collect::<Vec<_>>(),
+            "tolerance_met": tolerance_met,
+            "read_seconds": info.read_s,
             "imbalance_points": points_imb,
             "imbalance_eval_seconds": time_imb,
             "eval_seconds_max": rows.iter().map(|r| eval_s(r)).fold(0.0, f64::max),
             "compute_cpu_seconds_max": rows.iter().map(|r| r[45]).fold(0.0, f64::max),
             "compute_cpu_seconds_total": rows.iter().map(|r| r[45]).sum::<f64>(),
             "check": errors.map(|e| serde_json::json!({
-                "samples": a.check,
+                "samples": info.samples,
                 "potential_error": e[0],
                 "gradient_error": if a.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
             })),
@@ -122,13 +156,27 @@ pub(crate) fn report(
         return;
     }
     println!(
-        "{size} ranks, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
-        a.order, a.leaf_size, a.scheme
+        "{size} ranks x {} threads, {}, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
+        info.threads, info.kernel, plan.order, plan.leaf_size, plan.scheme
     );
+    if let (Some(eps), Some(c)) = (a.tolerance, &plan.choice) {
+        println!(
+            "tolerance {eps:e}: chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",
+            c.order,
+            c.leaf_size,
+            c.predicted_error,
+            c.sample,
+            match tolerance_met {
+                Some(true) => format!(", met after {} evaluation(s)", info.attempts.len()),
+                Some(false) => ", NOT met at the highest order tried".to_string(),
+                None => ", not verified".to_string(),
+            }
+        );
+    }
     if let Some(e) = errors {
         println!(
             "check against direct summation at {} points: potential error {:.3e}{}",
-            a.check,
+            info.samples,
             e[0],
             if a.gradients {
                 format!(", gradient error {:.3e}", e[1])
@@ -151,11 +199,4 @@ pub(crate) fn report(
             x[17..20].iter().sum::<f64>()
         );
     }
-}
-
-fn rayon_threads() -> usize {
-    std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or_else(|| std::thread::available_parallelism().map_or(1, |n| n.get()))
 }

@@ -52,6 +52,7 @@
 //! ```
 #![warn(missing_docs)]
 
+pub mod accuracy;
 pub mod balance;
 pub mod dfmm;
 pub mod error;
@@ -64,6 +65,7 @@ pub mod sort;
 pub mod stats;
 mod tree;
 
+pub use accuracy::{DistChoice, TUNING_SAMPLE, choose_parameters, sampled_errors};
 pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
 pub use error::{DistError, InputProblem, agree_message};
 pub use ghosts::{Ghost, GhostLayer};

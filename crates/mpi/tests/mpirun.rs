@@ -241,3 +241,176 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
     assert!(!std::path::Path::new(&path("bad.npy")).exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Kernels with several components (complex Helmholtz, Stokes) and dipole
+/// sources: the distributed FMM equals the single-machine FMM (1e-12) on
+/// 2 to 4 ranks, with the SVD and FFT schemes.
+#[test]
+fn distributed_fmm_with_vector_kernels_and_dipoles() {
+    let methods = [
+        (2, "oscillatory-svd,stokes-fft,dipoles-svd"),
+        (3, "oscillatory-fft,stokes-svd"),
+        (4, "stokes-fft,dipoles-svd,oscillatory-fft"),
+    ];
+    for (ranks, method) in methods {
+        let args = [
+            "fmm-check",
+            "--n",
+            "1200",
+            "--order",
+            "3",
+            "--geometry",
+            "plummer,two-clusters",
+            "--method",
+            method,
+        ];
+        let (ok, out) = mpirun(ranks, &args);
+        assert!(
+            ok && out.contains("FMM CHECK PASSED"),
+            "R = {ranks}:\n{out}"
+        );
+    }
+}
+
+/// The value of `"key":` in `text` (the first occurrence), as a number.
+fn json_number(text: &str, key: &str) -> Option<f64> {
+    text.split(&format!("\"{key}\":"))
+        .nth(1)
+        .and_then(|t| t.split([',', '}']).next())
+        .and_then(|t| t.parse::<f64>().ok())
+}
+
+/// `eval` with a vector kernel (Stokes forces from an `N x 3` file): 1 and
+/// 3 ranks agree; `--tolerance` chooses the order and verifies it against
+/// direct summation (Helmholtz, complex charges); `--cache-dir` fills a
+/// cache on the first run that the second loads, with the same result;
+/// an unknown kernel and dipoles for Stokes are errors on every rank.
+#[test]
+fn eval_command_with_kernels_tolerance_and_cache() {
+    use ferrofmm_mpi::npy;
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-kernels-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let n = 1500;
+    let pts: Vec<f64> = (0..3 * n)
+        .map(|i| (i as f64 * 0.754_877_666).fract().powi(2))
+        .collect();
+    let f: Vec<f64> = (0..3 * n)
+        .map(|i| ((i * 53) % 97) as f64 / 97.0 - 0.5)
+        .collect();
+    for (name, values, cols) in [
+        ("s.npy", &pts, 3),
+        ("f.npy", &f, 3),
+        ("z.npy", &f[..2 * n].to_vec(), 2),
+    ] {
+        let p = std::path::PathBuf::from(path(name));
+        let start = npy::create(&p, n as u64, cols).unwrap();
+        npy::write_rows(&p, start, cols, 0, values).unwrap();
+    }
+    let read = |name: &str, cols: u64| {
+        let p = std::path::PathBuf::from(path(name));
+        let h = npy::header(&p).unwrap();
+        assert_eq!((h.rows, h.columns), (n as u64, cols));
+        npy::read_rows(&p, &h, 0..h.rows).unwrap()
+    };
+    let rel = |a: &[f64], b: &[f64]| {
+        let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+        let den: f64 = a.iter().map(|x| x * x).sum();
+        (num / den).sqrt()
+    };
+    // Stokes: velocities and their gradients (3 + 9 columns).
+    for (ranks, out) in [(1, "u1.npy"), (3, "u3.npy")] {
+        let (ok, text) = mpirun(
+            ranks,
+            &[
+                "eval",
+                "--sources",
+                &path("s.npy"),
+                "--charges",
+                &path("f.npy"),
+                "--kernel",
+                "stokes",
+                "--gradients",
+                "--order",
+                "4",
+                "--leaf-size",
+                "30",
+                "--out",
+                &path(out),
+            ],
+        );
+        assert!(ok, "R = {ranks}:\n{text}");
+    }
+    let d = rel(&read("u1.npy", 12), &read("u3.npy", 12));
+    assert!(d <= 1e-12, "Stokes on 3 ranks differs by {d}");
+
+    // Helmholtz to a tolerance: chosen, verified, met.
+    let (ok, text) = mpirun(
+        2,
+        &[
+            "eval",
+            "--sources",
+            &path("s.npy"),
+            "--charges",
+            &path("z.npy"),
+            "--kernel",
+            "helmholtz:6",
+            "--tolerance",
+            "1e-5",
+            "--json",
+        ],
+    );
+    let err = json_number(&text, "potential_error");
+    assert!(
+        ok && text.contains("\"tolerance_met\":true") && err.is_some_and(|e| e <= 1e-5),
+        "{err:?}\n{text}"
+    );
+    assert!(
+        json_number(&text, "sample_points") == Some(n as f64),
+        "{text}"
+    );
+
+    // The cache: filled by the first run, read by the second, same values.
+    let cache = path("cache");
+    for out in ["c1.npy", "c2.npy"] {
+        let (ok, text) = mpirun(
+            2,
+            &[
+                "eval",
+                "--sources",
+                &path("s.npy"),
+                "--charges",
+                &path("f.npy"),
+                "--kernel",
+                "stokes",
+                "--scheme",
+                "svd",
+                "--order",
+                "3",
+                "--leaf-size",
+                "30",
+                "--cache-dir",
+                &cache,
+                "--out",
+                &path(out),
+            ],
+        );
+        assert!(ok, "{text}");
+    }
+    let files = std::fs::read_dir(&cache).map(|d| d.count()).unwrap_or(0);
+    assert!(files > 0, "no cache files in {cache}");
+    assert_eq!(read("c1.npy", 3), read("c2.npy", 3));
+
+    let (s_npy, f_npy) = (path("s.npy"), path("f.npy"));
+    for bad in [
+        vec!["--kernel", "coulomb"],
+        vec!["--kernel", "stokes", "--dipoles", &f_npy],
+        vec!["--kernel", "yukawa:-1"],
+    ] {
+        let mut args = vec!["eval", "--sources", &s_npy, "--charges", &f_npy];
+        args.extend(bad.iter().copied());
+        let (ok, text) = mpirun(2, &args);
+        assert!(!ok && text.contains("error"), "{bad:?}: {text}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}

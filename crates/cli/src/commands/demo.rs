@@ -4,7 +4,7 @@
 use clap::Args;
 
 use super::run::{Input, Settings, run};
-use super::{CHARGES_HELP, ChargesArg, FmmArgs, GeometryArg, KernelArg};
+use super::{CHARGES_HELP, ChargesArg, FmmArgs, GeometryArg, parse_kernel};
 use crate::error::{CliError, Result};
 
 /// Default number of points.
@@ -71,7 +71,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         precision: args.fmm.precision,
         gradients: !args.no_gradients || args.hessians,
         hessians: args.hessians,
-        kernel: KernelArg::parse(&args.fmm.kernel)?,
+        kernel: parse_kernel(&args.fmm.kernel)?,
         repeats: args.repeats,
         check: args.check,
         cache_dir: args.fmm.cache_dir.clone(),

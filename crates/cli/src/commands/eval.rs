@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::Args;
 
 use super::run::{Input, Settings, run};
-use super::{FmmArgs, KernelArg};
+use super::{FmmArgs, parse_kernel};
 use crate::error::{CliError, Result};
 use crate::io::{self, Contents, Format};
 
@@ -62,7 +62,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     // Fail on an unusable output path before any work: unknown type, one
     // of the inputs, a directory, or a directory that takes no new file.
     Format::of(&args.out)?;
-    let kernel = KernelArg::parse(&args.fmm.kernel)?;
+    let kernel = parse_kernel(&args.fmm.kernel)?;
     if args.dipoles.is_some() && !kernel.takes_dipoles() {
         return Err(CliError::InvalidArgument(format!(
             "--kernel {} does not support dipole sources (its sources are point forces: --charges)",

@@ -83,19 +83,13 @@ impl std::fmt::Display for SchemeArg {
     }
 }
 
-/// The kernel of a run (`--kernel`).
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum KernelArg {
-    /// Laplace `1 / (4 pi r)`.
-    Laplace,
-    /// Modified Helmholtz (Yukawa) `exp(-k r) / (4 pi r)` with `k >= 0`.
-    Yukawa(f64),
-    /// Helmholtz `exp(i k r) / (4 pi r)` with `k >= 0`: complex charges and
-    /// outputs (two columns each, real and imaginary parts).
-    Helmholtz(f64),
-    /// The Stokeslet (unit viscosity): forces in, velocities out (three
-    /// columns each).
-    Stokes,
+/// The kernel of `--kernel`: the kernels crate's [`KernelChoice`], whose
+/// parse errors are bad input here (exit status 1).
+pub use ferrofmm_kernels::KernelChoice as KernelArg;
+
+/// Parse `--kernel` (`laplace`, `yukawa:K`, `helmholtz:K`, `stokes`).
+pub fn parse_kernel(value: &str) -> Result<KernelArg, CliError> {
+    KernelArg::parse(value).map_err(|e| CliError::InvalidArgument(format!("--kernel {e}")))
 }
 
 /// Help text of `--kernel`.
@@ -103,72 +97,6 @@ pub const KERNEL_HELP: &str = "Kernel: `laplace` (1/(4 pi r), the default), `yuk
 (modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates), \
 `helmholtz:K` (exp(iKr)/(4 pi r): complex charges and outputs as re, im columns) or `stokes` \
 (the Stokeslet, viscosity 1: forces fx, fy, fz in, velocities out)";
-
-impl KernelArg {
-    /// Parse `--kernel` (`laplace`, `yukawa:K`; an unknown or invalid value
-    /// is bad input: exit status 1).
-    pub fn parse(value: &str) -> Result<Self, CliError> {
-        let bad = |why: String| CliError::InvalidArgument(format!("--kernel {value}: {why}"));
-        match value.split_once(':') {
-            None if value == "laplace" => Ok(KernelArg::Laplace),
-            Some(("yukawa" | "modified-helmholtz", k)) => {
-                let k: f64 = k
-                    .parse()
-                    .map_err(|_| bad(format!("the wavenumber `{k}` is not a number")))?;
-                ferrofmm_kernels::ModifiedHelmholtz3d::new(k)
-                    .map(|_| KernelArg::Yukawa(k))
-                    .map_err(|e| bad(e.to_string()))
-            }
-            Some(("helmholtz", k)) => {
-                let k: f64 = k
-                    .parse()
-                    .map_err(|_| bad(format!("the wavenumber `{k}` is not a number")))?;
-                ferrofmm_kernels::Helmholtz3d::new(k)
-                    .map(|_| KernelArg::Helmholtz(k))
-                    .map_err(|e| bad(e.to_string()))
-            }
-            None if value == "stokes" => Ok(KernelArg::Stokes),
-            None if value == "yukawa" || value == "helmholtz" => {
-                Err(bad(format!("give the wavenumber, e.g. {value}:2.5")))
-            }
-            _ => Err(bad(
-                "use laplace, yukawa:K, helmholtz:K or stokes".to_string()
-            )),
-        }
-    }
-
-    /// The kernel in words, for reports: `laplace` or `yukawa:K`.
-    pub fn name(self) -> String {
-        match self {
-            KernelArg::Laplace => "laplace".to_string(),
-            KernelArg::Yukawa(k) => format!("yukawa:{k}"),
-            KernelArg::Helmholtz(k) => format!("helmholtz:{k}"),
-            KernelArg::Stokes => "stokes".to_string(),
-        }
-    }
-
-    /// Values per charge and per output quantity: 1, or 2 (Helmholtz: re,
-    /// im), or 3 (Stokes: x, y, z).
-    pub fn components(self) -> usize {
-        self.component_names().len().max(1)
-    }
-
-    /// Whether the kernel takes dipole sources (`--dipoles`): all but
-    /// Stokes, whose sources are point forces.
-    pub fn takes_dipoles(self) -> bool {
-        self != KernelArg::Stokes
-    }
-
-    /// Suffixes of the output columns of one quantity: none for the scalar
-    /// kernels, `re, im` for Helmholtz, `x, y, z` for Stokes.
-    pub fn component_names(self) -> &'static [&'static str] {
-        match self {
-            KernelArg::Laplace | KernelArg::Yukawa(_) => &[],
-            KernelArg::Helmholtz(_) => &["re", "im"],
-            KernelArg::Stokes => &["x", "y", "z"],
-        }
-    }
-}
 
 /// Built-in point distributions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]

@@ -136,7 +136,7 @@ impl Config {
 pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     let bad = |m: &str| Err(CliError::InvalidArgument(m.to_string()));
     ChargesArg::parse(&args.charges)?;
-    super::KernelArg::parse(&args.kernel)?;
+    super::parse_kernel(&args.kernel)?;
     if args.n == 0 {
         return bad("--n must be at least 1");
     }

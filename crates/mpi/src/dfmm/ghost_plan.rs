@@ -218,13 +218,15 @@ impl GhostPlan {
     }
 
     /// One evaluation's exchange: sends the multipoles (`n` per box, in
-    /// `multipoles`) and this rank's charges (`own_charges`) that others
-    /// asked for; writes the multipoles received into `multipoles` and the
-    /// ghost points' charges into `ghost_charges`. Returns the bytes sent.
+    /// `multipoles`) and this rank's charges (`own_charges`, `nq` values
+    /// per point) that others asked for; writes the multipoles received
+    /// into `multipoles` and the ghost points' charges into
+    /// `ghost_charges` (`nq` per ghost point). Returns the bytes sent.
     pub(crate) fn exchange<C: Communicator, T: Real>(
         &self,
         comm: &C,
         n: usize,
+        nq: usize,
         multipoles: &mut [T],
         own_charges: &[T],
         ghost_charges: &mut [T],
@@ -239,7 +241,7 @@ impl GhostPlan {
                     w.extend(multipoles[n * b..n * (b + 1)].iter().map(bits));
                 }
                 for r in &to.points {
-                    w.extend(own_charges[r.clone()].iter().map(bits));
+                    w.extend(own_charges[nq * r.start..nq * r.end].iter().map(bits));
                 }
                 (to.rank, w)
             })
@@ -253,7 +255,7 @@ impl GhostPlan {
                     *x = w.next().unwrap_or(T::ZERO);
                 }
             }
-            for q in &mut ghost_charges[rf.points.clone()] {
+            for q in &mut ghost_charges[nq * rf.points.start..nq * rf.points.end] {
                 *q = w.next().unwrap_or(T::ZERO);
             }
         }

@@ -43,11 +43,12 @@ mod local_tree;
 mod route;
 mod stats;
 
+use std::path::PathBuf;
 use std::time::Instant;
 
 use ferrofmm_field::{M2lScheme, M2lUsage, N_TRANSFER_VECTORS, OperatorParams};
 use ferrofmm_fmm::{EvalTimings, LocalTree, TreeFmm, m2l_usage};
-use ferrofmm_kernels::{EvalMode, Kernel, Real};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
 
@@ -63,8 +64,30 @@ pub use stats::{EVAL_PHASES, EvalStats, SetupStats};
 pub struct DistFmmOptions {
     /// Expansion order `p`.
     pub order: usize,
-    /// Potentials, or potentials and gradients.
+    /// Potentials, or potentials and gradients (or Hessians).
     pub mode: EvalMode,
+    /// What each source carries: charges, dipoles or both
+    /// ([`Kernel::values_per_source`] values per point in the charge
+    /// vectors).
+    pub sources: SourceKind,
+    /// Directory of the on-disk operator cache (`None`: no cache). With a
+    /// cache, rank 0 builds (or loads) the operators first and the other
+    /// ranks load what it wrote: one precomputation instead of `R`
+    /// competing for the cores of a node. A directory local to each node
+    /// works too (one rank per node then computes).
+    pub cache_dir: Option<PathBuf>,
+}
+
+impl DistFmmOptions {
+    /// Order `order`, charges, `mode`, no cache.
+    pub fn new(order: usize, mode: EvalMode) -> Self {
+        DistFmmOptions {
+            order,
+            mode,
+            sources: SourceKind::Charge,
+            cache_dir: None,
+        }
+    }
 }
 
 /// One rank's part of a distributed FMM, built once for fixed points and
@@ -81,6 +104,9 @@ pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     /// same sequence on every rank).
     coarse: Vec<usize>,
     n_owned: usize,
+    /// Values per point in the charge vectors (`c` per charge, `3 c` per
+    /// dipole for a kernel with `c` components).
+    nq: usize,
     setup: SetupStats,
 }
 
@@ -94,9 +120,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     /// # Errors
     /// The same [`DistError`] on every rank: options that differ between
     /// ranks, or an FMM setup error on any rank (order out of range,
-    /// ill-conditioned operators, not enough memory), or a kernel with
-    /// several [components](Kernel::components) (complex or vector
-    /// kernels run on one machine only, for now).
+    /// ill-conditioned operators, not enough memory).
     pub fn build<C: Communicator>(
         comm: &C,
         dtree: &DistributedTree,
@@ -104,26 +128,18 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         config: &S::Config,
         options: &DistFmmOptions,
     ) -> Result<Self, DistError> {
-        if kernel.components() != 1 {
-            // Same on every rank: the kernel is.
-            return Err(DistError::Fmm {
-                rank: 0,
-                message: format!(
-                    "kernel {} has {} components; the distributed FMM handles scalar kernels",
-                    kernel.name(),
-                    kernel.components()
-                ),
-            });
-        }
         let me = comm.rank() as usize;
         let mut setup = SetupStats::default();
+        let nq = kernel.values_per_source(options.sources);
         let mine = [
             options.order as u64,
-            options.mode.values_per_target() as u64,
+            kernel.values_per_target(options.mode) as u64,
+            nq as u64,
+            kernel.components() as u64,
         ];
-        let mut all = vec![0u64; 2 * comm.size() as usize];
+        let mut all = vec![0u64; mine.len() * comm.size() as usize];
         comm.all_gather_into(&mine[..], &mut all[..]);
-        let mismatch = all.chunks_exact(2).position(|o| o != mine);
+        let mismatch = all.chunks_exact(mine.len()).position(|o| o != mine);
         agree(
             comm,
             mismatch.map_or(Ok(()), |_| Err(InputProblem::MismatchedOptions)),
@@ -162,7 +178,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         // operators of the whole tree.
         let t = Instant::now();
         let (depth, usage) = global_usage(comm, &tree);
-        let params = OperatorParams::new(options.order);
+        let mut params = OperatorParams::new(options.order);
+        params.cache_dir.clone_from(&options.cache_dir);
         let local = LocalTree {
             tree,
             sources: &sources,
@@ -170,7 +187,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
             depth,
             usage: &usage,
         };
-        let fmm = TreeFmm::new(kernel, options.mode, &params, config, local);
+        let make = || {
+            TreeFmm::new(kernel, options.mode, &params, config, local)
+                .map(|f| f.with_source_kind(options.sources))
+        };
+        let fmm = if options.cache_dir.is_some() && comm.size() > 1 {
+            // Rank 0 fills the cache; the others then read it.
+            if me == 0 {
+                let f = make();
+                comm.barrier();
+                f
+            } else {
+                comm.barrier();
+                make()
+            }
+        } else {
+            make()
+        };
         let fmm = agree_message(comm, fmm.map_err(|e| e.to_string()))?;
         setup.seconds[2] = t.elapsed().as_secs_f64();
         Ok(DistributedFmm {
@@ -181,35 +214,37 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
             ghost_pos,
             coarse,
             n_owned: dtree.points.len(),
+            nq,
             setup,
         })
     }
 
     /// Potentials (and gradients) at this rank's input points, in its input
-    /// order, for one charge per input point (a collective: every rank
-    /// passes its own charges). `values_per_target` values per point, as
-    /// [`ferrofmm_fmm::Fmm::evaluate`].
+    /// order, for the densities of its input points (a collective: every
+    /// rank passes its own): [`Kernel::values_per_source`] values per
+    /// point (one charge for a scalar kernel; `[re, im]` for Helmholtz; a
+    /// force for Stokes), [`Kernel::values_per_target`] values out per
+    /// point, interleaved, as [`ferrofmm_fmm::Fmm::evaluate`].
     ///
     /// # Errors
     /// [`DistError::BadInput`] with [`InputProblem::BadCharges`] on every
-    /// rank when some rank's charges are not one finite value per input
-    /// point.
+    /// rank when some rank's charges are not that many finite values per
+    /// input point.
     pub fn evaluate<C: Communicator>(
         &self,
         comm: &C,
         charges: &[T],
     ) -> Result<(Vec<T>, EvalStats), DistError> {
-        agree_on_charges(comm, charges, self.route.n_input)?;
+        agree_on_charges(comm, charges, self.nq * self.route.n_input)?;
         let mut stats = EvalStats::default();
         let t = Instant::now();
-        let (own, bytes) = self.route.charges_in(comm, charges, self.n_owned);
+        let (own, bytes) = self.route.charges_in(comm, charges, self.nq, self.n_owned);
         stats.add(0, t, bytes);
         let (values, inner) = self.evaluate_sorted_unchecked(comm, &own);
         stats.merge(&inner);
         let t = Instant::now();
-        let (out, bytes) =
-            self.route
-                .values_out(comm, &values, self.fmm.mode().values_per_target());
+        let w = self.fmm.kernel().values_per_target(self.fmm.mode());
+        let (out, bytes) = self.route.values_out(comm, &values, w);
         stats.add(7, t, bytes);
         Ok((out, stats))
     }
@@ -220,13 +255,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     /// its vectors distributed along the tree needs).
     ///
     /// # Errors
-    /// As [`DistributedFmm::evaluate`], for one charge per tree point.
+    /// As [`DistributedFmm::evaluate`], for the densities of the tree
+    /// points.
     pub fn evaluate_sorted<C: Communicator>(
         &self,
         comm: &C,
         charges: &[T],
     ) -> Result<(Vec<T>, EvalStats), DistError> {
-        agree_on_charges(comm, charges, self.n_owned)?;
+        agree_on_charges(comm, charges, self.nq * self.n_owned)?;
         Ok(self.evaluate_sorted_unchecked(comm, charges))
     }
 
@@ -237,9 +273,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     ) -> (Vec<T>, EvalStats) {
         let mut stats = EvalStats::default();
         let n = self.fmm.n_surface();
-        let mut q = vec![T::ZERO; self.own_pos.len() + self.ghost_pos.len()];
-        for (&p, &x) in self.own_pos.iter().zip(own) {
-            q[p] = x;
+        let nq = self.nq;
+        let mut q = vec![T::ZERO; nq * (self.own_pos.len() + self.ghost_pos.len())];
+        for (&p, x) in self.own_pos.iter().zip(own.chunks_exact(nq)) {
+            q[nq * p..nq * (p + 1)].copy_from_slice(x);
         }
         let mut timings = EvalTimings::default();
         let t = Instant::now();
@@ -252,12 +289,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         stats.compute_cpu_seconds += stats::cpu_seconds() - c;
 
         let t = Instant::now();
-        let mut ghost_q = vec![T::ZERO; self.ghost_pos.len()];
+        let mut ghost_q = vec![T::ZERO; nq * self.ghost_pos.len()];
         let bytes = self
             .plan
-            .exchange(comm, n, &mut multipoles, own, &mut ghost_q);
-        for (&p, &x) in self.ghost_pos.iter().zip(&ghost_q) {
-            q[p] = x;
+            .exchange(comm, n, nq, &mut multipoles, own, &mut ghost_q);
+        for (&p, x) in self.ghost_pos.iter().zip(ghost_q.chunks_exact(nq)) {
+            q[nq * p..nq * (p + 1)].copy_from_slice(x);
         }
         stats.add(2, t, bytes);
 
@@ -324,6 +361,18 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     /// Number of points this rank holds in the tree.
     pub fn n_owned(&self) -> usize {
         self.n_owned
+    }
+
+    /// Values per point in the charge vectors
+    /// ([`Kernel::values_per_source`] of the source kind).
+    pub fn values_per_source(&self) -> usize {
+        self.nq
+    }
+
+    /// Values per point in the results ([`Kernel::values_per_target`] of
+    /// the mode).
+    pub fn values_per_target(&self) -> usize {
+        self.fmm.kernel().values_per_target(self.fmm.mode())
     }
 }
 

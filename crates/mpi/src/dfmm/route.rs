@@ -6,7 +6,7 @@
 //! Made once: each owner tells each origin rank which of its input points
 //! it holds (one personalised all-to-all of ids). Each evaluation: one
 //! all-to-all of charges (origin to owner) and one of values (owner to
-//! origin), 8 bytes a charge and `8 w` a result. This traffic grows with
+//! origin), `8 nq` bytes a point's charges and `8 w` its result. This traffic grows with
 //! the number of points a rank holds, not with the surface of its range:
 //! a solver that keeps its vectors in the tree's order avoids it
 //! ([`super::DistributedFmm::evaluate_sorted`]).
@@ -67,24 +67,33 @@ impl Route {
         }
     }
 
-    /// This rank's charges (input order) to the owners: returns the charges
-    /// of this rank's points in tree order, and the bytes sent.
+    /// This rank's charges (input order, `nq` values per point) to the
+    /// owners: returns the charges of this rank's points in tree order, and
+    /// the bytes sent.
     pub(crate) fn charges_in<C: Communicator, T: Real>(
         &self,
         comm: &C,
         charges: &[T],
+        nq: usize,
         n_owned: usize,
     ) -> (Vec<T>, u64) {
         let send: Vec<Vec<u64>> = self
             .by_owner
             .iter()
-            .map(|ids| ids.iter().map(|&i| charges[i].to_f64().to_bits()).collect())
+            .map(|ids| {
+                ids.iter()
+                    .flat_map(|&i| charges[nq * i..nq * (i + 1)].iter())
+                    .map(|x| x.to_f64().to_bits())
+                    .collect()
+            })
             .collect();
         let (recv, _, bytes) = all_to_all(comm, &send);
-        let mut out = vec![T::ZERO; n_owned];
+        let mut out = vec![T::ZERO; nq * n_owned];
         let order = self.by_origin.iter().flatten();
-        for (&k, &x) in order.zip(&recv) {
-            out[k] = T::from_f64(f64::from_bits(x));
+        for (&k, chunk) in order.zip(recv.chunks_exact(nq)) {
+            for (o, &x) in out[nq * k..nq * (k + 1)].iter_mut().zip(chunk) {
+                *o = T::from_f64(f64::from_bits(x));
+            }
         }
         (out, bytes)
     }
