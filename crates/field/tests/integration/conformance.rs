@@ -129,12 +129,15 @@ fn fft_conforms_exactly_for_kernels_with_components() {
         .unwrap();
 }
 
-/// Orders 8, 11 and 12 (grids 15, 21 and 24: smooth sizes at or above
-/// `2p - 1`, odd and even), every transfer vector, every column layout.
+/// Orders 8 and 10 (grids 15 and 20: the smooth sizes at or above `2p -
+/// 1`, odd, and even past the prime 19), every transfer vector, every
+/// column layout. (Orders 11 and 12, grids 21 and 24, passed too and took
+/// 70 % of this test's two minutes in a debug build; the lower orders of
+/// `fft_conforms_exactly` cover odd and even grids already.)
 #[test]
 fn fft_conforms_exactly_at_high_orders() {
     use ferrofmm_field::{FftConfig, FftM2l};
-    for p in [8, 11, 12] {
+    for p in [8, 10] {
         let r = check_scheme::<f64, FftM2l<f64>, _>(
             &Laplace3d,
             &OperatorParams::new(p),
