@@ -26,7 +26,7 @@ struct Cli {
 enum Command {
     /// The distributed FMM: points and charges from files (or generated),
     /// the result in the input order, per-rank times, bytes and imbalance.
-    Eval(eval::EvalArgs),
+    Eval(Box<eval::EvalArgs>),
     /// Build the tree; print per-rank counts, imbalance, ghosts, bytes sent
     /// and phase times.
     Tree(report::TreeArgs),
