@@ -762,6 +762,7 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         centre,
         has_sources,
         has_targets,
+        active: None,
     })
 }
 

@@ -46,9 +46,20 @@ pub(crate) struct TreePart<T: Real, S> {
     /// `false` for a cluster of sources only: the tree was built on the
     /// sources, and only the upward pass runs.
     pub(crate) has_targets: bool,
+    /// The boxes whose expansions this process needs
+    /// ([`crate::TreeFmm::with_active_boxes`]): `None` (every box) on one
+    /// machine. Elsewhere P2M, UC2E and M2M skip the other boxes (their
+    /// multipoles stay zero) and DC2E and L2L skip them (their locals stay
+    /// zero); M2L and P2L still compute every box's check potential.
+    pub(crate) active: Option<Vec<bool>>,
 }
 
 impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
+    /// Whether box `b` is [active](TreePart::active).
+    pub(crate) fn is_active(&self, b: usize) -> bool {
+        self.active.as_ref().is_none_or(|a| a[b])
+    }
+
     /// Target coordinates in the tree's order (relative to `centre`): the
     /// sources' when the tree has one point set.
     pub(crate) fn target_points(&self) -> &[T] {

@@ -227,7 +227,7 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
         .enumerate()
         .for_each_init(Vec::new, |surface, (b, col)| {
             let r = tree.source_range(b);
-            if !tree.is_leaf(b) || r.is_empty() {
+            if !tree.is_leaf(b) || r.is_empty() || !part.is_active(b) {
                 return;
             }
             part.surface_of(cx.unit_surface, b, radius, surface);
@@ -237,12 +237,22 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
         });
     for level in 0..=tree.depth() {
         let r = tree.level_range(level);
-        par_columns(
-            n,
-            &check[n * r.start..n * r.end],
-            &mut multipoles[n * r.start..n * r.end],
-            |c, u| ops.uc2e(level, c, u),
-        );
+        let check = &check[n * r.start..n * r.end];
+        if part.active.is_some() {
+            // Only the active leaves with sources have a check potential.
+            let pairs: Vec<(usize, usize)> = r
+                .clone()
+                .filter(|&b| {
+                    part.is_active(b) && tree.is_leaf(b) && !tree.source_range(b).is_empty()
+                })
+                .map(|b| (b - r.start, b))
+                .collect();
+            gather_apply_scatter(n, &pairs, check, multipoles, |c, u| ops.uc2e(level, c, u));
+        } else {
+            par_columns(n, check, &mut multipoles[n * r.start..n * r.end], |c, u| {
+                ops.uc2e(level, c, u)
+            });
+        }
     }
 }
 
@@ -254,7 +264,7 @@ fn m2m<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, multipoles: &mut [T]) {
     for level in (1..=tree.depth()).rev() {
         let r = tree.level_range(level);
         let (parents, children) = multipoles.split_at_mut(n * r.start);
-        for (octant, pairs) in octant_pairs(tree, r.clone()).iter().enumerate() {
+        for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {
             // Source columns are relative to the level start, destinations global.
             gather_apply_scatter(n, pairs, children, parents, |c, p| {
                 ops.m2m(level, octant, c, p)
@@ -263,10 +273,18 @@ fn m2m<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, multipoles: &mut [T]) {
     }
 }
 
-/// `(child column relative to the level start, parent box)` grouped by octant.
-fn octant_pairs(tree: &Octree, level: Range<usize>) -> [Vec<(usize, usize)>; 8] {
+/// `(child column relative to the level start, parent box)` grouped by
+/// octant, for the [active](TreePart::active) children.
+fn octant_pairs<T: Real, S: M2lScheme<T>>(
+    part: &TreePart<T, S>,
+    level: Range<usize>,
+) -> [Vec<(usize, usize)>; 8] {
+    let tree = &part.tree;
     let mut groups: [Vec<(usize, usize)>; 8] = Default::default();
     for c in level.clone() {
+        if !part.is_active(c) {
+            continue;
+        }
         if let Some(p) = tree.parent(c) {
             groups[tree.key(c).octant()].push((c - level.start, p));
         }
@@ -340,9 +358,20 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         let t = Instant::now();
         let (parents, level_locals) = locals.split_at_mut(n * r.start);
         let level_locals = &mut level_locals[..n * r.len()];
-        par_columns(n, &check, level_locals, |c, d| ops.dc2e(level, c, d));
+        if part.active.is_some() {
+            let pairs: Vec<(usize, usize)> = r
+                .clone()
+                .filter(|&b| part.is_active(b))
+                .map(|b| (b - r.start, b - r.start))
+                .collect();
+            gather_apply_scatter(n, &pairs, &check, level_locals, |c, d| {
+                ops.dc2e(level, c, d)
+            });
+        } else {
+            par_columns(n, &check, level_locals, |c, d| ops.dc2e(level, c, d));
+        }
         if level >= 2 || from_root {
-            for (octant, pairs) in octant_pairs(tree, r.clone()).iter().enumerate() {
+            for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {
                 let pairs: Vec<(usize, usize)> = pairs.iter().map(|&(c, p)| (p, c)).collect();
                 gather_apply_scatter(n, &pairs, parents, level_locals, |p, c| {
                     ops.l2l(level, octant, p, c)

@@ -165,6 +165,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
                 centre,
                 has_sources: true,
                 has_targets: true,
+                active: None,
             },
             setup,
         })
@@ -193,6 +194,27 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     /// What each source carries.
     pub fn source_kind(&self) -> SourceKind {
         self.kind
+    }
+
+    /// Restricts the box-by-box work to the boxes marked `true` (one flag
+    /// per box of the tree, in box order; the parent of a marked box should
+    /// be marked too): P2M, UC2E and M2M skip the other boxes, so their
+    /// multipoles stay zero until the caller fills them in, and DC2E and
+    /// L2L skip them, so their locals stay zero. M2L and P2L still
+    /// compute every box's check potential, which the caller may send
+    /// elsewhere. A distributed driver marks its own boxes and the shared
+    /// ancestors above them: ghost boxes get their multipoles from their
+    /// owners and need no locals, and shared boxes away from its range
+    /// need neither (without it, every process would compute the locals of
+    /// every shared box). `Fmm` marks nothing and runs every box.
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] when `active` has not one flag per
+    /// box.
+    pub fn with_active_boxes(mut self, active: Vec<bool>) -> Result<Self, FmmError> {
+        self.check("active", active.len(), self.tree().n_boxes())?;
+        self.part.active = Some(active);
+        Ok(self)
     }
 
     /// The tree.

@@ -447,6 +447,7 @@ impl<K: Kernel> Run<'_, K> {
             }
             let mut mine = figures(&dtree, &dfmm, &stats);
             mine.push(stats.compute_cpu_seconds);
+            mine.push(dfmm.setup_stats().active_boxes as f64);
             let mut all = vec![0.0f64; FIGURES * size];
             world.all_gather_into(&mine[..], &mut all[..]);
             if me == 0 {

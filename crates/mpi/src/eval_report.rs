@@ -28,8 +28,9 @@ pub(crate) struct RunInfo<'a> {
 /// local tree, send and receive partners, tree phase seconds (6) and bytes
 /// (6), FMM setup seconds (3) and bytes, evaluation phase seconds (8) and
 /// bytes (8), operator seconds (8: P2M .. P2P), and the CPU seconds of
-/// the compute phases ([`EvalStats::compute_cpu_seconds`]).
-pub(crate) const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1;
+/// the compute phases ([`EvalStats::compute_cpu_seconds`]), and the boxes
+/// whose expansions the rank computes.
+pub(crate) const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1 + 1;
 
 pub(crate) fn figures<T: Real, K: Kernel, S: M2lScheme<T>>(
     dtree: &DistributedTree,
@@ -107,6 +108,7 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
                 "eval_total_bytes_sent": x[29..37].iter().sum::<f64>(),
                 "operator_seconds": named(&op_names, &x[37..45]),
                 "compute_cpu_seconds": x[45],
+                "active_boxes": x[46],
             })
         })
         .collect();

@@ -111,3 +111,73 @@ fn an_order_out_of_range_is_an_error() {
     let r = try_tree_fmm(tree, 1);
     assert!(matches!(r, Err(FmmError::InvalidOrder { order: 1, .. })));
 }
+
+/// Active boxes: with every box active the passes give `Fmm`'s values
+/// (the filtered UC2E, DC2E and L2L paths); with a subtree inactive its
+/// boxes keep zero multipoles and locals while the active boxes' locals
+/// are unchanged; a mask of the wrong length is an error.
+#[test]
+fn active_boxes_restrict_the_box_work() {
+    let (_, q, tree) = setup();
+    let perm = tree.source_permutation().to_vec();
+    let sorted_q: Vec<f64> = perm.iter().map(|&i| q[i]).collect();
+    let n_boxes = tree.n_boxes();
+    let base = tree_fmm(tree.clone());
+    let mut timings = EvalTimings::default();
+    let m0 = base.upward(&sorted_q, &mut timings).unwrap();
+    let l0 = base
+        .downward(&sorted_q, &m0, &mut timings, |_, _, _| {})
+        .unwrap();
+    let v0 = base.leaf_passes(&sorted_q, &m0, &l0, &mut timings).unwrap();
+
+    let all = tree_fmm(tree.clone())
+        .with_active_boxes(vec![true; n_boxes])
+        .unwrap();
+    let m = all.upward(&sorted_q, &mut timings).unwrap();
+    let l = all
+        .downward(&sorted_q, &m, &mut timings, |_, _, _| {})
+        .unwrap();
+    let v = all.leaf_passes(&sorted_q, &m, &l, &mut timings).unwrap();
+    // Relative difference (0 for two zero vectors: a level-1 local is zero).
+    let rel = |a: &[f64], b: &[f64]| {
+        let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+        let den: f64 = b.iter().map(|x| x * x).sum();
+        if num == 0.0 { 0.0 } else { (num / den).sqrt() }
+    };
+    assert!(rel(&v, &v0) <= 1e-14, "{}", rel(&v, &v0));
+
+    // The subtree of the root's first child with boxes below it: inactive.
+    let t = all.tree();
+    let n = all.n_surface();
+    let first = t.level_range(1).start;
+    let inactive: Vec<bool> = (0..n_boxes)
+        .map(|b| {
+            let mut a = Some(b);
+            while let Some(x) = a {
+                if x == first {
+                    return true;
+                }
+                a = t.parent(x);
+            }
+            false
+        })
+        .collect();
+    assert!(inactive.iter().filter(|&&x| x).count() > 8);
+    let part = tree_fmm(tree)
+        .with_active_boxes(inactive.iter().map(|&x| !x).collect())
+        .unwrap();
+    let m = part.upward(&sorted_q, &mut timings).unwrap();
+    let l = part
+        .downward(&sorted_q, &m0, &mut timings, |_, _, _| {})
+        .unwrap();
+    for b in 0..n_boxes {
+        let (mb, lb) = (&m[n * b..n * (b + 1)], &l[n * b..n * (b + 1)]);
+        if inactive[b] {
+            assert!(mb.iter().chain(lb).all(|&x| x == 0.0), "box {b}");
+        } else if b != 0 {
+            assert!(rel(lb, &l0[n * b..n * (b + 1)]) <= 1e-14, "box {b}");
+        }
+    }
+    let e = tree_fmm(setup().2).with_active_boxes(vec![true; 3]).err();
+    assert!(matches!(e, Some(FmmError::InvalidParameter(_))), "{e:?}");
+}

@@ -205,6 +205,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
             make()
         };
         let fmm = agree_message(comm, fmm.map_err(|e| e.to_string()))?;
+        let (active, n_active) = active_boxes(fmm.tree(), &kinds);
+        setup.active_boxes = n_active;
+        let fmm = fmm.with_active_boxes(active).map_err(|e| DistError::Fmm {
+            rank: comm.rank(),
+            message: e.to_string(),
+        })?;
         setup.seconds[2] = t.elapsed().as_secs_f64();
         Ok(DistributedFmm {
             fmm,
@@ -374,6 +380,31 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     pub fn values_per_target(&self) -> usize {
         self.fmm.kernel().values_per_target(self.fmm.mode())
     }
+}
+
+/// The boxes whose expansions this rank needs: its own boxes and the
+/// coarse boxes above them (a coarse box away from the rank's range gets
+/// no multipole from it and its local is not needed here; ghost boxes get
+/// their multipoles from their owners and need no locals). Returns the
+/// flags and how many are set.
+fn active_boxes(tree: &ferrofmm_tree::Octree, kinds: &[Kind]) -> (Vec<bool>, usize) {
+    let mut active = vec![false; kinds.len()];
+    for b in 0..kinds.len() {
+        if kinds[b] != Kind::Own {
+            continue;
+        }
+        active[b] = true;
+        let mut up = tree.parent(b);
+        while let Some(p) = up {
+            if active[p] {
+                break;
+            }
+            active[p] = true;
+            up = tree.parent(p);
+        }
+    }
+    let n = active.iter().filter(|&&a| a).count();
+    (active, n)
 }
 
 /// Sums the columns `cols` (`n` values each) of `data` over all ranks, in

@@ -90,6 +90,9 @@ pub struct SetupStats {
     pub ghost_points: usize,
     /// Boxes of the local tree (own, coarse, ghosts and their ancestors).
     pub boxes: usize,
+    /// Boxes whose expansions this rank computes: its own and the coarse
+    /// boxes above them ([`ferrofmm_fmm::TreeFmm::with_active_boxes`]).
+    pub active_boxes: usize,
     /// Ranks this one sends to at each evaluation.
     pub send_partners: usize,
     /// Ranks this one receives from at each evaluation.
