@@ -3,7 +3,7 @@
 //! the gradient for every order x M2L scheme x geometry x charge kind.
 //!
 //! ```text
-//! cargo run --release --example error_model -- [N] [OPTIONS]
+//! cargo run --release --features sweeps --example error_model -- [N] [OPTIONS]
 //! ```
 //!
 //! * `N`: points per geometry (default 20000).

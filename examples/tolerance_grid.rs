@@ -3,7 +3,7 @@
 //! the measurements behind the models of `ferrofmm_fmm::tuning`.
 //!
 //! ```text
-//! cargo run --release --example tolerance_grid -- [N] [GEOMETRY] [MODE] [OPTIONS]
+//! cargo run --release --features sweeps --example tolerance_grid -- [N] [GEOMETRY] [MODE] [OPTIONS]
 //! ```
 //!
 //! * `N` (default 100000), `GEOMETRY`: cube, sphere, plummer, two-clusters

@@ -3,7 +3,7 @@
 //! `outlier_sweep` example (compiled against different checkouts).
 //!
 //! ```text
-//! cargo run --release -p ferrofmm-cli --example outlier_chart -- \
+//! cargo run --release -p ferrofmm-cli --features sweeps --example outlier_chart -- \
 //!     docs/charts/outliers.svg "round 1=r1.csv" "exact origin=origin.csv" "forest=after.csv"
 //! ```
 //!

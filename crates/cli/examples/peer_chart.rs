@@ -4,7 +4,7 @@
 //! each point labelled with its setting.
 //!
 //! ```text
-//! cargo run --release -p ferrofmm-cli --example peer_chart -- \
+//! cargo run --release -p ferrofmm-cli --features sweeps --example peer_chart -- \
 //!     docs/charts/exafmm_side_by_side.svg "TITLE" docs/charts/exafmm_side_by_side.csv
 //! ```
 //!

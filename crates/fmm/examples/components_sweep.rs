@@ -10,10 +10,10 @@
 //! evaluation times.
 //!
 //! ```text
-//! cargo run --release -p ferrofmm-fmm --example components_sweep -- 20000 > components.csv
-//! cargo run --release -p ferrofmm-fmm --example components_sweep -- 20000 '' stokes
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example components_sweep -- 20000 > components.csv
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example components_sweep -- 20000 '' stokes
 //! # N, wavenumbers, kernels (helmholtz | stokes | both), scheme (svd | fft), orders
-//! cargo run --release -p ferrofmm-fmm --example components_sweep -- 20000 '' stokes fft 3,4,5,6,7,8,9,10
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example components_sweep -- 20000 '' stokes fft 3,4,5,6,7,8,9,10
 //! ```
 //!
 //! `k W` is the wavenumber times the width of the points' bounding cube

@@ -9,7 +9,7 @@
 //! (no outlier), the reference the other rows should match.
 //!
 //! ```text
-//! cargo run --release -p ferrofmm-fmm --example outlier_sweep -- 20000 > after.csv
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example outlier_sweep -- 20000 > after.csv
 //! ```
 //!
 //! It uses only the API that predates the forest of trees, so the same

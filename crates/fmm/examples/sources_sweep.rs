@@ -9,7 +9,7 @@
 //! row, with the evaluation time.
 //!
 //! ```text
-//! cargo run --release -p ferrofmm-fmm --example sources_sweep -- 20000 > sources.csv
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example sources_sweep -- 20000 > sources.csv
 //! ```
 //!
 //! Densities are drawn per component: `signed` uniform in `[-0.5, 0.5)`

@@ -5,20 +5,25 @@
 //! breaks ties between points in one finest cell, so the order is total and
 //! every point has one place. Then:
 //!
-//! 1. every rank takes `S = 16 R` regular samples of its sorted keys (fewer
-//!    if it holds fewer points) and all samples are gathered on every rank
-//!    (`all_gather`, `16 R^2` keys in all);
-//! 2. the sorted samples at positions `k * total / R` (`k = 1 .. R - 1`)
-//!    are the splitters; rank `k` receives the keys in
+//! 1. every rank takes `S` regular samples of its sorted keys (fewer if it
+//!    holds fewer points), `S = 16 R` up to `R = 256` and `SAMPLE_CAP / R`
+//!    beyond ([`samples_per_rank`]), and rank 0 gathers them (at most
+//!    [`SAMPLE_CAP`] keys, 16 MB; the other ranks hold only their own);
+//! 2. rank 0 sorts them and broadcasts the samples at positions `k * total
+//!    / R` (`k = 1 .. R - 1`), the splitters; rank `k` receives the keys in
 //!    `[splitter_k, splitter_(k+1))`;
 //! 3. one personalised all-to-all moves every point (code, coordinates, id,
 //!    weight) to its bucket's rank, which merges the `R` sorted runs it
 //!    receives (a heap merge, `O(n log R)`).
 //!
-//! With regular sampling a bucket holds at most about `n/R + n/S` points
-//! (Shi & Schaeffer 1992), so the sort itself is balanced to a few percent;
-//! the exact balance by weight, on box-aligned cuts, is
-//! [`partition`](crate::partition)'s job.
+//! With regular sampling a bucket holds at most about `N/R + N/S` points
+//! of `N` (Shi & Schaeffer 1992): within `1/16` of even up to `R = 256`;
+//! beyond, where the cap keeps the gather at `O(1)` per rank instead of
+//! `O(R^2)` on every rank, the worst-case bound loosens to `R / S` times
+//! the share (inputs in random-like order stay much closer). The sort only
+//! has to be roughly even (it sets the transient memory); the exact
+//! balance by weight, on box-aligned cuts, is
+//! [`partition`](crate::partition)'s job, right after it.
 
 use ferrofmm_tree::Domain;
 use ferrofmm_tree::shape::morton_order;
@@ -220,6 +225,16 @@ impl LocalPoints {
     }
 }
 
+/// Most sample keys rank 0 gathers: `16 R` per rank up to `R = 256`,
+/// fewer per rank beyond (`2^20` keys, 16 MB).
+pub const SAMPLE_CAP: usize = 1 << 20;
+
+/// Samples each of `size` ranks takes: `16 R`, or `SAMPLE_CAP / R` when
+/// that is fewer (at least 4).
+pub fn samples_per_rank(size: usize) -> usize {
+    (16 * size).min((SAMPLE_CAP / size.max(1)).max(4))
+}
+
 /// Sample sort (see the [module docs](self)): returns this rank's share of
 /// the globally sorted points and the bytes it sent.
 pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoints, u64) {
@@ -228,19 +243,20 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
         return (local, 0);
     }
     let n = local.len();
-    let s = n.min(16 * size);
+    let s = n.min(samples_per_rank(size));
     let mut samples: Vec<u64> = Vec::with_capacity(2 * s);
     for j in 0..s {
         let (c, id) = local.key((j * n + n / 2) / s.max(1));
         samples.extend_from_slice(&[c, id]);
     }
-    let mut counts = vec![0u64; size];
-    comm.all_gather_into(&(samples.len() as u64), &mut counts[..]);
-    let total: usize = counts.iter().map(|&c| c as usize).sum();
-    let mut all = vec![0u64; total];
-    {
-        let c: Vec<i32> = counts.iter().map(|&c| c as i32).collect();
-        let d: Vec<i32> = c
+    // Samples to rank 0, which picks the splitters and broadcasts them.
+    let root = comm.process_at_rank(0);
+    let count = samples.len() as i32;
+    let mut flat = vec![0u64; 2 * (size - 1)];
+    if comm.rank() == 0 {
+        let mut counts = vec![0i32; size];
+        root.gather_into_root(&count, &mut counts[..]);
+        let displs: Vec<i32> = counts
             .iter()
             .scan(0, |acc, &x| {
                 let v = *acc;
@@ -248,12 +264,25 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
                 Some(v)
             })
             .collect();
-        let mut part = mpi::datatype::PartitionMut::new(&mut all[..], c, d);
-        comm.all_gather_varcount_into(&samples[..], &mut part);
+        let total: usize = counts.iter().map(|&c| c as usize).sum();
+        let mut all = vec![0u64; total];
+        let mut part = mpi::datatype::PartitionMut::new(&mut all[..], counts, displs);
+        root.gather_varcount_into_root(&samples[..], &mut part);
+        let mut keys: Vec<(u64, u64)> = all.chunks_exact(2).map(|p| (p[0], p[1])).collect();
+        keys.sort_unstable();
+        if !keys.is_empty() {
+            for k in 1..size {
+                let (c, id) = keys[k * keys.len() / size];
+                flat[2 * (k - 1)] = c;
+                flat[2 * (k - 1) + 1] = id;
+            }
+        }
+    } else {
+        root.gather_into(&count);
+        root.gather_varcount_into(&samples[..]);
     }
-    let mut keys: Vec<(u64, u64)> = all.chunks_exact(2).map(|p| (p[0], p[1])).collect();
-    keys.sort_unstable();
-    let splitters: Vec<(u64, u64)> = (1..size).map(|k| keys[k * keys.len() / size]).collect();
+    root.broadcast_into(&mut flat[..]);
+    let splitters: Vec<(u64, u64)> = flat.chunks_exact(2).map(|p| (p[0], p[1])).collect();
     let mut bounds = Vec::with_capacity(size + 1);
     bounds.push(0);
     for sp in &splitters {
@@ -274,4 +303,22 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
     let (recv, runs, bytes) = all_to_all(comm, &local.pack_ranges(&bounds, Some(me)));
     let own = bounds[me]..bounds[me + 1];
     (local.merge_runs(own, me, &recv, &runs), bytes)
+}
+
+#[cfg(test)]
+mod sample_tests {
+    use super::*;
+
+    #[test]
+    fn samples_per_rank_is_16_r_then_capped() {
+        assert_eq!(samples_per_rank(1), 16);
+        assert_eq!(samples_per_rank(256), 16 * 256);
+        assert_eq!(samples_per_rank(4096), SAMPLE_CAP / 4096);
+        assert!(samples_per_rank(4096) * 4096 <= SAMPLE_CAP);
+        assert_eq!(samples_per_rank(1 << 20), 4);
+        for r in [2, 3, 100, 300, 5000, 70_000] {
+            let s = samples_per_rank(r);
+            assert!(s >= 4 && (s * r <= SAMPLE_CAP || s == 4), "R = {r}: {s}");
+        }
+    }
 }

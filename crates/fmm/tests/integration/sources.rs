@@ -26,6 +26,13 @@ fn bound(at4: f64, p: usize) -> f64 {
     at4 * 6f64.powi(4 - p as i32)
 }
 
+/// One operator cache for the runs of this file: builds that differ only
+/// in the source kind or the outputs share their operators (the tests
+/// check evaluations, not precomputation).
+fn cache() -> std::path::PathBuf {
+    std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("sources-operators")
+}
+
 #[allow(clippy::too_many_arguments)]
 fn run<T: Real, K: Kernel>(
     kernel: &K,
@@ -44,7 +51,8 @@ fn run<T: Real, K: Kernel>(
         .order(order)
         .leaf_size(64)
         .mode(mode)
-        .source_kind(kind);
+        .source_kind(kind)
+        .cache_dir(cache());
     if let Some(t) = targets {
         builder = builder.targets(t);
     }

@@ -52,7 +52,9 @@ fn losses<T: Real>(order: usize, geometry: Geometry) -> Vec<(Charges, f64, f64)>
 
 #[test]
 fn svd_costs_at_most_1_3x_in_f64() {
-    for order in 3..=12 {
+    // Every order up to 8, then 10 and 12 (9 and 11 passed too; they were
+    // a third of this test's time with a cold cache).
+    for order in [3, 4, 5, 6, 7, 8, 10, 12] {
         for (kind, pot, grad) in losses::<f64>(order, Geometry::Cube) {
             assert!(
                 pot <= LOSS,

@@ -84,13 +84,16 @@ fn check<T: Real>(g: Geometry, mode: EvalMode, eps: f64) -> Result<(), FmmError>
     Ok(())
 }
 
+/// Per geometry: f64 with gradients at three tolerances six digits apart
+/// (orders from about 3 to 12), f64 potentials at one more, f32 at two.
+/// (Until this stop also 1e-7 with gradients and 1e-3 for potentials: they
+/// passed, and cost a third of this file's 12 minutes in a cold CI run,
+/// where every SVD is computed afresh.)
 fn check_geometry(g: Geometry) {
-    for eps in [1e-3, 1e-5, 1e-7, 1e-9] {
+    for eps in [1e-3, 1e-6, 1e-9] {
         check::<f64>(g, EvalMode::PotentialGradient, eps).unwrap();
     }
-    for eps in [1e-3, 1e-6] {
-        check::<f64>(g, EvalMode::Potential, eps).unwrap();
-    }
+    check::<f64>(g, EvalMode::Potential, 1e-5).unwrap();
     for eps in [1e-3, 1e-5] {
         for mode in [EvalMode::Potential, EvalMode::PotentialGradient] {
             match check::<f32>(g, mode, eps) {
