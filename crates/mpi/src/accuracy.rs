@@ -106,17 +106,10 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
     comm.all_gather_into(&count, &mut counts[..]);
     let root = comm.process_at_rank(0);
     let chosen = if comm.rank() == 0 {
-        let displs: Vec<i32> = counts
-            .iter()
-            .scan(0i32, |s, &c| {
-                let d = *s;
-                *s += c;
-                Some(d)
-            })
-            .collect();
-        let total: usize = counts.iter().map(|&c| c as usize).sum();
-        let mut sample = vec![0.0f64; total];
-        let mut part = PartitionMut::new(&mut sample[..], &counts[..], &displs[..]);
+        let sizes: Vec<usize> = counts.iter().map(|&c| c as usize).collect();
+        let (c, displs) = crate::exchange::layout(&sizes);
+        let mut sample = vec![0.0f64; sizes.iter().sum()];
+        let mut part = PartitionMut::new(&mut sample[..], c, displs);
         root.gather_varcount_into_root(&mine[..], &mut part);
         Some(choose_on(
             &sample, kernel, eps, precision, mode, shape, svd_cached,

@@ -13,7 +13,7 @@ use mpi::request::scope;
 use mpi::traits::*;
 
 /// Counts and displacements (in words) of `buckets`.
-fn layout(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
+pub(crate) fn layout(counts: &[usize]) -> (Vec<i32>, Vec<i32>) {
     let c: Vec<i32> = counts.iter().map(|&n| n as i32).collect();
     let d: Vec<i32> = c
         .iter()

@@ -256,17 +256,10 @@ pub fn sample_sort<C: Communicator>(comm: &C, local: LocalPoints) -> (LocalPoint
     if comm.rank() == 0 {
         let mut counts = vec![0i32; size];
         root.gather_into_root(&count, &mut counts[..]);
-        let displs: Vec<i32> = counts
-            .iter()
-            .scan(0, |acc, &x| {
-                let v = *acc;
-                *acc += x;
-                Some(v)
-            })
-            .collect();
-        let total: usize = counts.iter().map(|&c| c as usize).sum();
-        let mut all = vec![0u64; total];
-        let mut part = mpi::datatype::PartitionMut::new(&mut all[..], counts, displs);
+        let sizes: Vec<usize> = counts.iter().map(|&c| c as usize).collect();
+        let (c, displs) = crate::exchange::layout(&sizes);
+        let mut all = vec![0u64; sizes.iter().sum()];
+        let mut part = mpi::datatype::PartitionMut::new(&mut all[..], c, displs);
         root.gather_varcount_into_root(&samples[..], &mut part);
         let mut keys: Vec<(u64, u64)> = all.chunks_exact(2).map(|p| (p[0], p[1])).collect();
         keys.sort_unstable();
