@@ -148,6 +148,11 @@ impl Reader {
         self
     }
 
+    /// The memory limit in bytes (`None`: none).
+    pub fn limit(&self) -> Option<u64> {
+        self.limit
+    }
+
     /// Read all of `contents` from `path`.
     pub fn read(&self, path: &Path, contents: Contents) -> Result<Vec<f64>> {
         self.read_rows(path, contents, |n| 0..n).map(|(v, _)| v)

@@ -42,8 +42,39 @@ enum Command {
     FmmCheck(check_fmm::FmmCheckArgs),
 }
 
+/// SIGINT / SIGTERM (what `mpirun` forwards on Ctrl-C): remove the
+/// temporary output file (rank 0's, while the output is being written)
+/// and exit with status 130 instead of leaving it behind. `SIGXFSZ` (a
+/// write beyond `ulimit -f`) is caught so that the write fails with
+/// `EFBIG` and is cleaned up like any other failed write.
+fn install_interrupt() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let _ = signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        Arc::new(AtomicBool::new(false)),
+    );
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if signal_hook::flag::register(signal, flag.clone()).is_err() {
+            return;
+        }
+    }
+    let _ = std::thread::Builder::new()
+        .name("ferrofmm-mpi-interrupt".into())
+        .spawn(move || {
+            while !flag.load(Ordering::Relaxed) {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            ferrofmm_io::output::remove_temporaries();
+            eprintln!("error: interrupted");
+            std::process::exit(130)
+        });
+}
+
 fn main() {
     let cli = Cli::parse();
+    install_interrupt();
     let Some(universe) = mpi::initialize() else {
         eprintln!("MPI could not be initialised");
         std::process::exit(2);
