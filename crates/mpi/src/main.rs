@@ -42,9 +42,15 @@ enum Command {
     FmmCheck(check_fmm::FmmCheckArgs),
 }
 
+/// The exit status once the command has finished (-1 before): `mpirun`
+/// sends SIGTERM to the ranks still finalising when one rank exits, which
+/// then must not report an interrupt.
+static FINISHED: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(-1);
+
 /// SIGINT / SIGTERM (what `mpirun` forwards on Ctrl-C): remove the
 /// temporary output file (rank 0's, while the output is being written)
-/// and exit with status 130 instead of leaving it behind. `SIGXFSZ` (a
+/// and exit with status 130 instead of leaving it behind (after the
+/// command finished: quietly, with its status). `SIGXFSZ` (a
 /// write beyond `ulimit -f`) is caught so that the write fails with
 /// `EFBIG` and is cleaned up like any other failed write.
 fn install_interrupt() {
@@ -67,6 +73,10 @@ fn install_interrupt() {
                 std::thread::sleep(std::time::Duration::from_millis(20));
             }
             ferrofmm_io::output::remove_temporaries();
+            let done = FINISHED.load(Ordering::SeqCst);
+            if done >= 0 {
+                std::process::exit(done);
+            }
             eprintln!("error: interrupted");
             std::process::exit(130)
         });
@@ -87,6 +97,7 @@ fn main() {
         Command::Bad(a) => check::run_bad(&world, &a),
         Command::FmmCheck(a) => check_fmm::run(&world, &a),
     };
+    FINISHED.store(code, std::sync::atomic::Ordering::SeqCst);
     drop(universe);
     std::process::exit(code);
 }

@@ -29,7 +29,7 @@ pub struct TreeArgs {
     /// Balance by `points` (default) or by `work`: build once, estimate
     /// each point's work from the interaction lists, build again balanced
     /// by it (both builds are reported).
-    #[arg(long, default_value = "points")]
+    #[arg(long, default_value = "points", value_parser = ["points", "work"])]
     weights: String,
     /// For `--weights work`: cost of one V, W or X entry in pair
     /// interactions.
