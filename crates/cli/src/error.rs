@@ -56,6 +56,26 @@ pub enum CliError {
     /// ends the command quietly with status 0.
     #[error("stdout is closed")]
     StdoutClosed,
+    /// `--tolerance` was checked after evaluating (`--verify on`) and not
+    /// met, even after raising the order: nothing is written.
+    #[error(
+        "tolerance {tolerance:e} not met: the error measured on sampled targets is \
+         {measured:.2e} after {attempts} attempt(s) (last order {order}); no output written \
+         (ask for a larger tolerance{}, or --verify off to take the unchecked result)",
+        if *precision == "f32" { ", use --precision f64" } else { "" }
+    )]
+    ToleranceNotMet {
+        /// The tolerance asked for.
+        tolerance: f64,
+        /// The worst error measured on the last attempt.
+        measured: f64,
+        /// Evaluations tried.
+        attempts: usize,
+        /// Order of the last attempt.
+        order: usize,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
+    },
     /// A child run of a sweep failed.
     #[error("sweep configuration {config} failed: {message}")]
     SweepRun {

@@ -124,15 +124,17 @@ pub fn relative_errors<T: Real, K: Kernel>(
 }
 
 /// [`relative_errors`] for sources of any [`SourceKind`] (`densities`
-/// holds [`SourceKind::values_per_source`] values per source).
+/// holds [`SourceKind::values_per_source`] values per source), with the
+/// points in a float type `P` of their own: give the caller's `f64`
+/// coordinates to check an `f32` run against the truth of those points.
 #[allow(clippy::too_many_arguments)]
-pub fn relative_errors_sources<T: Real, K: Kernel>(
+pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
     kernel: &K,
     kind: SourceKind,
     mode: EvalMode,
-    sources: &[T],
+    sources: &[P],
     densities: &[T],
-    targets: &[T],
+    targets: &[P],
     values: &[T],
     sample: &[usize],
 ) -> ErrorReport {

@@ -11,6 +11,7 @@ use ferrofmm_field::{
 use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Laplace3d, Real, SourceKind};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
+use crate::coordinates::Coordinates;
 use crate::fmm::ChosenScheme;
 use crate::tuning::{ChosenParameters, TuningModel};
 use crate::{Fmm, FmmError, tuning};
@@ -49,8 +50,8 @@ pub const MAX_WAVENUMBER_WIDTH: f64 = 40.0;
 /// ```
 #[derive(Clone, Debug)]
 pub struct FmmBuilder<'a, T: Real, K: Kernel> {
-    pub(crate) sources: &'a [T],
-    pub(crate) targets: Option<&'a [T]>,
+    pub(crate) sources: Coordinates<'a, T>,
+    pub(crate) targets: Option<Coordinates<'a, T>>,
     pub(crate) kernel: K,
     pub(crate) order: usize,
     pub(crate) leaf_size: usize,
@@ -74,6 +75,36 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
     /// [`DEFAULT_LEAF_SIZE`], potentials only, and the targets equal to the
     /// sources.
     pub fn new(sources: &'a [T]) -> Self {
+        Self::start(Coordinates::Native(sources))
+    }
+
+    /// Start from sources held in `f64` (interleaved `x, y, z`), for a run
+    /// in any float type `T`; otherwise as [`FmmBuilder::new`].
+    ///
+    /// For `T = f32` this is the constructor to use when the points are
+    /// `f64`: the coordinates are rounded to `f32` only after the tree's
+    /// origin (a point near the domain) is subtracted in `f64`, so a
+    /// domain far from the origin keeps its points' separations. Rounding
+    /// the absolute coordinates first (`x as f32`) moves points by up to
+    /// `1e-3` at `|x| = 1e4` and merges every point of a unit cube at
+    /// `1e8`. Errors checked afterwards ([`Fmm::evaluate_verified`]) are
+    /// against these coordinates to within `2.5 u W` (`u` the unit
+    /// roundoff of `T`, `W` the domain's width).
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry};
+    /// // The unit cube shifted by 1e8: f32 cannot even tell its corners apart.
+    /// let points: Vec<f64> = Geometry::Cube.points::<f64>(2000, 1).iter().map(|x| x + 1e8).collect();
+    /// let fmm = FmmBuilder::<f32, _>::from_f64(&points).order(5).leaf_size(64).build_svd()?;
+    /// let phi = fmm.evaluate(&vec![1.0f32; 2000])?;
+    /// assert!(phi.iter().all(|p| p.is_finite() && *p > 0.0));
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn from_f64(sources: &'a [f64]) -> Self {
+        Self::start(Coordinates::Wide(sources))
+    }
+
+    fn start(sources: Coordinates<'a, T>) -> Self {
         FmmBuilder {
             sources,
             targets: None,
@@ -185,7 +216,14 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Evaluate at these targets (interleaved `x, y, z`) instead of at the sources.
     pub fn targets(mut self, targets: &'a [T]) -> Self {
-        self.targets = Some(targets);
+        self.targets = Some(Coordinates::Native(targets));
+        self
+    }
+
+    /// [`FmmBuilder::targets`] held in `f64`, for a run in any float type
+    /// (rounded relative to the tree's origin, as [`FmmBuilder::from_f64`]).
+    pub fn targets_f64(mut self, targets: &'a [f64]) -> Self {
+        self.targets = Some(Coordinates::Wide(targets));
         self
     }
 
@@ -349,7 +387,11 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
                 self.max_level
             )));
         }
-        check_sources_and_targets(self.sources, self.targets)
+        self.sources.check("sources")?;
+        if let Some(t) = &self.targets {
+            t.check("targets")?;
+        }
+        Ok(())
     }
 
     /// Build with the M2L scheme `S` and its configuration.

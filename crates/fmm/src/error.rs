@@ -78,7 +78,7 @@ pub enum FmmError {
     /// An oscillatory kernel whose wavenumber times the domain width is
     /// beyond what the (low-frequency) operators resolve.
     #[error(
-        "kernel {kernel} with wavenumber k = {wavenumber} on a domain of width {width}: k * width = {kw:.3} exceeds the low-frequency limit {limit} of this FMM (about {wavelengths:.1} wavelengths across the domain); use a domain narrower than {max_width:.4} or a smaller k", kw = wavenumber * width, wavelengths = limit / (2.0 * std::f64::consts::PI), max_width = limit / wavenumber
+        "kernel {kernel} with wavenumber k = {wavenumber:e} on a domain of width {width:.3e}: k * width = {kw:.3} exceeds the low-frequency limit {limit} of this FMM (about {wavelengths:.1} wavelengths across the domain); use a domain narrower than {max_width:.3e} or a smaller k", kw = wavenumber * width, wavelengths = limit / (2.0 * std::f64::consts::PI), max_width = limit / wavenumber
     )]
     BeyondLowFrequency {
         /// The kernel's name.
@@ -98,6 +98,27 @@ pub enum FmmError {
         index: usize,
         /// The offending value.
         value: f64,
+    },
+    /// The evaluation produced an infinite or NaN value although every
+    /// input was finite: the sums overflow the float type (see
+    /// [`crate::check_finite_output`]). No result is returned.
+    #[error(
+        "the result overflowed {precision}: value {component} at target {target} is {value} \
+         (largest |density| {largest_density:e}); the sums exceed the largest {precision} \
+         number: scale the densities down (the result is linear in them){}",
+        if *precision == "f32" { " or use f64" } else { "" }
+    )]
+    NonFiniteResult {
+        /// Index of the target (in the caller's order).
+        target: usize,
+        /// Index of the value within the target's values (0: potential).
+        component: usize,
+        /// The value found.
+        value: f64,
+        /// Largest absolute density given.
+        largest_density: f64,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
     },
     /// The domain is so small or so large that squared distances between
     /// points and expansion surfaces underflow or overflow the float type

@@ -11,6 +11,7 @@ use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real, SourceKind};
 use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
 
 use crate::builder::FmmBuilder;
+use crate::coordinates::Coordinates;
 use crate::memory::MemoryReport;
 use crate::part::{Body, Part, PointsPart, TreePart};
 use crate::timings::{EvalTimings, SetupTimings};
@@ -129,9 +130,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let t0 = Instant::now();
         let mut setup = SetupTimings::default();
 
-        let to_f64 = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
-        let src64 = to_f64(b.sources);
-        let tgt64 = b.targets.map(to_f64);
+        // Every point in f64 (borrowed when given so): the tree is built on
+        // them and the run's float type only sees coordinates relative to
+        // the tree's origin (see `crate::coordinates`).
+        let src64 = b.sources.to_f64();
+        let tgt64 = b.targets.map(Coordinates::to_f64);
         let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());
         let main = &clusters[0];
         let mut error_model = None;
@@ -151,8 +154,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     None => {
                         let width = match (b.domain, &tgt64) {
                             (Some(d), _) => d.width,
-                            (None, Some(t)) => Domain::from_points(&[&src64, t])?.width,
-                            (None, None) => Domain::from_points(&[&src64])?.width,
+                            (None, Some(t)) => Domain::from_points(&[&src64[..], t])?.width,
+                            (None, None) => Domain::from_points(&[&src64[..]])?.width,
                         };
                         tuning::default_model(&b.kernel, width)
                     }
@@ -195,8 +198,6 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let single = clusters.len() == 1;
         for (k, cluster) in clusters.iter().enumerate() {
             let input = PartInput {
-                sources: b.sources,
-                targets: b.targets,
                 src64: &src64,
                 tgt64: tgt64.as_deref(),
                 ids: (!single).then_some(cluster),
@@ -220,7 +221,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     cluster.sources.len()
                 },
                 n_targets: if single {
-                    b.targets.map_or(b.sources.len(), <[T]>::len) / 3
+                    b.targets.map_or(b.sources.len(), |t| t.len()) / 3
                 } else {
                     cluster.targets.len()
                 },
@@ -244,7 +245,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             mode: b.mode,
             source_kind: b.source_kind,
             n_sources: b.sources.len() / 3,
-            n_targets: b.targets.map_or(b.sources.len(), <[T]>::len) / 3,
+            n_targets: b.targets.map_or(b.sources.len(), |t| t.len()) / 3,
             parts,
             separate_targets: b.targets.is_some(),
             unit_surface,
@@ -349,7 +350,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// As [`Fmm::evaluate`], and the time spent in each operator.
     pub fn evaluate_timed(&self, charges: &[T]) -> Result<(Vec<T>, EvalTimings), FmmError> {
         self.check_charges(charges, 1)?;
-        Ok(passes::evaluate(self, charges))
+        let (values, timings) = passes::evaluate(self, charges);
+        let per_target = self.kernel.values_per_target(self.mode);
+        crate::check_finite_output(&values, per_target, charges)?;
+        Ok((values, timings))
     }
 
     /// Evaluate `n_vectors` charge vectors stored one after another in
@@ -363,7 +367,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         for q in
             charges.chunks_exact(self.n_sources * self.kernel.values_per_source(self.source_kind))
         {
-            out.extend(passes::evaluate(self, q).0);
+            let values = passes::evaluate(self, q).0;
+            crate::check_finite_output(&values, self.kernel.values_per_target(self.mode), q)?;
+            out.extend(values);
         }
         Ok(out)
     }
@@ -670,15 +676,13 @@ fn gather<T: Copy>(points: &[T], ids: &[usize]) -> Vec<T> {
 
 /// The caller's points and the cluster a part is built from (`ids: None`:
 /// everything, in the caller's order).
-struct PartInput<'a, T> {
-    sources: &'a [T],
-    targets: Option<&'a [T]>,
+struct PartInput<'a> {
     src64: &'a [f64],
     tgt64: Option<&'a [f64]>,
     ids: Option<&'a Cluster>,
 }
 
-impl<T: Copy> PartInput<'_, T> {
+impl PartInput<'_> {
     /// The part's sources and targets (`None`: the targets are the sources,
     /// or the part has no targets of its own set).
     fn points<'b, U: Copy>(
@@ -702,22 +706,18 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     b: &FmmBuilder<'_, T, K>,
     params: &OperatorParams,
     config: &S::Config,
-    input: &PartInput<'_, T>,
+    input: &PartInput<'_>,
     setup: &mut SetupTimings,
 ) -> Result<TreePart<T, S>, FmmError> {
     let t0 = Instant::now();
     let (src64, tgt64) = input.points(input.src64, input.tgt64);
-    let (src, tgt) = input.points(input.sources, input.targets);
-    let has_sources = !src.is_empty();
-    let has_targets = tgt.as_ref().is_none_or(|t| !t.is_empty());
+    let has_sources = !src64.is_empty();
+    let has_targets = tgt64.as_ref().is_none_or(|t| !t.is_empty());
     // A one-sided cluster builds its tree on the side it has.
-    let (tree_src64, tree_tgt64, tree_src, tree_tgt) = match (has_sources, has_targets) {
-        (true, true) => (&src64, tgt64.as_ref(), &src, tgt.as_ref()),
-        (true, false) => (&src64, None, &src, None),
-        _ => {
-            let (t64, t) = (tgt64.as_ref(), tgt.as_ref());
-            (t64.expect("targets"), None, t.expect("targets"), None)
-        }
+    let (tree_src64, tree_tgt64) = match (has_sources, has_targets) {
+        (true, true) => (&src64, tgt64.as_ref()),
+        (true, false) => (&src64, None),
+        _ => (tgt64.as_ref().expect("targets"), None),
     };
     let options = TreeOptions {
         leaf_size: b.leaf_size,
@@ -749,8 +749,8 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         .map(|level| level_interactions(&tree, level))
         .collect::<Result<_, _>>()?;
     let centre = coordinate_origin(tree.domain());
-    let sources = permute_points(tree_src, tree.source_permutation(), centre);
-    let targets = tree_tgt.map(|t| permute_points(t, tree.target_permutation(), centre));
+    let sources = permute_points(tree_src64, tree.source_permutation(), centre);
+    let targets = tree_tgt64.map(|t| permute_points(t, tree.target_permutation(), centre));
     setup.layout += t.elapsed();
     Ok(TreePart {
         tree,
@@ -767,21 +767,20 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
 }
 
 /// A small cluster: its points relative to the origin of its bounding cube.
-fn points_part<T: Real>(input: &PartInput<'_, T>) -> PointsPart<T> {
+fn points_part<T: Real>(input: &PartInput<'_>) -> PointsPart<T> {
     let (src64, tgt64) = input.points(input.src64, input.tgt64);
-    let (src, tgt) = input.points(input.sources, input.targets);
     let sets: Vec<&[f64]> = [Some(&src64[..]), tgt64.as_deref()]
         .into_iter()
         .flatten()
         .collect();
     let centre = Domain::from_points(&sets).map_or([0.0; 3], |d| coordinate_origin(&d));
-    let identity: Vec<usize> = (0..src.len() / 3).collect();
-    let targets = tgt.map(|t| {
+    let identity: Vec<usize> = (0..src64.len() / 3).collect();
+    let targets = tgt64.map(|t| {
         let ids: Vec<usize> = (0..t.len() / 3).collect();
         permute_points(&t, &ids, centre)
     });
     PointsPart {
-        sources: permute_points(&src, &identity, centre),
+        sources: permute_points(&src64, &identity, centre),
         targets,
         centre,
     }
@@ -790,10 +789,10 @@ fn points_part<T: Real>(input: &PartInput<'_, T>) -> PointsPart<T> {
 /// Points in the tree's sorted order, relative to `centre`:
 /// `out[k] = points[perm[k]] - centre` (the difference in f64, then rounded
 /// to `T`).
-pub(crate) fn permute_points<T: Real>(points: &[T], perm: &[usize], centre: [f64; 3]) -> Vec<T> {
+pub(crate) fn permute_points<T: Real>(points: &[f64], perm: &[usize], centre: [f64; 3]) -> Vec<T> {
     perm.iter()
         .flat_map(|&i| {
-            std::array::from_fn::<T, 3, _>(|c| T::from_f64(points[3 * i + c].to_f64() - centre[c]))
+            std::array::from_fn::<T, 3, _>(|c| T::from_f64(points[3 * i + c] - centre[c]))
         })
         .collect()
 }

@@ -228,21 +228,26 @@ struct BuildOptions {
     cache_dir: Option<PathBuf>,
 }
 
+/// Build for float type `T` from points held in `f64`: they are rounded to
+/// `T` only relative to the tree's origin ([`FmmBuilder::from_f64`]), so an
+/// `f32` run on points far from the origin keeps their separations.
 fn build<T: Float>(
     o: &BuildOptions,
     monitor: PrecomputeMonitor,
-    sources: &[T],
-    targets: Option<&[T]>,
+    sources: &[f64],
+    targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
     match o.kernel {
-        KernelChoice::Laplace => build_with(Laplace3d, o, monitor, sources, targets),
+        KernelChoice::Laplace => build_with::<T, _>(Laplace3d, o, monitor, sources, targets),
         KernelChoice::Yukawa(k) => {
-            build_with(ModifiedHelmholtz3d::new(k)?, o, monitor, sources, targets)
+            build_with::<T, _>(ModifiedHelmholtz3d::new(k)?, o, monitor, sources, targets)
         }
         KernelChoice::Helmholtz(k) => {
-            build_with(Helmholtz3d::new(k)?, o, monitor, sources, targets)
+            build_with::<T, _>(Helmholtz3d::new(k)?, o, monitor, sources, targets)
         }
-        KernelChoice::Stokes => build_with(Stokes3d::default(), o, monitor, sources, targets),
+        KernelChoice::Stokes => {
+            build_with::<T, _>(Stokes3d::default(), o, monitor, sources, targets)
+        }
     }
 }
 
@@ -250,17 +255,17 @@ fn build_with<T: Float, K: Kernel>(
     kernel: K,
     o: &BuildOptions,
     monitor: PrecomputeMonitor,
-    sources: &[T],
-    targets: Option<&[T]>,
+    sources: &[f64],
+    targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
-    let mut b = FmmBuilder::new(sources)
+    let mut b = FmmBuilder::<T, _>::from_f64(sources)
         .kernel(kernel)
         .mode(o.mode)
         .source_kind(o.source_kind)
         .monitor(monitor)
         .verify(o.verify);
     if let Some(t) = targets {
-        b = b.targets(t);
+        b = b.targets_f64(t);
     }
     if let Some(eps) = o.eps {
         b = b.tolerance(eps);
@@ -279,10 +284,8 @@ fn build_with<T: Float, K: Kernel>(
         // than SVD at N = 2e4, equal accuracy; docs/kernels.md).
         (SchemeChoice::Auto, _) if o.kernel.components() > 1 => SchemeChoice::Fft,
         (SchemeChoice::Auto, Some(eps)) => {
-            let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
-            let (src, tgt) = (up(sources), targets.map(up));
             let cached = o.cache_dir.is_some();
-            match choose_scheme(eps, o.mode, T::PRECISION, &src, tgt.as_deref(), cached)?.0 {
+            match choose_scheme(eps, o.mode, T::PRECISION, sources, targets, cached)?.0 {
                 M2lCostShape::Fft => SchemeChoice::Fft,
                 _ => SchemeChoice::Svd,
             }
@@ -317,7 +320,7 @@ pub(crate) struct NativeFmm {
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge"))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -335,6 +338,7 @@ impl NativeFmm {
         cache_dir: Option<PathBuf>,
         hessian: bool,
         source: &str,
+        dtype: Option<&str>,
     ) -> PyResult<Self> {
         let source_kind = match source {
             "charge" => SourceKind::Charge,
@@ -416,27 +420,40 @@ impl NativeFmm {
             verify,
             cache_dir,
         };
+        // The run's float type: `dtype`, else the sources'. The points go
+        // to the builder in f64 (f32 widens exactly) and are rounded to the
+        // run's type only relative to the tree's origin.
         let sources = Floats::from_numpy("sources", sources)?;
+        let run_f32 = match dtype {
+            None => matches!(sources, Floats::F32(_)),
+            Some("float32") => true,
+            Some("float64") => false,
+            Some(other) => {
+                return Err(PyValueError::new_err(format!(
+                    "dtype must be \"float32\" or \"float64\", got {other:?}"
+                )));
+            }
+        };
+        let sources = f64::unwrap(sources);
         let targets = targets
-            .map(|t| Floats::from_numpy("targets", t))
+            .map(|t| Floats::from_numpy("targets", t).map(f64::unwrap))
             .transpose()?;
         let threads = Threads::new(threads)?;
         let cancel = Arc::new(AtomicBool::new(false));
         let monitor = PrecomputeMonitor::new().with_cancel_flag(cancel.clone());
         let job_options = options.clone();
-        let (dtype, engine) = match sources {
-            Floats::F64(s) => ("float64", {
-                let t = targets.map(f64::unwrap);
+        let (dtype, engine) = if run_f32 {
+            ("float32", {
                 interruptible(py, &threads, Some(&cancel), move || {
-                    build(&job_options, monitor, &s, t.as_deref())
+                    build::<f32>(&job_options, monitor, &sources, targets.as_deref())
                 })?
-            }),
-            Floats::F32(s) => ("float32", {
-                let t = targets.map(f32::unwrap);
+            })
+        } else {
+            ("float64", {
                 interruptible(py, &threads, Some(&cancel), move || {
-                    build(&job_options, monitor, &s, t.as_deref())
+                    build::<f64>(&job_options, monitor, &sources, targets.as_deref())
                 })?
-            }),
+            })
         };
         let engine = engine.map_err(fmm_error)?;
         Ok(NativeFmm {

@@ -13,14 +13,14 @@ use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors_sources,
     sample_indices,
 };
-use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor};
+use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor, Verification};
 use ferrofmm_kernels::{
     EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, SourceKind,
     Stokes3d,
 };
 
 use super::{KernelArg, PrecisionArg, SchemeArg};
-use crate::error::Result;
+use crate::error::{CliError, Result};
 use crate::memory::peak_rss_bytes;
 use crate::progress::with_stage;
 use crate::report::{
@@ -304,6 +304,40 @@ impl<T: Real> BuildScheme<T> for FftM2l<T> {
     }
 }
 
+/// Densities beyond the largest value of `T` (e.g. `1e39` in `f32`) would
+/// become infinite when converted: refuse them, naming the value.
+fn check_representable<T: Real>(densities: &[f64]) -> Result<()> {
+    let largest = match T::PRECISION {
+        Precision::F32 => f64::from(f32::MAX),
+        Precision::F64 => f64::MAX,
+    };
+    match densities.iter().position(|x| x.abs() > largest) {
+        None => Ok(()),
+        Some(i) => Err(CliError::InvalidArgument(format!(
+            "density {i} ({:.3e}) exceeds the largest {} number ({largest:.3e}): use --precision \
+             f64 or scale the densities down (the result is linear in them)",
+            densities[i],
+            T::PRECISION.name()
+        ))),
+    }
+}
+
+/// A tolerance checked after evaluating and missed (even at the raised
+/// orders) fails the command before anything is written: exit status 1,
+/// never a result less accurate than asked with status 0.
+fn require_met(verification: Option<&Verification>, precision: Precision) -> Result<()> {
+    match verification.filter(|v| !v.met) {
+        None => Ok(()),
+        Some(v) => Err(CliError::ToleranceNotMet {
+            tolerance: v.tolerance,
+            measured: v.measured().worst(),
+            attempts: v.attempts.len(),
+            order: v.last().order,
+            precision: precision.name(),
+        }),
+    }
+}
+
 /// [`run`] for float type `T`, M2L scheme `S` and kernel `K`.
 pub fn run_typed<T: Real, S: BuildScheme<T>, K: Kernel>(
     kernel: K,
@@ -316,8 +350,10 @@ where
 {
     let start = Instant::now();
     let mode = settings.mode();
-    // Files are read as f64 and converted once (consumed, so that only one
-    // copy of the input is held).
+    // Points stay in f64 whatever T is: the FMM rounds them only relative
+    // to its tree's origin (`FmmBuilder::from_f64`), and `--check` compares
+    // with the direct sums at the caller's own coordinates. Densities are
+    // converted once (consumed, so that only one copy is held).
     let convert = |v: Vec<f64>| v.into_iter().map(T::from_f64).collect::<Vec<T>>();
     let (geometry, charge_kind) = match &input {
         Input::Generated {
@@ -328,7 +364,8 @@ where
         ),
         Input::Given { .. } => (None, None),
     };
-    let (sources, targets, kind, q): (Vec<T>, Option<Vec<T>>, SourceKind, Vec<T>) = match input {
+    let (sources, targets, kind, q): (Vec<f64>, Option<Vec<f64>>, SourceKind, Vec<T>) = match input
+    {
         Input::Generated {
             geometry,
             charges,
@@ -352,7 +389,8 @@ where
             dipoles,
         } => {
             let (kind, d) = densities(charges, dipoles, settings.kernel.components());
-            (convert(sources), targets.map(convert), kind, convert(d))
+            check_representable::<T>(&d)?;
+            (sources, targets, kind, convert(d))
         }
     };
 
@@ -362,7 +400,7 @@ where
             .with_cancel_flag(crate::interrupt::flag())
             .with_progress(stage.precompute_progress());
         let _precomputing = crate::interrupt::precomputing();
-        let mut builder = FmmBuilder::new(&sources)
+        let mut builder = FmmBuilder::<T, _>::from_f64(&sources)
             .kernel(kernel.clone())
             .source_kind(kind)
             .order(settings.order)
@@ -375,7 +413,7 @@ where
                 MemoryLimit::Auto
             });
         if let Some(t) = &targets {
-            builder = builder.targets(t);
+            builder = builder.targets_f64(t);
         }
         if let Some(dir) = &settings.cache_dir {
             builder = builder.cache_dir(dir);
@@ -413,6 +451,7 @@ where
         }
         values = v;
     }
+    require_met(verification.as_ref(), T::PRECISION)?;
     let best = best.unwrap_or_default();
     totals.sort_by(f64::total_cmp);
     let median = if repeats % 2 == 1 {
@@ -497,4 +536,48 @@ where
         peak_rss_bytes: peak_rss_bytes(),
         wall_s: start.elapsed().as_secs_f64(),
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrofmm_fmm::{ErrorReport, VerificationAttempt};
+
+    fn verification(met: bool) -> Verification {
+        let attempt = |order, potential| VerificationAttempt {
+            order,
+            svd_tolerance: None,
+            predicted_error: 1e-7,
+            measured: ErrorReport {
+                n_sampled: 40,
+                potential,
+                gradient: None,
+                hessian: None,
+            },
+            evaluation_s: 0.1,
+            check_s: 0.01,
+        };
+        Verification {
+            tolerance: 1e-6,
+            attempts: vec![attempt(6, 4e-6), attempt(7, 3e-6), attempt(8, 2e-6)],
+            met,
+            rebuild_s: 0.2,
+        }
+    }
+
+    #[test]
+    fn a_missed_tolerance_fails_the_command() {
+        assert!(require_met(None, Precision::F64).is_ok());
+        assert!(require_met(Some(&verification(true)), Precision::F64).is_ok());
+        let e = require_met(Some(&verification(false)), Precision::F32).unwrap_err();
+        let m = e.to_string();
+        assert!(
+            m.contains("tolerance 1e-6 not met") && m.contains("2.00e-6") && m.contains("order 8"),
+            "{m}"
+        );
+        assert!(
+            m.contains("3 attempt(s)") && m.contains("--precision f64"),
+            "{m}"
+        );
+    }
 }

@@ -32,8 +32,9 @@
 //! zero-mean charges (0.5 to 1.1 `tau` for the potential, 1.9 to 2.4 `tau`
 //! for the gradient); the two truncations are independent and add in
 //! quadrature. `u` is the unit roundoff of the float type, `R` the largest
-//! `|center| / half-width` of the leaves ([`WorkCounts::rounding_ratio`]:
-//! surfaces of small boxes far from the origin are off by `u |center|`) and
+//! `|center - o| / half-width` of the leaves, `o` the point near the domain
+//! the coordinates are made relative to ([`WorkCounts::rounding_ratio`]:
+//! surfaces of small boxes far from `o` are off by `u |center - o|`) and
 //! `F` the float type's floor on well-centred points (0 in `f64`;
 //! [`F32_ERROR_FLOOR`], or [`F32_GRADIENT_FLOOR`] with gradients, in `f32`).
 //! An order is admissible for `eps` when `S predicted <= eps` with the

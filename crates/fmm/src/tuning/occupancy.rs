@@ -287,10 +287,13 @@ impl Occupancy {
     }
 }
 
-/// `|center| / half-width` of a box.
+/// `|center - o| / half-width` of a box, `o` the point the FMM makes its
+/// coordinates relative to (`crate::fmm::coordinate_origin`).
 pub(super) fn center_ratio(key: MortonKey, domain: &Domain) -> f64 {
     let c = key.center(domain);
-    (c[0] * c[0] + c[1] * c[1] + c[2] * c[2]).sqrt() / key.half_width(domain)
+    let o = crate::fmm::coordinate_origin(domain);
+    let r = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
+    (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt() / key.half_width(domain)
 }
 
 /// `(P2P pairs, far points, U-list entries)` of leaf `(l, i)`: its

@@ -32,9 +32,12 @@ pub struct WorkCounts {
     pub far_points: f64,
     /// U-list entries of the leaves (one P2P block each).
     pub u_entries: f64,
-    /// `max |center| / half-width` over the leaves (Euclidean norm of the
-    /// centre, in the caller's coordinates): how many digits of the
-    /// coordinates the smallest boxes need ([`ErrorModel::rounding_floor`]).
+    /// `max |center - o| / half-width` over the leaves (Euclidean norm of
+    /// the centre relative to the tree's coordinate origin `o`, a point
+    /// near the domain that the FMM subtracts in `f64` before rounding to
+    /// its float type): how many digits of the coordinates the smallest
+    /// boxes need ([`ErrorModel::rounding_floor`]). A domain far from zero
+    /// costs nothing; a small cluster far from the rest of its tree does.
     pub rounding_ratio: f64,
 }
 

@@ -8,6 +8,7 @@ mod concurrency;
 mod determinism;
 mod errors;
 mod fft_scheme;
+mod hostile;
 mod memory;
 mod outliers;
 mod proptest_fmm;

@@ -318,9 +318,13 @@ class Fmm:
             raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
         if k is not None:
             k = float(k)
+        # Points go over in their own precision (float64 unless both sets
+        # are float32): a float32 run rounds them only relative to the
+        # tree's origin, so a domain far from zero keeps its separations.
+        wide = np.result_type(src, np.float32 if tgt is None else tgt)
         self._native = _ferrofmm.NativeFmm(
-            _flat(src, run),
-            None if tgt is None else _flat(tgt, run),
+            _flat(src, wide),
+            None if tgt is None else _flat(tgt, wide),
             kernel,
             k,
             None if eps is None else float(eps),
@@ -333,6 +337,7 @@ class Fmm:
             None if cache_dir is None else str(cache_dir),
             bool(hessian),
             source,
+            str(run),
         )
         self._dtype = run
         self._kernel = kernel

@@ -28,6 +28,7 @@ class NativeFmm:
         cache_dir: Optional[str],
         hessian: bool = ...,
         source: str = ...,
+        dtype: Optional[str] = ...,
     ) -> None: ...
     def evaluate(
         self, charges: npt.NDArray[np.floating], n_vectors: int
