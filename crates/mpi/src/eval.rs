@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l};
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
+use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError};
 use ferrofmm_kernels::{
     EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
 };
@@ -428,6 +428,50 @@ impl<T: Real> SchemeConfig<T> for FftM2l<T> {
     }
 }
 
+/// [`ferrofmm_fmm::check_finite_output`] on this rank's values (the
+/// target index made global: input rows before this rank added; the
+/// largest density over all ranks), agreed by every rank (a collective).
+fn finite_output<T: Real>(
+    world: &SimpleCommunicator,
+    dtree: &DistributedTree,
+    values: &[T],
+    per_target: usize,
+    densities: &[T],
+) -> Result<(), String> {
+    let local_max = densities
+        .iter()
+        .map(|q| q.to_f64().abs())
+        .fold(0.0, f64::max);
+    let mut largest = 0.0f64;
+    world.all_reduce_into(
+        &local_max,
+        &mut largest,
+        mpi::collective::SystemOperation::max(),
+    );
+    let me = world.rank() as usize;
+    let first: u64 = dtree.input_counts[..me].iter().sum();
+    let local = ferrofmm_fmm::check_finite_output(values, per_target, densities).map_err(|e| {
+        match e {
+            FmmError::NonFiniteResult {
+                target,
+                component,
+                value,
+                precision,
+                ..
+            } => FmmError::NonFiniteResult {
+                target: target + first as usize,
+                component,
+                value,
+                largest_density: largest,
+                precision,
+            },
+            other => other,
+        }
+        .to_string()
+    });
+    agree_text(world, local)
+}
+
 /// One `eval` with its inputs and parameters settled.
 struct Run<'a, K> {
     world: &'a SimpleCommunicator,
@@ -487,6 +531,10 @@ impl<K: Kernel> Run<'_, K> {
             let Some((values, stats)) = last else {
                 return Err("no evaluation".into());
             };
+            // Finite inputs can still overflow (charges near the float
+            // type's largest value): an error on every rank, naming the
+            // first bad value in the input order, and nothing written.
+            finite_output(world, &dtree, &values, dfmm.values_per_target(), &q_t)?;
             let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
             let errors = (samples > 0).then(|| {
                 sampled_errors(
@@ -519,12 +567,13 @@ impl<K: Kernel> Run<'_, K> {
             // output written: the values are not what was asked for.
             if let Some(eps) = verify.filter(|&eps| worst > eps) {
                 return Err(format!(
-                    "the requested tolerance {eps:.3e} was not met: relative error {worst:.3e} \
-                     at order {} on {samples} sampled points, the highest order tried{}; \
-                     ask for a larger --tolerance",
+                    "tolerance {eps:e} not met: the error measured on {samples} sampled points \
+                     is {worst:.2e} after {} attempt(s) (last order {}); no output written \
+                     (ask for a larger tolerance{}, or --verify off to take the unchecked result)",
+                    attempts.len(),
                     plan.order,
-                    if a.out.is_some() {
-                        " (no output written)"
+                    if T::PRECISION == Precision::F32 {
+                        ", use --precision f64"
                     } else {
                         ""
                     }
