@@ -19,7 +19,7 @@
 //! only a range of rows (each MPI rank its share). Inputs may be pipes
 //! (`<(...)`, FIFOs) as well as regular files.
 //!
-//! Writing ([`write`], [`output`]) is atomic: through a temporary file in
+//! Writing ([`write()`], [`output`]) is atomic: through a temporary file in
 //! the output's directory, renamed into place when complete.
 #![warn(missing_docs)]
 

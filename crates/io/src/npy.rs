@@ -192,7 +192,7 @@ where
 
 /// The header of a C-order little-endian `float64` `.npy` array of `rows`
 /// rows of `columns` values (`columns == 1`: shape `(rows,)`), padded so
-/// that the data start at a multiple of 64 bytes: what [`write`] writes,
+/// that the data start at a multiple of 64 bytes: what [`write()`] writes,
 /// for writers that fill the data in parts (each MPI rank its rows, at
 /// `header.len() + 8 * columns * first_row`).
 pub fn header_bytes(rows: u64, columns: u64) -> Vec<u8> {
