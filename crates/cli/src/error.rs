@@ -8,6 +8,7 @@
 use std::path::{Path, PathBuf};
 
 use ferrofmm_fmm::FmmError;
+use ferrofmm_io::FileError;
 
 /// Everything that can go wrong in a `ferrofmm` command.
 #[derive(Debug, thiserror::Error)]
@@ -19,42 +20,6 @@ pub enum CliError {
         path: PathBuf,
         /// What the operating system said.
         source: std::io::Error,
-    },
-    /// A line of a CSV file could not be understood.
-    #[error("{}, line {line}: {message}", path.display())]
-    Csv {
-        /// The file.
-        path: PathBuf,
-        /// 1-based line number.
-        line: usize,
-        /// What is wrong with the line.
-        message: String,
-    },
-    /// A `.npy` file has a type, shape or layout we cannot use.
-    #[error("{}: {message}", path.display())]
-    Npy {
-        /// The file.
-        path: PathBuf,
-        /// What is wrong with the file.
-        message: String,
-    },
-    /// A file holds no values.
-    #[error("{}: the file holds no {what}", path.display())]
-    Empty {
-        /// The file.
-        path: PathBuf,
-        /// "points" or "charges".
-        what: &'static str,
-    },
-    /// A NaN or infinite value in an input file.
-    #[error("{}: {location} is not finite ({value})", path.display())]
-    NonFinite {
-        /// The file.
-        path: PathBuf,
-        /// Where, in words ("line 4", "row 17, column 2").
-        location: String,
-        /// The value.
-        value: f64,
     },
     /// The number of charges (or dipoles) differs from the number of sources.
     #[error("{} holds {charges} {what} but {} holds {sources} points: give one {} per source", charges_path.display(), sources_path.display(), what.trim_end_matches('s'))]
@@ -70,12 +35,12 @@ pub enum CliError {
         /// Number of sources.
         sources: usize,
     },
-    /// A file name whose extension is neither `.csv` nor `.npy`.
-    #[error("{}: unknown file type (use a .csv or .npy file)", .0.display())]
-    UnknownExtension(PathBuf),
     /// A command-line value that cannot work.
     #[error("{0}")]
     InvalidArgument(String),
+    /// An input or output file (see [`ferrofmm_io`]), or a thread count.
+    #[error(transparent)]
+    File(#[from] FileError),
     /// The FMM rejected the problem.
     #[error("{0}")]
     Fmm(#[from] FmmError),
@@ -86,32 +51,6 @@ pub enum CliError {
         path: PathBuf,
         /// The drawing library's error (backend or layout).
         source: Box<dyn std::error::Error + Send + Sync>,
-    },
-    /// `--out` names one of the input files (also through a link).
-    #[error("--out {} is the same file as {option} {}: refusing to overwrite an input", out.display(), input.display())]
-    OutputIsInput {
-        /// The output file.
-        out: PathBuf,
-        /// The option naming the input (`--sources`, `--targets`, `--charges`).
-        option: &'static str,
-        /// The input file.
-        input: PathBuf,
-    },
-    /// The output file cannot be created (found before any work).
-    #[error("cannot write {}: {reason}", path.display())]
-    OutputUnusable {
-        /// The output file.
-        path: PathBuf,
-        /// Why, in words.
-        reason: String,
-    },
-    /// Writing an output file failed; nothing was left behind.
-    #[error("cannot write {}: {source} (no file written)", path.display())]
-    WriteFailed {
-        /// The output file.
-        path: PathBuf,
-        /// What the operating system said.
-        source: std::io::Error,
     },
     /// Stdout was closed before the report could be printed (`... | head`):
     /// ends the command quietly with status 0.

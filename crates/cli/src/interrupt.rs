@@ -10,9 +10,8 @@
 //! it gives the cancellation [`GRACE`] before exiting itself; both remove
 //! the temporary output files first.
 
-use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 use std::time::{Duration, Instant};
 
 /// Exit status after an interrupt (128 + SIGINT).
@@ -23,7 +22,6 @@ const GRACE: Duration = Duration::from_millis(700);
 
 static FLAG: OnceLock<Arc<AtomicBool>> = OnceLock::new();
 static IN_PRECOMPUTE: AtomicBool = AtomicBool::new(false);
-static TEMP_FILES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
 /// The interrupt flag (set by SIGINT / SIGTERM once [`install`] ran).
 pub fn flag() -> Arc<AtomicBool> {
@@ -93,24 +91,6 @@ impl Drop for PrecomputeGuard {
     }
 }
 
-/// Remember a temporary file to remove on interrupt.
-pub fn register_temporary(path: &Path) {
-    if let Ok(mut files) = TEMP_FILES.lock() {
-        files.push(path.to_path_buf());
-    }
-}
-
-/// Forget a temporary file (renamed into place or removed).
-pub fn forget_temporary(path: &Path) {
-    if let Ok(mut files) = TEMP_FILES.lock() {
-        files.retain(|p| p != path);
-    }
-}
-
 fn remove_temporaries() {
-    if let Ok(files) = TEMP_FILES.lock() {
-        for f in files.iter() {
-            let _ = std::fs::remove_file(f);
-        }
-    }
+    ferrofmm_io::output::remove_temporaries();
 }

@@ -20,10 +20,10 @@ mod charts;
 mod commands;
 mod error;
 mod interrupt;
-mod io;
 mod memory;
 mod progress;
 mod report;
+mod stdout;
 
 use std::process::ExitCode;
 
@@ -149,52 +149,19 @@ fn install_panic_hook() {
     }));
 }
 
-/// `requested` threads, lowered to the available parallelism (cores, or
-/// the CPU quota or affinity mask where one applies) with a note on stderr.
-/// Oversubscription buys nothing here and costs a lot: rayon workers spin
-/// and yield while they look for work, and the nested parallel linear
-/// algebra of the operator precomputation splits each small factorisation
-/// over all of them.
-fn capped_threads(requested: usize, source: &str) -> usize {
-    match std::thread::available_parallelism() {
-        Ok(cores) if requested > cores.get() => {
-            let cores = cores.get();
-            eprintln!(
-                "note: {source} {requested} is more than the {cores} available cores: \
-                 using {cores} threads"
-            );
-            cores
-        }
-        _ => requested,
-    }
-}
-
-/// `RAYON_NUM_THREADS` as rayon reads it (a positive integer; anything
-/// else, or 0, leaves rayon's default of one thread per core).
-fn rayon_env_threads() -> Option<usize> {
-    std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|s| s.trim().parse::<usize>().ok())
-        .filter(|&t| t > 0)
-}
-
 fn run(cli: Cli) -> Result<()> {
-    let threads = match cli.threads {
-        Some(t) => Some((t, "--threads")),
-        None => rayon_env_threads().map(|t| (t, "RAYON_NUM_THREADS")),
-    };
-    if let Some((t, source)) = threads {
-        if t == 0 {
-            return Err(CliError::InvalidArgument(
-                "--threads must be at least 1".into(),
-            ));
-        }
-        let t = capped_threads(t, source);
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(t)
-            .build_global()
-            .map_err(|e| CliError::InvalidArgument(format!("cannot start {t} threads: {e}")))?;
+    // `--threads`, else RAYON_NUM_THREADS (a number, or an error), at most
+    // the cores available, with a note when lowered (ferrofmm_io::threads,
+    // shared with ferrofmm-mpi).
+    let threads = ferrofmm_io::threads::choose(cli.threads, 1)?;
+    if let Some(note) = &threads.note {
+        eprintln!("{note}");
     }
+    let t = threads.count;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(t)
+        .build_global()
+        .map_err(|e| CliError::InvalidArgument(format!("cannot start {t} threads: {e}")))?;
     match &cli.command {
         Command::Demo(args) => commands::demo::demo(args),
         Command::Eval(args) => commands::eval::eval(args),

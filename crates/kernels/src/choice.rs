@@ -137,6 +137,20 @@ impl KernelChoice {
         self != KernelChoice::Stokes
     }
 
+    /// `Ok` when the kernel takes dipole sources, else why not, as the
+    /// one-line message every command prints (`--kernel stokes does not
+    /// support dipole sources ...`).
+    pub fn check_dipoles(self) -> Result<(), String> {
+        if self.takes_dipoles() {
+            Ok(())
+        } else {
+            Err(format!(
+                "--kernel {} does not support dipole sources (its sources are point forces: --charges)",
+                self.name()
+            ))
+        }
+    }
+
     /// Calls `visitor` with the kernel (the wavenumbers were checked by
     /// [`KernelChoice::parse`]; a variant built by hand with an invalid
     /// one is clamped to 0 rather than panicking).

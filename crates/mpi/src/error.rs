@@ -171,3 +171,67 @@ pub fn agree_message<C: Communicator, T>(
         message: String::from_utf8_lossy(&text).into_owned(),
     })
 }
+
+/// [`agree_message`] with the message itself as the error: `Ok` on every
+/// rank only if it is `Ok` on every rank; otherwise every rank gets the
+/// lowest failing rank's message, as it is (a file's problem reads as the
+/// file's problem, not as an FMM error). A collective.
+pub fn agree_text<C: Communicator, T>(comm: &C, local: Result<T, String>) -> Result<T, String> {
+    agree_message(comm, local).map_err(|e| match e {
+        DistError::Fmm { message, .. } => message,
+        other => other.to_string(),
+    })
+}
+
+/// Checks that every rank was given the same `options` (pairs of an
+/// option's name and its value, in the same order on every rank): a job
+/// launched with different options per rank (MPMD, `mpirun -n 1 A : -n 1
+/// B`) would otherwise compute a wrong answer, or wait forever in a
+/// collective one rank never reaches. Every rank gets the same error,
+/// naming the first option that differs from rank 0's. A collective.
+pub fn agree_options<C: Communicator>(comm: &C, options: &[(&str, String)]) -> Result<(), String> {
+    let text: String = options
+        .iter()
+        .map(|(name, value)| format!("{name}\u{1f}{value}\u{1e}"))
+        .collect();
+    let mut bytes = if comm.rank() == 0 {
+        text.as_bytes().to_vec()
+    } else {
+        Vec::new()
+    };
+    let mut len = bytes.len() as u64;
+    let root = comm.process_at_rank(0);
+    root.broadcast_into(&mut len);
+    bytes.resize(len as usize, 0);
+    root.broadcast_into(&mut bytes[..]);
+    let theirs = String::from_utf8_lossy(&bytes).into_owned();
+    let local = if theirs == text {
+        Ok(())
+    } else {
+        let parse = |t: &str| -> Vec<(String, String)> {
+            t.split('\u{1e}')
+                .filter(|r| !r.is_empty())
+                .map(|r| {
+                    let (n, v) = r.split_once('\u{1f}').unwrap_or((r, ""));
+                    (n.to_string(), v.to_string())
+                })
+                .collect()
+        };
+        let (mine, zero) = (parse(&text), parse(&theirs));
+        let differs = mine
+            .iter()
+            .zip(&zero)
+            .find(|(a, b)| a != b)
+            .map(|((name, value), (_, value0))| {
+                format!(
+                    "{name} is {value0:?} on rank 0 but {value:?} on rank {}",
+                    comm.rank()
+                )
+            })
+            .unwrap_or_else(|| format!("rank {} has other options than rank 0", comm.rank()));
+        Err(format!(
+            "the ranks were given different options ({differs}): give every rank the same command line"
+        ))
+    };
+    agree_text(comm, local)
+}

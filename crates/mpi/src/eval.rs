@@ -9,19 +9,20 @@ use std::path::PathBuf;
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l};
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER};
+use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError};
 use ferrofmm_kernels::{
     EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
 };
 use ferrofmm_mpi::{
     DistChoice, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry,
-    agree_message, choose_parameters, sampled_errors,
+    agree_options, agree_text, choose_parameters, sampled_errors,
 };
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
-use crate::eval_io::{my_rows, read_slice, write_out};
+use crate::eval_io::{my_rows, read_slice, reader, write_out};
 use crate::eval_report::{Attempt, FIGURES, RunInfo, figures, report};
+use ferrofmm_io::Contents;
 
 /// Targets a verification samples when `--check` does not say.
 const VERIFY_SAMPLE: usize = 200;
@@ -119,11 +120,31 @@ struct Inputs {
     kind: SourceKind,
 }
 
-fn inputs(a: &EvalArgs, c: usize, me: usize, size: usize) -> Result<Inputs, String> {
+fn inputs(
+    world: &SimpleCommunicator,
+    a: &EvalArgs,
+    c: usize,
+    me: usize,
+    size: usize,
+) -> Result<Inputs, String> {
     if let Some(g) = &a.generate {
         let geom = Geometry::from_name(g).ok_or_else(|| format!("unknown geometry {g}"))?;
         let r = my_rows(a.n as u64, me, size);
         let n = (r.end - r.start) as usize;
+        // Points and charges alone, before any tree: refused beyond this
+        // rank's share of the memory limit rather than killed for memory.
+        let limit = agree_text(world, reader(world))?.limit();
+        let bytes = (n as u128) * (3 + c as u128) * 8;
+        if let Some(limit) = limit.filter(|&l| bytes > l as u128) {
+            return Err(format!(
+                "--n {}: this rank's {n} points and charges alone need {}, more than its share \
+                 of the memory limit, {} (the memory available, or FERROFMM_MEMORY_LIMIT, \
+                 divided among the ranks of a node): use more ranks or nodes, or a smaller --n",
+                a.n,
+                ferrofmm_io::human_bytes(u64::try_from(bytes).unwrap_or(u64::MAX)),
+                ferrofmm_io::human_bytes(limit)
+            ));
+        }
         return Ok(Inputs {
             points: geom.points::<f64>(n, 1000 + me as u64),
             densities: ferrofmm_fmm::charges(c * n, 2000 + me as u64),
@@ -133,29 +154,25 @@ fn inputs(a: &EvalArgs, c: usize, me: usize, size: usize) -> Result<Inputs, Stri
     let Some(s) = &a.sources else {
         return Err("give --sources and --charges (or --dipoles), or --generate".into());
     };
-    for input in [Some(s), a.charges.as_ref(), a.dipoles.as_ref()]
-        .into_iter()
-        .flatten()
-    {
-        if a.out.as_deref() == Some(input.as_path()) {
-            return Err(format!("--out {} is an input file", input.display()));
-        }
-    }
-    let (points, n) = read_slice(s, 3, me, size)?;
-    let read = |path: &Option<PathBuf>, columns: usize, what: &str| {
+    let reader = agree_text(world, reader(world))?;
+    // Each file is read, then its outcome agreed (a collective), so that a
+    // file one rank cannot read is the same error on every rank.
+    let (points, n) = agree_text(world, read_slice(&reader, s, Contents::Points, me, size))?;
+    let read = |path: &Option<PathBuf>, contents: Contents| {
         let Some(p) = path else { return Ok(None) };
-        let (v, m) = read_slice(p, columns as u64, me, size)?;
+        let (v, m) = agree_text(world, read_slice(&reader, p, contents, me, size))?;
         if m != n {
             return Err(format!(
-                "{} holds {m} {what} for the {n} points of {}",
+                "{} holds {m} {} for the {n} points of {}: give one per point",
                 p.display(),
+                contents.noun(),
                 s.display()
             ));
         }
         Ok(Some(v))
     };
-    let charges = read(&a.charges, c, "charges")?;
-    let dipoles = read(&a.dipoles, 3 * c, "dipoles")?;
+    let charges = read(&a.charges, Contents::Charges(c))?;
+    let dipoles = read(&a.dipoles, Contents::Dipoles(c))?;
     let (kind, densities) = match (charges, dipoles) {
         (Some(q), None) => (SourceKind::Charge, q),
         (None, Some(d)) => (SourceKind::Dipole, d),
@@ -175,23 +192,65 @@ fn inputs(a: &EvalArgs, c: usize, me: usize, size: usize) -> Result<Inputs, Stri
     })
 }
 
+/// Every option of `eval` that shapes the result or where it goes, as
+/// (name, value) pairs: they must be the same on every rank
+/// ([`agree_options`]). Only `--threads` may differ between ranks.
+fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
+    fn given<T: std::fmt::Display>(v: Option<T>) -> String {
+        v.map_or_else(|| "(not given)".into(), |v| v.to_string())
+    }
+    let path = |p: &Option<PathBuf>| given(p.as_ref().map(|p| p.display()));
+    vec![
+        ("--sources", path(&a.sources)),
+        ("--charges", path(&a.charges)),
+        ("--dipoles", path(&a.dipoles)),
+        ("--out", path(&a.out)),
+        ("--generate", given(a.generate.as_ref())),
+        ("--n", a.n.to_string()),
+        ("--kernel", a.kernel.clone()),
+        ("--order", given(a.order)),
+        ("--leaf-size", given(a.leaf_size)),
+        ("--tolerance", given(a.tolerance)),
+        ("--verify", a.verify.clone()),
+        ("--scheme", a.scheme.clone()),
+        ("--precision", a.precision.clone()),
+        ("--gradients", a.gradients.to_string()),
+        ("--repeats", a.repeats.to_string()),
+        ("--check", a.check.to_string()),
+        ("--cache-dir", path(&a.cache_dir)),
+        ("--json", a.json.to_string()),
+    ]
+}
+
+/// The output: checked before any work, on every rank (a `.csv` or `.npy`
+/// name, not a directory, not an input, in a directory that takes a new
+/// file), agreed.
+fn check_output(a: &EvalArgs) -> Result<(), String> {
+    let Some(out) = &a.out else { return Ok(()) };
+    let inputs: Vec<(&'static str, &std::path::Path)> = [
+        ("--sources", &a.sources),
+        ("--charges", &a.charges),
+        ("--dipoles", &a.dipoles),
+    ]
+    .into_iter()
+    .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
+    .collect();
+    ferrofmm_io::output::check(out, &inputs).map_err(|e| e.to_string())
+}
+
 /// Threads of this rank: `--threads`, else `RAYON_NUM_THREADS`, else the
-/// cores of the node shared evenly among its ranks (at least 1).
+/// cores of the node shared evenly among its ranks; a request above that
+/// share is lowered to it, with a note (`ferrofmm_io::threads`, as in
+/// `ferrofmm`). Rank 0 prints the note.
 fn set_threads(world: &SimpleCommunicator, a: &EvalArgs) -> Result<usize, String> {
     let on_node = world.split_shared(world.rank()).size().max(1) as usize;
-    let env = std::env::var("RAYON_NUM_THREADS")
-        .ok()
-        .and_then(|s| s.parse::<usize>().ok())
-        .filter(|&t| t > 0);
-    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
-    let threads = match a.threads {
-        Some(0) => return Err("--threads must be at least 1".into()),
-        Some(t) => t,
-        None => env.unwrap_or((cores / on_node).max(1)),
-    };
+    let threads = ferrofmm_io::threads::choose(a.threads, on_node).map_err(|e| e.to_string())?;
+    if let Some(note) = threads.note.as_ref().filter(|_| world.rank() == 0) {
+        eprintln!("{note}");
+    }
     // Fails only when the pool was already built (not in this program).
     let _ = rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
+        .num_threads(threads.count)
         .build_global();
     Ok(rayon::current_num_threads())
 }
@@ -204,15 +263,28 @@ pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
         }
         1
     };
-    // Every rank parses the same arguments: the same outcome everywhere.
+    // Every rank was given the same arguments (checked first), so parsing
+    // them has the same outcome everywhere.
+    if let Err(e) = agree_options(world, &shared_options(a)) {
+        return fail(e);
+    }
     let kernel = match KernelChoice::parse(&a.kernel) {
         Ok(k) => k,
         Err(e) => return fail(format!("--kernel {e}")),
     };
-    let threads = match set_threads(world, a) {
+    if a.dipoles.is_some()
+        && let Err(e) = kernel.check_dipoles()
+    {
+        return fail(e);
+    }
+    // The environment may differ between ranks: agreed.
+    let threads = match agree_text(world, set_threads(world, a)) {
         Ok(t) => t,
         Err(e) => return fail(e),
     };
+    if let Err(e) = agree_text(world, check_output(a)) {
+        return fail(e);
+    }
     match kernel.visit(WithKernel { world, a, threads }) {
         Ok(()) => 0,
         Err(e) => fail(e),
@@ -245,7 +317,7 @@ impl KernelVisitor for WithKernel<'_> {
         let size = world.size() as usize;
         let t0 = std::time::Instant::now();
         let c = kernel.components();
-        let input = agree_message(world, inputs(a, c, me, size)).map_err(|e| e.to_string())?;
+        let input = agree_text(world, inputs(world, a, c, me, size))?;
         let read_s = t0.elapsed().as_secs_f64();
         let mode = if a.gradients {
             EvalMode::PotentialGradient
@@ -356,6 +428,50 @@ impl<T: Real> SchemeConfig<T> for FftM2l<T> {
     }
 }
 
+/// [`ferrofmm_fmm::check_finite_output`] on this rank's values (the
+/// target index made global: input rows before this rank added; the
+/// largest density over all ranks), agreed by every rank (a collective).
+fn finite_output<T: Real>(
+    world: &SimpleCommunicator,
+    dtree: &DistributedTree,
+    values: &[T],
+    per_target: usize,
+    densities: &[T],
+) -> Result<(), String> {
+    let local_max = densities
+        .iter()
+        .map(|q| q.to_f64().abs())
+        .fold(0.0, f64::max);
+    let mut largest = 0.0f64;
+    world.all_reduce_into(
+        &local_max,
+        &mut largest,
+        mpi::collective::SystemOperation::max(),
+    );
+    let me = world.rank() as usize;
+    let first: u64 = dtree.input_counts[..me].iter().sum();
+    let local = ferrofmm_fmm::check_finite_output(values, per_target, densities).map_err(|e| {
+        match e {
+            FmmError::NonFiniteResult {
+                target,
+                component,
+                value,
+                precision,
+                ..
+            } => FmmError::NonFiniteResult {
+                target: target + first as usize,
+                component,
+                value,
+                largest_density: largest,
+                precision,
+            },
+            other => other,
+        }
+        .to_string()
+    });
+    agree_text(world, local)
+}
+
 /// One `eval` with its inputs and parameters settled.
 struct Run<'a, K> {
     world: &'a SimpleCommunicator,
@@ -387,13 +503,16 @@ impl<K: Kernel> Run<'_, K> {
                 .map_err(|e| e.to_string())?;
         let q_t: Vec<T> = input.densities.iter().map(|&x| T::from_f64(x)).collect();
         let verify = a.tolerance.filter(|_| a.verify == "on");
+        // At most every point (the report names the number compared).
+        let total_points: u64 = dtree.input_counts.iter().sum();
         let samples = if a.check > 0 {
             a.check
         } else if verify.is_some() {
             VERIFY_SAMPLE
         } else {
             0
-        };
+        }
+        .min(usize::try_from(total_points).unwrap_or(usize::MAX));
         let mut attempts = Vec::new();
         loop {
             let options = DistFmmOptions {
@@ -412,6 +531,10 @@ impl<K: Kernel> Run<'_, K> {
             let Some((values, stats)) = last else {
                 return Err("no evaluation".into());
             };
+            // Finite inputs can still overflow (charges near the float
+            // type's largest value): an error on every rank, naming the
+            // first bad value in the input order, and nothing written.
+            finite_output(world, &dtree, &values, dfmm.values_per_target(), &q_t)?;
             let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
             let errors = (samples > 0).then(|| {
                 sampled_errors(
@@ -440,10 +563,38 @@ impl<K: Kernel> Run<'_, K> {
                 plan.svd_tolerance = None;
                 continue;
             }
+            // A missed tolerance is a failure (exit status 1), with no
+            // output written: the values are not what was asked for.
+            if let Some(eps) = verify.filter(|&eps| worst > eps) {
+                return Err(format!(
+                    "tolerance {eps:e} not met: the error measured on {samples} sampled points \
+                     is {worst:.2e} after {} attempt(s) (last order {}); no output written \
+                     (ask for a larger tolerance{}, or --verify off to take the unchecked result)",
+                    attempts.len(),
+                    plan.order,
+                    if T::PRECISION == Precision::F32 {
+                        ", use --precision f64"
+                    } else {
+                        ""
+                    }
+                ));
+            }
             if let Some(out) = &a.out {
                 let first: u64 = dtree.input_counts[..me].iter().sum();
                 let total: u64 = dtree.input_counts.iter().sum();
-                write_out(world, out, &values, dfmm.values_per_target(), first, total)?;
+                let components = KernelChoice::parse(&a.kernel)
+                    .map(|k| k.component_names())
+                    .map_err(|e| format!("--kernel {e}"))?;
+                let names = ferrofmm_io::column_names(mode.values_per_target(), components);
+                let names: Vec<&str> = names.iter().map(String::as_str).collect();
+                if names.len() != dfmm.values_per_target() {
+                    return Err(format!(
+                        "internal error: {} output columns named for {} values per target",
+                        names.len(),
+                        dfmm.values_per_target()
+                    ));
+                }
+                write_out(world, out, &values, &names, first, total)?;
             }
             let mut mine = figures(&dtree, &dfmm, &stats);
             mine.push(stats.compute_cpu_seconds);

@@ -1,10 +1,16 @@
-//! Files of the `eval` command: each rank's rows of a `.npy` or `.csv`
-//! input, and the output written in the input order (each rank its rows of
-//! a `.npy` file, or the ranks in turn for `.csv`).
+//! Files of the `eval` and `tree` commands, through `ferrofmm-io` (the
+//! reader and writer of `ferrofmm eval`, so both commands take and write
+//! the same files): each rank's rows of a `.npy` or `.csv` input, and the
+//! output written in the input order (each rank its rows of a `.npy`
+//! file, or the ranks in turn for `.csv`) into one temporary file that
+//! rank 0 renames into place once every rank has written, or removes on
+//! any failure.
 
+use std::io::{Seek, SeekFrom, Write};
 use std::path::Path;
 
-use ferrofmm_mpi::{agree_message, npy};
+use ferrofmm_io::{Contents, Format, Reader, csv, npy, output};
+use ferrofmm_mpi::agree_text;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
@@ -14,128 +20,140 @@ pub(crate) fn my_rows(n: u64, me: usize, size: usize) -> std::ops::Range<u64> {
     at(me)..at(me + 1)
 }
 
-/// Values of a .csv file: numbers separated by commas or spaces, `#`
-/// comments and blank lines skipped; every row must have `columns`.
-fn read_csv(path: &Path, columns: usize) -> Result<Vec<f64>, String> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
-        let line = line.trim();
-        if line.is_empty() || line.starts_with('#') {
-            continue;
-        }
-        let row: Vec<f64> = line
-            .split([',', ' ', '\t'])
-            .filter(|s| !s.is_empty())
-            .map(str::parse)
-            .collect::<Result<_, _>>()
-            .map_err(|e| format!("{}: line {}: {e}", path.display(), i + 1))?;
-        if row.len() != columns {
-            return Err(format!(
-                "{}: line {}: {} values, expected {columns}",
-                path.display(),
-                i + 1,
-                row.len()
-            ));
-        }
-        out.extend(row);
-    }
-    Ok(out)
+/// The reader of this rank: within its share of the memory limit (the
+/// memory available, or FERROFMM_MEMORY_LIMIT, divided among the ranks
+/// of the node, which read at the same time).
+pub(crate) fn reader(world: &SimpleCommunicator) -> Result<Reader, String> {
+    let on_node = world.split_shared(world.rank()).size().max(1) as u64;
+    let limit = ferrofmm_field::MemoryLimit::Auto
+        .resolve()
+        .map_err(|e| e.to_string())?;
+    Ok(Reader::new().memory_limit(limit.map(|l| l / on_node)))
 }
 
-pub(crate) fn is_npy(path: &Path) -> bool {
-    path.extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("npy"))
-}
-
-/// This rank's rows of `path` (`columns` values per row) and the total
-/// number of rows.
+/// This rank's rows of `path` (`contents` per row) and the total number
+/// of rows.
 pub(crate) fn read_slice(
+    reader: &Reader,
     path: &Path,
-    columns: u64,
+    contents: Contents,
     me: usize,
     size: usize,
 ) -> Result<(Vec<f64>, u64), String> {
-    if is_npy(path) {
-        let h = npy::header(path)?;
-        if h.columns != columns {
-            return Err(format!(
-                "{}: {} values per row, expected {columns}",
-                path.display(),
-                h.columns
-            ));
-        }
-        let rows = my_rows(h.rows, me, size);
-        Ok((npy::read_rows(path, &h, rows)?, h.rows))
-    } else {
-        let all = read_csv(path, columns as usize)?;
-        let n = (all.len() as u64) / columns;
-        let r = my_rows(n, me, size);
-        let c = columns as usize;
-        Ok((all[r.start as usize * c..r.end as usize * c].to_vec(), n))
-    }
+    reader
+        .read_rows(path, contents, |n| my_rows(n, me, size))
+        .map_err(|e| e.to_string())
 }
 
-/// Writes the values (`w` per point, this rank's input rows from
-/// `first_row`) to `out`, through a temporary file renamed at the end.
+/// The same string on every rank: `text` of rank `root`.
+fn broadcast_text(world: &SimpleCommunicator, root: i32, text: &str) -> String {
+    let mut bytes = if world.rank() == root {
+        text.as_bytes().to_vec()
+    } else {
+        Vec::new()
+    };
+    let mut len = bytes.len() as u64;
+    let process = world.process_at_rank(root);
+    process.broadcast_into(&mut len);
+    bytes.resize(len as usize, 0);
+    process.broadcast_into(&mut bytes[..]);
+    String::from_utf8_lossy(&bytes).into_owned()
+}
+
+/// Writes the values (`names.len()` per point, this rank's input rows from
+/// `first_row`, of `total`) to `out` (a collective). Rank 0 creates the
+/// temporary file (a `.npy` header and room for the data, or the CSV
+/// header line); every rank writes its rows into it; only when every rank
+/// succeeded does rank 0 rename it onto `out`. On any failure, on any
+/// rank, every rank returns the same error and the temporary file is
+/// removed: `out` is untouched.
 pub(crate) fn write_out(
     world: &SimpleCommunicator,
     out: &Path,
     values: &[f64],
-    w: usize,
+    names: &[&str],
     first_row: u64,
     total: u64,
 ) -> Result<(), String> {
     let me = world.rank();
-    let tmp = out.with_extension(format!(
-        "{}.part",
-        out.extension().and_then(|e| e.to_str()).unwrap_or("")
-    ));
-    let result = if is_npy(out) {
-        let start = if me == 0 {
-            npy::create(&tmp, total, w as u64)
-        } else {
-            Ok(0)
-        };
-        let start = agree_message(world, start).map_err(|e| e.to_string())?;
-        let mut s = start;
-        world.process_at_rank(0).broadcast_into(&mut s);
-        npy::write_rows(&tmp, s, w as u64, first_row, values)
-    } else {
-        // Ranks append their rows in turn.
-        let mut r = Ok(());
-        for turn in 0..world.size() {
-            if turn == me {
-                let text: String = values
-                    .chunks_exact(w)
-                    .map(|row| {
-                        row.iter()
-                            .map(|x| format!("{x:e}"))
-                            .collect::<Vec<_>>()
-                            .join(",")
-                            + "\n"
-                    })
-                    .collect();
-                r = std::fs::OpenOptions::new()
-                    .create(true)
-                    .append(true)
-                    .truncate(false)
-                    .open(&tmp)
-                    .and_then(|mut f| {
-                        if me == 0 {
-                            f.set_len(0)?;
-                        }
-                        std::io::Write::write_all(&mut f, text.as_bytes())
-                    })
-                    .map_err(|e| format!("{}: {e}", tmp.display()));
-            }
-            world.barrier();
+    let w = names.len();
+    let format = Format::of(out).map_err(|e| e.to_string())?;
+    let failed = |e: std::io::Error| {
+        ferrofmm_io::FileError::WriteFailed {
+            path: out.to_path_buf(),
+            source: e,
         }
-        r
+        .to_string()
     };
-    agree_message(world, result).map_err(|e| e.to_string())?;
-    if me == 0 {
-        std::fs::rename(&tmp, out).map_err(|e| format!("{}: {e}", out.display()))?;
-    }
-    Ok(())
+    // Rank 0: the temporary file with its header (removed when dropped).
+    let mut tmp = None;
+    let created = if me == 0 {
+        (|| {
+            let mut t = output::Temporary::create(out).map_err(|e| e.to_string())?;
+            let f = t.file().map_err(|e| e.to_string())?;
+            let start = match format {
+                Format::Npy => {
+                    let head = npy::header_bytes(total, w as u64);
+                    f.write_all(&head)
+                        .and_then(|()| f.set_len(head.len() as u64 + 8 * total * w as u64))
+                        .map_err(failed)?;
+                    head.len() as u64
+                }
+                Format::Csv => {
+                    let mut b = std::io::BufWriter::new(&mut *f);
+                    csv::write_header(&mut b, names)
+                        .and_then(|()| b.flush())
+                        .map_err(failed)?;
+                    0
+                }
+            };
+            let path = t.path().to_string_lossy().into_owned();
+            tmp = Some(t);
+            Ok((path, start))
+        })()
+    } else {
+        Ok((String::new(), 0))
+    };
+    let (path, mut start) = agree_text(world, created)?;
+    let path = broadcast_text(world, 0, &path);
+    world.process_at_rank(0).broadcast_into(&mut start);
+
+    let open = || std::fs::OpenOptions::new().write(true).open(&path);
+    let written = match format {
+        Format::Npy => {
+            let bytes: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
+            open()
+                .and_then(|mut f| {
+                    f.seek(SeekFrom::Start(start + 8 * w as u64 * first_row))?;
+                    f.write_all(&bytes)?;
+                    f.flush()
+                })
+                .map_err(failed)
+        }
+        Format::Csv => {
+            // Ranks append their rows in turn (a failure is agreed at the end;
+            // a rank after a failed one still takes its turn).
+            let mut r = Ok(());
+            for turn in 0..world.size() {
+                if turn == me {
+                    r = open()
+                        .and_then(|f| {
+                            let mut f = std::io::BufWriter::new(f);
+                            f.seek(SeekFrom::End(0))?;
+                            csv::write_records(&mut f, values, w)?;
+                            f.flush()
+                        })
+                        .map_err(failed);
+                }
+                world.barrier();
+            }
+            r
+        }
+    };
+    agree_text(world, written)?;
+    let committed = match tmp {
+        Some(t) => t.commit().map_err(|e| e.to_string()),
+        None => Ok(()),
+    };
+    agree_text(world, committed)
 }

@@ -59,7 +59,6 @@ pub mod error;
 mod exchange;
 pub mod ghosts;
 pub mod inputs;
-pub mod npy;
 pub mod partition;
 pub mod sort;
 pub mod stats;
@@ -67,7 +66,7 @@ mod tree;
 
 pub use accuracy::{DistChoice, TUNING_SAMPLE, choose_parameters, sampled_errors};
 pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
-pub use error::{DistError, InputProblem, agree_message};
+pub use error::{DistError, InputProblem, agree_message, agree_options, agree_text};
 pub use ghosts::{Ghost, GhostLayer};
 pub use inputs::{CHECK_GEOMETRIES, Geometry};
 pub use sort::LocalPoints;

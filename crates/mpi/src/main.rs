@@ -42,8 +42,49 @@ enum Command {
     FmmCheck(check_fmm::FmmCheckArgs),
 }
 
+/// The exit status once the command has finished (-1 before): `mpirun`
+/// sends SIGTERM to the ranks still finalising when one rank exits, which
+/// then must not report an interrupt.
+static FINISHED: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(-1);
+
+/// SIGINT / SIGTERM (what `mpirun` forwards on Ctrl-C): remove the
+/// temporary output file (rank 0's, while the output is being written)
+/// and exit with status 130 instead of leaving it behind (after the
+/// command finished: quietly, with its status). `SIGXFSZ` (a
+/// write beyond `ulimit -f`) is caught so that the write fails with
+/// `EFBIG` and is cleaned up like any other failed write.
+fn install_interrupt() {
+    use std::sync::Arc;
+    use std::sync::atomic::{AtomicBool, Ordering};
+    let _ = signal_hook::flag::register(
+        signal_hook::consts::SIGXFSZ,
+        Arc::new(AtomicBool::new(false)),
+    );
+    let flag = Arc::new(AtomicBool::new(false));
+    for signal in [signal_hook::consts::SIGINT, signal_hook::consts::SIGTERM] {
+        if signal_hook::flag::register(signal, flag.clone()).is_err() {
+            return;
+        }
+    }
+    let _ = std::thread::Builder::new()
+        .name("ferrofmm-mpi-interrupt".into())
+        .spawn(move || {
+            while !flag.load(Ordering::Relaxed) {
+                std::thread::sleep(std::time::Duration::from_millis(20));
+            }
+            ferrofmm_io::output::remove_temporaries();
+            let done = FINISHED.load(Ordering::SeqCst);
+            if done >= 0 {
+                std::process::exit(done);
+            }
+            eprintln!("error: interrupted");
+            std::process::exit(130)
+        });
+}
+
 fn main() {
     let cli = Cli::parse();
+    install_interrupt();
     let Some(universe) = mpi::initialize() else {
         eprintln!("MPI could not be initialised");
         std::process::exit(2);
@@ -56,6 +97,7 @@ fn main() {
         Command::Bad(a) => check::run_bad(&world, &a),
         Command::FmmCheck(a) => check_fmm::run(&world, &a),
     };
+    FINISHED.store(code, std::sync::atomic::Ordering::SeqCst);
     drop(universe);
     std::process::exit(code);
 }

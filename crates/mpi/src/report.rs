@@ -1,16 +1,19 @@
 //! The `tree` subcommand: build, then print per-rank figures.
 
 use clap::Args;
-use ferrofmm_mpi::{DistOptions, DistributedTree, Geometry, PHASES};
+use ferrofmm_io::Contents;
+use ferrofmm_mpi::{DistOptions, DistributedTree, Geometry, PHASES, agree_options, agree_text};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 /// Arguments of `tree`.
 #[derive(Args)]
 pub struct TreeArgs {
-    /// Points file: whitespace-separated `x y z` per line, or raw
-    /// little-endian f64 triples if the name ends in `.f64`. Rank `r` of
-    /// `R` takes the points `r n / R .. (r + 1) n / R`.
+    /// Points file, as `ferrofmm eval` reads it: .csv (x,y,z per line,
+    /// commas or spaces, optional header, `#` comments) or .npy (N x 3,
+    /// float64 or float32). Rank `r` of `R` takes the points
+    /// `r n / R .. (r + 1) n / R` (of a C-order .npy file it reads only
+    /// those).
     #[arg(long, conflicts_with = "generate")]
     points: Option<std::path::PathBuf>,
     /// Generate points instead: uniform, sphere, plummer, two-clusters
@@ -26,7 +29,7 @@ pub struct TreeArgs {
     /// Balance by `points` (default) or by `work`: build once, estimate
     /// each point's work from the interaction lists, build again balanced
     /// by it (both builds are reported).
-    #[arg(long, default_value = "points")]
+    #[arg(long, default_value = "points", value_parser = ["points", "work"])]
     weights: String,
     /// For `--weights work`: cost of one V, W or X entry in pair
     /// interactions.
@@ -37,40 +40,54 @@ pub struct TreeArgs {
     json: bool,
 }
 
-fn read_points(path: &std::path::Path) -> Result<Vec<f64>, String> {
-    let bytes = std::fs::read(path).map_err(|e| format!("{}: {e}", path.display()))?;
-    if path.extension().is_some_and(|e| e == "f64") {
-        if bytes.len() % 8 != 0 {
-            return Err(format!("{}: not a whole number of f64", path.display()));
-        }
-        return Ok(bytes
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")))
-            .collect());
-    }
-    let text = String::from_utf8(bytes).map_err(|e| e.to_string())?;
-    text.split_whitespace()
-        .map(|t| t.parse::<f64>().map_err(|e| format!("{t:?}: {e}")))
-        .collect()
+/// Every option of `tree`, as (name, value) pairs: the same on every rank
+/// ([`agree_options`]).
+fn shared_options(a: &TreeArgs) -> Vec<(&'static str, String)> {
+    vec![
+        (
+            "--points",
+            a.points
+                .as_ref()
+                .map_or_else(|| "(not given)".into(), |p| p.display().to_string()),
+        ),
+        (
+            "--generate",
+            a.generate.clone().unwrap_or_else(|| "(not given)".into()),
+        ),
+        ("--n", a.n.to_string()),
+        ("--leaf-size", a.leaf_size.to_string()),
+        ("--weights", a.weights.clone()),
+        ("--far-cost", a.far_cost.to_string()),
+        ("--json", a.json.to_string()),
+    ]
+}
+
+/// This rank's points of `path`, the outcome agreed by every rank.
+fn read_points(world: &SimpleCommunicator, path: &std::path::Path) -> Result<Vec<f64>, String> {
+    let (me, size) = (world.rank() as usize, world.size() as usize);
+    let reader = agree_text(world, crate::eval_io::reader(world))?;
+    let local = crate::eval_io::read_slice(&reader, path, Contents::Points, me, size);
+    agree_text(world, local).map(|(points, _)| points)
 }
 
 /// Runs `tree`; returns the exit status.
 pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
     let me = world.rank() as usize;
     let size = world.size() as usize;
+    // Errors are the same on every rank (agreed): rank 0 prints them.
+    let fail = |e: String| {
+        if me == 0 {
+            eprintln!("error: {e}");
+        }
+        1
+    };
+    if let Err(e) = agree_options(world, &shared_options(a)) {
+        return fail(e);
+    }
     let points = match (&a.points, &a.generate) {
-        (Some(path), _) => match read_points(path) {
-            Ok(all) => {
-                let n = all.len() / 3;
-                let (s, e) = (me * n / size, (me + 1) * n / size);
-                // A length that is not a multiple of 3 goes to the last rank.
-                let end = if me + 1 == size { all.len() } else { 3 * e };
-                all[3 * s..end].to_vec()
-            }
-            Err(e) => {
-                eprintln!("rank {me}: {e}");
-                vec![f64::NAN; 3]
-            }
+        (Some(path), _) => match read_points(world, path) {
+            Ok(points) => points,
+            Err(e) => return fail(e),
         },
         (None, Some(g)) => match Geometry::from_name(g) {
             Some(g) => {
@@ -92,10 +109,7 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
     let options = DistOptions::adaptive(a.leaf_size);
     let mut tree = match DistributedTree::build(world, &points, &options) {
         Ok(t) => t,
-        Err(e) => {
-            eprintln!("rank {me}: {e}");
-            return 1;
-        }
+        Err(e) => return fail(e.to_string()),
     };
     if a.weights == "work" {
         let w = tree.work_weights(a.far_cost);
@@ -103,10 +117,7 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
         let coords = std::mem::take(&mut tree.points.coords);
         tree = match DistributedTree::build_weighted(world, &coords, Some(&w), &options) {
             Ok(t) => t,
-            Err(e) => {
-                eprintln!("rank {me}: {e}");
-                return 1;
-            }
+            Err(e) => return fail(e.to_string()),
         };
         let after: f64 = tree.points.weights.iter().sum();
         let (mut all_b, mut all_a) = (vec![0.0f64; size], vec![0.0f64; size]);

@@ -11,6 +11,13 @@ use std::sync::Mutex;
 static MPI_JOB: Mutex<()> = Mutex::new(());
 
 fn mpirun(ranks: usize, args: &[&str]) -> (bool, String) {
+    mpmd(&[(ranks, args)], &[])
+}
+
+/// One job of several programs (`mpirun -n R1 exe ARGS1 : -n R2 exe
+/// ARGS2`), each rank with the arguments of its group, and extra
+/// environment variables for every rank.
+fn mpmd(groups: &[(usize, &[&str])], env: &[(&str, &str)]) -> (bool, String) {
     let _one = MPI_JOB.lock().unwrap_or_else(|e| e.into_inner());
     let exe = env!("CARGO_BIN_EXE_ferrofmm-mpi");
     let mpirun = std::env::var("MPIRUN").unwrap_or_else(|_| "mpirun".into());
@@ -20,7 +27,15 @@ fn mpirun(ranks: usize, args: &[&str]) -> (bool, String) {
     cmd.env("OMPI_ALLOW_RUN_AS_ROOT", "1")
         .env("OMPI_ALLOW_RUN_AS_ROOT_CONFIRM", "1")
         .env("RAYON_NUM_THREADS", "1");
-    cmd.arg("-n").arg(ranks.to_string()).arg(exe).args(args);
+    for (k, v) in env {
+        cmd.env(k, v);
+    }
+    for (g, (ranks, args)) in groups.iter().enumerate() {
+        if g > 0 {
+            cmd.arg(":");
+        }
+        cmd.arg("-n").arg(ranks.to_string()).arg(exe).args(*args);
+    }
     let out = cmd
         .output()
         .unwrap_or_else(|e| panic!("cannot run `timeout {mpirun}` (install openmpi-bin): {e}"));
@@ -136,7 +151,6 @@ fn distributed_fmm_with_empty_ranks_and_a_single_leaf() {
 /// error on every rank, not a hang.
 #[test]
 fn eval_command_reads_slices_and_writes_the_input_order() {
-    use ferrofmm_mpi::npy;
     let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-eval-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let n = 900;
@@ -146,9 +160,11 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
         .collect();
     let csv = |rows: &mut dyn Iterator<Item = String>| rows.collect::<Vec<_>>().join("\n");
     let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    // A byte order mark, a header and a comment, as spreadsheets write.
     std::fs::write(
         path("s.csv"),
-        csv(&mut pts.chunks(3).map(|p| format!("{},{},{}", p[0], p[1], p[2]))),
+        "\u{feff}x,y,z\n# points\n".to_string()
+            + &csv(&mut pts.chunks(3).map(|p| format!("{},{},{}", p[0], p[1], p[2]))),
     )
     .unwrap();
     std::fs::write(path("q.csv"), csv(&mut q.iter().map(|x| x.to_string()))).unwrap();
@@ -157,10 +173,8 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
         csv(&mut q[1..].iter().map(|x| x.to_string())),
     )
     .unwrap();
-    for (name, values, cols) in [("s.npy", &pts, 3), ("q.npy", &q, 1)] {
-        let start = npy::create(std::path::Path::new(&path(name)), n as u64, cols).unwrap();
-        npy::write_rows(std::path::Path::new(&path(name)), start, cols, 0, values).unwrap();
-    }
+    write_npy(&path("s.npy"), &pts, 3);
+    write_npy(&path("q.npy"), &q, 1);
     let common = ["--gradients", "--order", "4", "--leaf-size", "20"];
     let run = |ranks: usize, s: &str, c: &str, out: &str| {
         let mut args = vec!["eval", "--sources", s, "--charges", c, "--out", out];
@@ -171,12 +185,7 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
     assert!(ok, "{text}");
     let (ok, text) = run(3, &path("s.npy"), &path("q.npy"), &path("o3.npy"));
     assert!(ok, "{text}");
-    let read = |name: &str| {
-        let p = std::path::PathBuf::from(path(name));
-        let h = npy::header(&p).unwrap();
-        assert_eq!((h.rows, h.columns), (n as u64, 4));
-        npy::read_rows(&p, &h, 0..h.rows).unwrap()
-    };
+    let read = |name: &str| read_columns(&path(name), n, 4);
     let (a, b) = (read("o1.npy"), read("o3.npy"));
     let num: f64 = a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum();
     let den: f64 = a.iter().map(|x| x * x).sum();
@@ -228,6 +237,8 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
             "--check",
             "150",
             "--json",
+            "--out",
+            &path("o5.csv"),
         ],
     );
     let err = text
@@ -236,6 +247,19 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
         .and_then(|t| t.split([',', '}']).next())
         .and_then(|t| t.parse::<f64>().ok());
     assert!(ok && err.is_some_and(|e| e < 1e-3), "{err:?}\n{text}");
+    // The CSV output has the header `ferrofmm eval` writes, in the input
+    // order, written by the ranks in turn.
+    let o5 = std::fs::read_to_string(path("o5.csv")).unwrap();
+    assert!(o5.starts_with("potential\n"), "{}", &o5[..40]);
+    let o5 = read_columns(&path("o5.csv"), n, 1);
+    let p4: Vec<f64> = a.iter().step_by(4).copied().collect();
+    let num: f64 = o5.iter().zip(&p4).map(|(x, y)| (x - y) * (x - y)).sum();
+    let den: f64 = p4.iter().map(|x| x * x).sum();
+    assert!(
+        (num / den).sqrt() < 1e-3,
+        "order 5 vs 4: {}",
+        (num / den).sqrt()
+    );
     let (ok, text) = run(2, &path("s.csv"), &path("short.csv"), &path("bad.npy"));
     assert!(!ok && text.contains("charges"), "{text}");
     assert!(!std::path::Path::new(&path("bad.npy")).exists());
@@ -272,6 +296,29 @@ fn distributed_fmm_with_vector_kernels_and_dipoles() {
     }
 }
 
+/// `values` as a float64 `.npy` array of `columns` columns, through the
+/// commands' own writer.
+fn write_npy(path: &str, values: &[f64], columns: usize) {
+    let names = vec!["v"; columns];
+    ferrofmm_io::write(
+        std::path::Path::new(path),
+        ferrofmm_io::Values::F64(values),
+        &names,
+    )
+    .unwrap();
+}
+
+/// The `n` records of `columns` values of an output file (.npy or .csv).
+fn read_columns(path: &str, n: usize, columns: usize) -> Vec<f64> {
+    let v = ferrofmm_io::read(
+        std::path::Path::new(path),
+        ferrofmm_io::Contents::Charges(columns),
+    )
+    .unwrap();
+    assert_eq!(v.len(), n * columns, "{path}");
+    v
+}
+
 /// The value of `"key":` in `text` (the first occurrence), as a number.
 fn json_number(text: &str, key: &str) -> Option<f64> {
     text.split(&format!("\"{key}\":"))
@@ -287,7 +334,6 @@ fn json_number(text: &str, key: &str) -> Option<f64> {
 /// an unknown kernel and dipoles for Stokes are errors on every rank.
 #[test]
 fn eval_command_with_kernels_tolerance_and_cache() {
-    use ferrofmm_mpi::npy;
     let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-kernels-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
@@ -298,21 +344,10 @@ fn eval_command_with_kernels_tolerance_and_cache() {
     let f: Vec<f64> = (0..3 * n)
         .map(|i| ((i * 53) % 97) as f64 / 97.0 - 0.5)
         .collect();
-    for (name, values, cols) in [
-        ("s.npy", &pts, 3),
-        ("f.npy", &f, 3),
-        ("z.npy", &f[..2 * n].to_vec(), 2),
-    ] {
-        let p = std::path::PathBuf::from(path(name));
-        let start = npy::create(&p, n as u64, cols).unwrap();
-        npy::write_rows(&p, start, cols, 0, values).unwrap();
-    }
-    let read = |name: &str, cols: u64| {
-        let p = std::path::PathBuf::from(path(name));
-        let h = npy::header(&p).unwrap();
-        assert_eq!((h.rows, h.columns), (n as u64, cols));
-        npy::read_rows(&p, &h, 0..h.rows).unwrap()
-    };
+    write_npy(&path("s.npy"), &pts, 3);
+    write_npy(&path("f.npy"), &f, 3);
+    write_npy(&path("z.npy"), &f[..2 * n], 2);
+    let read = |name: &str, cols: usize| read_columns(&path(name), n, cols);
     let rel = |a: &[f64], b: &[f64]| {
         let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
         let den: f64 = a.iter().map(|x| x * x).sum();
@@ -411,6 +446,216 @@ fn eval_command_with_kernels_tolerance_and_cache() {
         args.extend(bad.iter().copied());
         let (ok, text) = mpirun(2, &args);
         assert!(!ok && text.contains("error"), "{bad:?}: {text}");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Files in `dir` (names), sorted.
+fn listing(dir: &std::path::Path) -> Vec<String> {
+    let mut names: Vec<String> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+/// Hostile input to `eval` (issue 37): each failure is one clear error on
+/// every rank, printed once, before any work, with no hang and nothing
+/// left behind (no temporary file, no partial output); a thread request
+/// beyond the cores is lowered with a note.
+#[test]
+fn eval_refuses_hostile_input_on_every_rank() {
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-hostile-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("outdir")).unwrap();
+    let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let n = 1500;
+    let pts: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.618_034).fract()).collect();
+    let q: Vec<f64> = (0..n)
+        .map(|i| ((i * 37) % 101) as f64 / 101.0 - 0.5)
+        .collect();
+    write_npy(&path("s.npy"), &pts, 3);
+    write_npy(&path("q.npy"), &q, 1);
+    write_npy(&path("f.npy"), &pts, 3);
+    let before = listing(&dir);
+    let (s, c) = (path("s.npy"), path("q.npy"));
+    let base = |extra: &[&'static str]| -> Vec<String> {
+        let mut v: Vec<String> = ["eval", "--sources", &s, "--charges", &c, "--order", "3"]
+            .iter()
+            .map(|x| x.to_string())
+            .collect();
+        v.extend(extra.iter().map(|x| x.to_string()));
+        v
+    };
+    fn refs(v: &[String]) -> Vec<&str> {
+        v.iter().map(String::as_str).collect()
+    }
+    let expect_error = |label: &str, (ok, text): (bool, String), needle: &str| {
+        assert!(!ok, "{label}: succeeded\n{text}");
+        assert!(text.contains(needle), "{label}: no {needle:?}\n{text}");
+        assert_eq!(
+            text.lines().filter(|l| l.starts_with("error:")).count(),
+            1,
+            "{label}: not one error line\n{text}"
+        );
+        // (The overflow names the value it found, which may be NaN.)
+        assert!(
+            !text.contains("NaN") || label.contains("1e307"),
+            "{label}: {text}"
+        );
+    };
+    let outdir = path("outdir");
+    // Row 2: --out names a directory (1 and 2 ranks).
+    for ranks in [1, 2] {
+        let args = base(&[]);
+        let mut args = refs(&args);
+        args.extend(["--out", &outdir]);
+        expect_error("--out DIR", mpirun(ranks, &args), "is a directory");
+    }
+    // Row 7: a missing folder, and a different --out per rank.
+    let missing = path("no/such/o.npy");
+    let args = base(&[]);
+    let mut args = refs(&args);
+    args.extend(["--out", &missing]);
+    expect_error("missing folder", mpirun(2, &args), "does not exist");
+    let (o1, o2) = (path("o1.npy"), path("o2.npy"));
+    let (mut a1, mut a2) = (args.clone(), args.clone());
+    let k = a1.len() - 1;
+    a1[k] = &o1;
+    a2[k] = &o2;
+    expect_error(
+        "--out per rank",
+        mpmd(&[(1, &a1), (1, &a2)], &[]),
+        "--out is \"",
+    );
+    // Row 5: a different kernel per rank (MPMD).
+    let (k1, k2) = (
+        base(&["--kernel", "laplace"]),
+        base(&["--kernel", "yukawa:1"]),
+    );
+    let text = mpmd(&[(1, &refs(&k1)), (1, &refs(&k2))], &[]);
+    expect_error(
+        "--kernel per rank",
+        text,
+        "--kernel is \"laplace\" on rank 0",
+    );
+    // Row 13: dipoles for Stokes, as on one machine.
+    let f = path("f.npy");
+    let args = base(&["--kernel", "stokes"]);
+    let mut args = refs(&args);
+    args.extend(["--dipoles", &f]);
+    expect_error(
+        "stokes dipoles",
+        mpirun(2, &args),
+        "does not support dipole sources",
+    );
+    // Row 3: RAYON_NUM_THREADS that is not a number.
+    let args = base(&[]);
+    expect_error(
+        "RAYON_NUM_THREADS=abc",
+        mpmd(&[(2, &refs(&args))], &[("RAYON_NUM_THREADS", "abc")]),
+        "RAYON_NUM_THREADS=\"abc\" is not a thread count",
+    );
+    // Row 8: charges near f64's largest value overflow the sums: an error
+    // naming it on every rank, no output written.
+    let huge: Vec<f64> = q.iter().map(|x| x * 1e307).collect();
+    write_npy(&path("huge.npy"), &huge, 1);
+    let never = path("never.npy");
+    let h = path("huge.npy");
+    let args = base(&[]);
+    let mut args = refs(&args);
+    args[4] = &h;
+    args.extend(["--out", &never]);
+    expect_error("charges x 1e307", mpirun(2, &args), "overflowed f64");
+    std::fs::remove_file(&h).unwrap();
+    assert_eq!(listing(&dir), before, "files left behind");
+    assert!(listing(&dir.join("outdir")).is_empty());
+    // Row 3: --threads 10000 runs with the cores there are, and says so.
+    let out = path("o.npy");
+    // (--check beyond the points compares, and reports, every point.)
+    let args = base(&[
+        "--threads",
+        "10000",
+        "--leaf-size",
+        "60",
+        "--check",
+        "100000",
+        "--json",
+    ]);
+    let mut args = refs(&args);
+    args.extend(["--out", &out]);
+    let t0 = std::time::Instant::now();
+    let (ok, text) = mpirun(2, &args);
+    assert!(ok, "{text}");
+    assert!(
+        text.contains("note: --threads 10000 is more than"),
+        "{text}"
+    );
+    let threads = json_number(&text, "threads_per_rank");
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    assert!(
+        threads.is_some_and(|t| t >= 1.0 && t <= cores as f64),
+        "{threads:?}\n{text}"
+    );
+    assert!(t0.elapsed().as_secs() < 120, "{:?}", t0.elapsed());
+    assert_eq!(json_number(&text, "samples"), Some(n as f64), "{text}");
+    assert_eq!(read_columns(&out, n, 1).len(), n);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `tree --points` reads what `ferrofmm eval` reads (issue 37): a comma
+/// CSV with a header and a `.npy` file build the same tree; ragged rows
+/// are an error naming the line; a binary file, a directory and a missing
+/// file are their own one error, not a NaN coordinate.
+#[test]
+fn tree_reads_the_files_eval_reads() {
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-tree-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(dir.join("d.csv")).unwrap();
+    let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let n = 1500;
+    let pts: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.381_966).fract()).collect();
+    write_npy(&path("p.npy"), &pts, 3);
+    std::fs::write(
+        path("p.csv"),
+        pts.chunks(3).fold("x,y,z\n".to_string(), |s, p| {
+            s + &format!("{},{},{}\n", p[0], p[1], p[2])
+        }),
+    )
+    .unwrap();
+    std::fs::copy(path("p.npy"), path("binary.csv")).unwrap();
+    std::fs::write(path("ragged.csv"), "0.1 0.2\n0.3 0.4 0.5 0.6\n").unwrap();
+    std::fs::write(path("six.csv"), "0.1,0.2,0.3\n0.1,0.2,0.3,0.4,0.5,0.6\n").unwrap();
+    let mut totals = Vec::new();
+    for file in ["p.npy", "p.csv"] {
+        let (ok, text) = mpirun(2, &["tree", "--points", &path(file), "--leaf-size", "30"]);
+        assert!(
+            ok && text.contains(&format!("total {n} points")),
+            "{file}: {text}"
+        );
+        let leaves: Vec<&str> = text.lines().filter(|l| l.contains("leaves")).collect();
+        totals.push(leaves.len());
+    }
+    assert_eq!(totals, [2, 2]);
+    for (file, needle) in [
+        (
+            "ragged.csv",
+            "ragged.csv, line 1: expected 3 values (x, y, z), found 2",
+        ),
+        (
+            "six.csv",
+            "six.csv, line 2: expected 3 values (x, y, z), found 6",
+        ),
+        ("binary.csv", "not UTF-8"),
+        ("d.csv", "is a directory"),
+        ("missing.npy", "No such file"),
+    ] {
+        let (ok, text) = mpirun(2, &["tree", "--points", &path(file)]);
+        assert!(!ok && text.contains(needle), "{file}: {text}");
+        let errors = text.lines().filter(|l| l.starts_with("error:")).count();
+        assert_eq!(errors, 1, "{file}: {text}");
+        assert!(!text.contains("NaN"), "{file}: {text}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

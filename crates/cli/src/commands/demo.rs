@@ -82,8 +82,8 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     };
     let report = run(input, &settings, None)?;
     if args.json {
-        crate::io::stdout::println(&report.json())
+        crate::stdout::println(&report.json())
     } else {
-        crate::io::stdout::print(&report.table())
+        crate::stdout::print(&report.table())
     }
 }

@@ -3,11 +3,13 @@
 use std::path::PathBuf;
 
 use clap::Args;
+use ferrofmm_field::MemoryLimit;
 
 use super::run::{Input, Settings, run};
 use super::{FmmArgs, parse_kernel};
 use crate::error::{CliError, Result};
-use crate::io::{self, Contents, Format};
+use crate::stdout;
+use ferrofmm_io::{self as io, Contents};
 
 /// Arguments of `ferrofmm eval`.
 #[derive(Args, Clone, Debug)]
@@ -59,15 +61,9 @@ pub struct EvalArgs {
 
 /// Run `ferrofmm eval`.
 pub fn eval(args: &EvalArgs) -> Result<()> {
-    // Fail on an unusable output path before any work: unknown type, one
-    // of the inputs, a directory, or a directory that takes no new file.
-    Format::of(&args.out)?;
     let kernel = parse_kernel(&args.fmm.kernel)?;
-    if args.dipoles.is_some() && !kernel.takes_dipoles() {
-        return Err(CliError::InvalidArgument(format!(
-            "--kernel {} does not support dipole sources (its sources are point forces: --charges)",
-            kernel.name()
-        )));
+    if args.dipoles.is_some() {
+        kernel.check_dipoles().map_err(CliError::InvalidArgument)?;
     }
     let mut inputs = vec![("--sources", args.sources.as_path())];
     for (flag, path) in [
@@ -79,9 +75,11 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             inputs.push((flag, p.as_path()));
         }
     }
+    // Fail on an unusable output path before any work: a directory, an
+    // unknown type, one of the inputs, or a directory that takes no new
+    // file.
     io::output::check(&args.out, &inputs)?;
     if let Some(path) = &args.out_sources {
-        Format::of(path)?;
         io::output::check(path, &inputs)?;
         let absolute = |p: &std::path::Path| {
             let p = io::output::resolve(p);
@@ -94,13 +92,28 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         }
     }
 
-    let sources = io::read_points(&args.sources)?;
-    let targets = args.targets.as_deref().map(io::read_points).transpose()?;
+    // Inputs within the memory limit of the run (the memory available, or
+    // FERROFMM_MEMORY_LIMIT; --force lifts it): an endless stream such as
+    // /dev/zero is an error, not an out-of-memory kill.
+    let limit = if args.fmm.force {
+        MemoryLimit::Unlimited
+    } else {
+        MemoryLimit::Auto
+    }
+    .resolve()
+    .map_err(|e| CliError::InvalidArgument(e.to_string()))?;
+    let reader = io::Reader::new().memory_limit(limit);
+    let sources = reader.read(&args.sources, Contents::Points)?;
+    let targets = args
+        .targets
+        .as_deref()
+        .map(|p| reader.read(p, Contents::Points))
+        .transpose()?;
     let n_sources = sources.len() / 3;
     let c = kernel.components();
     let charges = match &args.charges {
         Some(path) => {
-            let q = io::read(path, Contents::Charges(c))?;
+            let q = reader.read(path, Contents::Charges(c))?;
             if q.len() != c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "charges",
@@ -116,7 +129,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     };
     let dipoles = match &args.dipoles {
         Some(path) => {
-            let n = io::read(path, Contents::Dipoles(c))?;
+            let n = reader.read(path, Contents::Dipoles(c))?;
             if n.len() != 3 * c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "dipoles",
@@ -167,13 +180,13 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {
-        io::stdout::println(&report.json())
+        stdout::println(&report.json())
     } else {
         let also = match &args.out_sources {
             Some(p) => format!(" and {}", p.display()),
             None => String::new(),
         };
-        io::stdout::print(&format!(
+        stdout::print(&format!(
             "{}wrote {}{also}\n",
             report.table(),
             args.out.display()

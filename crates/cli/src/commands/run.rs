@@ -21,12 +21,12 @@ use ferrofmm_kernels::{
 
 use super::{KernelArg, PrecisionArg, SchemeArg};
 use crate::error::{CliError, Result};
-use crate::io::{self, Values};
 use crate::memory::peak_rss_bytes;
 use crate::progress::with_stage;
 use crate::report::{
     ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures, cache_summary,
 };
+use ferrofmm_io::{self as io, Values};
 
 /// Where the points and charges come from.
 #[derive(Clone, Debug)]
@@ -257,31 +257,7 @@ fn auto_precision(
 /// grad_x_re, ...` for Helmholtz; `potential_x, potential_y, potential_z,
 /// grad_x_x, grad_x_y, ...` for Stokes, where `grad_x_y` is `d u_y / d x`).
 pub fn output_names(mode: EvalMode, kernel: KernelArg) -> Vec<String> {
-    let quantities = quantity_names(mode);
-    match kernel.component_names() {
-        [] => quantities.iter().map(|q| q.to_string()).collect(),
-        comps => quantities
-            .iter()
-            .flat_map(|q| comps.iter().map(move |c| format!("{q}_{c}")))
-            .collect(),
-    }
-}
-
-/// The quantities of `mode`, one name each.
-fn quantity_names(mode: EvalMode) -> &'static [&'static str] {
-    const ALL: [&str; 10] = [
-        "potential",
-        "grad_x",
-        "grad_y",
-        "grad_z",
-        "hess_xx",
-        "hess_yy",
-        "hess_zz",
-        "hess_xy",
-        "hess_xz",
-        "hess_yz",
-    ];
-    &ALL[..mode.values_per_target()]
+    io::column_names(mode.values_per_target(), kernel.component_names())
 }
 
 /// The values as the float type they are.

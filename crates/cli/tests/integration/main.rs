@@ -12,4 +12,5 @@ mod physics;
 mod pipes;
 mod precompute;
 mod reporting;
+mod streams;
 mod sweep;

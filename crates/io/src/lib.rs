@@ -1,23 +1,37 @@
-//! Reading points and charges, writing results: `.csv` and `.npy` files.
+//! # ferrofmm-io
+//!
+//! Reading points and charges, writing results: `.csv` and `.npy` files,
+//! the one reader and writer of the `ferrofmm` and `ferrofmm-mpi`
+//! commands.
 //!
 //! The format follows the file's extension (case-insensitive):
 //!
 //! * `.csv`: text, one record per line — see [`csv`] for the exact rules
-//!   (optional header line, `#` comments, blank lines ignored).
+//!   (optional header line, `#` comments, blank lines ignored, a UTF-8
+//!   byte order mark skipped).
 //! * `.npy`: NumPy arrays, `float64` or `float32`, either byte order,
 //!   C or Fortran order — see [`npy`].
 //!
 //! Points are returned interleaved (`x0, y0, z0, x1, ...`) as `f64`; every
-//! value is checked to be finite, and an empty file is an error.
+//! value is checked to be finite, and an empty file is an error. A
+//! [`Reader`] can bound the memory a read may take (an endless stream such
+//! as `/dev/zero` is then an error, not an out-of-memory kill) and read
+//! only a range of rows (each MPI rank its share). Inputs may be pipes
+//! (`<(...)`, FIFOs) as well as regular files.
+//!
+//! Writing ([`write()`], [`output`]) is atomic: through a temporary file in
+//! the output's directory, renamed into place when complete.
+#![warn(missing_docs)]
 
 pub mod csv;
+mod error;
 pub mod npy;
 pub mod output;
-pub mod stdout;
+pub mod threads;
+
+pub use error::{FileError, Result, human_bytes};
 
 use std::path::Path;
-
-use crate::error::{CliError, Result};
 
 /// What a file holds, which fixes its shape.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -72,7 +86,7 @@ impl Format {
         match ext.as_deref() {
             Some("csv") => Ok(Format::Csv),
             Some("npy") => Ok(Format::Npy),
-            _ => Err(CliError::UnknownExtension(path.to_path_buf())),
+            _ => Err(FileError::UnknownExtension(path.to_path_buf())),
         }
     }
 }
@@ -94,6 +108,11 @@ impl Values<'_> {
             Values::F32(v) => v.len(),
         }
     }
+
+    /// Whether there are no values.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
 }
 
 /// Read points (interleaved, `3 n` values) from a `.csv` or `.npy` file.
@@ -101,20 +120,90 @@ pub fn read_points(path: &Path) -> Result<Vec<f64>> {
     read(path, Contents::Points)
 }
 
-/// Read `contents` from `path`, whatever its format.
+/// Read `contents` from `path`, whatever its format, without a memory
+/// limit (see [`Reader`]).
 pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
-    let format = Format::of(path)?;
-    let values = match format {
-        Format::Csv => csv::read(path, contents)?,
-        Format::Npy => npy::read(path, contents)?,
-    };
-    if values.is_empty() {
-        return Err(CliError::Empty {
-            path: path.to_path_buf(),
-            what: contents.noun(),
-        });
+    Reader::new().read(path, contents)
+}
+
+/// Reads `.csv` and `.npy` files: whole, or a range of their rows, within
+/// a memory limit.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Reader {
+    limit: Option<u64>,
+}
+
+impl Reader {
+    /// A reader without a memory limit.
+    pub fn new() -> Reader {
+        Reader::default()
     }
-    Ok(values)
+
+    /// Refuse, with [`FileError::TooLarge`], a read whose values (and, for
+    /// text, its longest line) would take more than `bytes` (`None`: no
+    /// limit). The values a file holds are counted as they arrive, so an
+    /// endless stream stops at the limit.
+    pub fn memory_limit(mut self, bytes: Option<u64>) -> Reader {
+        self.limit = bytes;
+        self
+    }
+
+    /// The memory limit in bytes (`None`: none).
+    pub fn limit(&self) -> Option<u64> {
+        self.limit
+    }
+
+    /// Read all of `contents` from `path`.
+    pub fn read(&self, path: &Path, contents: Contents) -> Result<Vec<f64>> {
+        self.read_rows(path, contents, |n| 0..n).map(|(v, _)| v)
+    }
+
+    /// Read the rows `pick(n)` of `path`, whose `n` records are `contents`
+    /// (`pick` gets the number of records and returns a range within
+    /// them); returns those rows' values and `n`. A C-order `.npy` regular
+    /// file is read only where the rows lie (and `n` may be 0 records for
+    /// a rank with none); a `.csv` file, a Fortran-order array or a stream
+    /// is read whole, keeping the rows asked for. Every value read is
+    /// checked to be finite, and a file without records is
+    /// [`FileError::Empty`].
+    pub fn read_rows(
+        &self,
+        path: &Path,
+        contents: Contents,
+        pick: impl FnOnce(u64) -> std::ops::Range<u64>,
+    ) -> Result<(Vec<f64>, u64)> {
+        let format = Format::of(path)?;
+        if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
+            return Err(FileError::IsDirectory(path.to_path_buf()));
+        }
+        let (values, n) = match format {
+            Format::Csv => {
+                let all = csv::read(path, contents, self.limit)?;
+                let n = (all.len() / contents.columns()) as u64;
+                (slice_rows(all, contents.columns(), pick(n), n), n)
+            }
+            Format::Npy => npy::read_rows(path, contents, self.limit, pick)?,
+        };
+        if n == 0 {
+            return Err(FileError::Empty {
+                path: path.to_path_buf(),
+                what: contents.noun(),
+            });
+        }
+        Ok((values, n))
+    }
+}
+
+/// Rows `rows` (clamped to the `n` there are) of `all`, `columns` values each.
+fn slice_rows(mut all: Vec<f64>, columns: usize, rows: std::ops::Range<u64>, n: u64) -> Vec<f64> {
+    let end = rows.end.min(n) as usize * columns;
+    let start = (rows.start as usize * columns).min(end);
+    if start == 0 && end == all.len() {
+        return all;
+    }
+    all.truncate(end);
+    all.drain(..start);
+    all
 }
 
 /// Write `values` (`columns` per record, named by `names`) to `path` in the
@@ -133,6 +222,36 @@ pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
     match Format::of(path)? {
         Format::Csv => csv::write(path, values, names),
         Format::Npy => npy::write(path, values, columns),
+    }
+}
+
+/// Column names of an output with `values_per_target` quantities
+/// (`potential`, then `grad_x, grad_y, grad_z`, then `hess_xx, hess_yy,
+/// hess_zz, hess_xy, hess_xz, hess_yz`) for a kernel whose values have the
+/// components `component_names` (none for a scalar kernel): each quantity
+/// once per component, suffixed (`potential_re, potential_im, grad_x_re,
+/// ...` for Helmholtz; `potential_x, ..., grad_x_y, ...` for Stokes, where
+/// `grad_x_y` is `d u_y / d x`). The header of every `.csv` output.
+pub fn column_names(values_per_target: usize, component_names: &[&str]) -> Vec<String> {
+    const ALL: [&str; 10] = [
+        "potential",
+        "grad_x",
+        "grad_y",
+        "grad_z",
+        "hess_xx",
+        "hess_yy",
+        "hess_zz",
+        "hess_xy",
+        "hess_xz",
+        "hess_yz",
+    ];
+    let quantities = &ALL[..values_per_target.min(ALL.len())];
+    match component_names {
+        [] => quantities.iter().map(|q| q.to_string()).collect(),
+        comps => quantities
+            .iter()
+            .flat_map(|q| comps.iter().map(move |c| format!("{q}_{c}")))
+            .collect(),
     }
 }
 
@@ -249,11 +368,11 @@ mod tests {
         assert_eq!(Format::of(Path::new("b.csv")).unwrap(), Format::Csv);
         assert!(matches!(
             Format::of(Path::new("b.txt")),
-            Err(CliError::UnknownExtension(_))
+            Err(FileError::UnknownExtension(_))
         ));
         assert!(matches!(
             Format::of(Path::new("npy")),
-            Err(CliError::UnknownExtension(_))
+            Err(FileError::UnknownExtension(_))
         ));
     }
 }

@@ -11,33 +11,42 @@
 //!   any failure the temporary file is removed and the previous contents of
 //!   the output (if any) are untouched: there is never a partial file.
 //!
-//! A file size limit (`ulimit -f`) makes the write fail (the command
-//! catches `SIGXFSZ`, see `crate::interrupt::install`), so it is cleaned up
-//! like any other failure. A process killed by a signal in the middle of a
-//! write (`SIGKILL`) may leave the temporary file behind, never a truncated
-//! output.
+//! * [`Temporary`] is that temporary file, for writers that fill it in
+//!   parts (each MPI rank its rows): removed when dropped, renamed onto the
+//!   output by [`Temporary::commit`].
+//!
+//! Every temporary file is recorded while it exists, so that a signal
+//! handler can remove them ([`remove_temporaries`]) before the process
+//! exits. A file size limit (`ulimit -f`) makes the write fail (when the
+//! command ignores `SIGXFSZ`), so it is cleaned up like any other failure.
+//! A process killed by a signal in the middle of a write (`SIGKILL`) may
+//! leave the temporary file behind, never a truncated output.
 
 use std::fs::{self, File, OpenOptions};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 
-use crate::error::{CliError, Result};
+use crate::error::{FileError, Result};
 
-/// Check, before any work, that `out` can be written and is none of
+/// Check, before any work, that `out` can be written (a `.csv` or `.npy`
+/// name, not a directory, in a directory that takes a new file) and is none of
 /// `inputs` (pairs of the option name and the file, e.g. `("--sources",
 /// path)`).
 pub fn check(out: &Path, inputs: &[(&'static str, &Path)]) -> Result<()> {
-    let unusable = |reason: String| CliError::OutputUnusable {
+    let unusable = |reason: String| FileError::OutputUnusable {
         path: out.to_path_buf(),
         reason,
     };
-    if let Ok(meta) = fs::metadata(out) {
-        if meta.is_dir() {
-            return Err(unusable("is a directory (give a file name)".into()));
-        }
+    let existing = fs::metadata(out);
+    if existing.as_ref().is_ok_and(|m| m.is_dir()) {
+        return Err(unusable("is a directory (give a file name)".into()));
+    }
+    crate::Format::of(out)?;
+    if let Ok(meta) = existing {
         for &(option, input) in inputs {
             if same_file(out, &meta, input) {
-                return Err(CliError::OutputIsInput {
+                return Err(FileError::OutputIsInput {
                     out: out.to_path_buf(),
                     option,
                     input: input.to_path_buf(),
@@ -77,7 +86,7 @@ pub fn check(out: &Path, inputs: &[(&'static str, &Path)]) -> Result<()> {
     })?;
     drop(file);
     let _ = fs::remove_file(&tmp);
-    crate::interrupt::forget_temporary(&tmp);
+    forget_temporary(&tmp);
     Ok(())
 }
 
@@ -90,31 +99,132 @@ pub fn write_atomically(
     path: &Path,
     fill: impl FnOnce(&mut BufWriter<File>) -> std::io::Result<()>,
 ) -> Result<()> {
-    let target = resolve(path);
-    let failed = |source: std::io::Error| CliError::WriteFailed {
+    let mut tmp = Temporary::create(path)?;
+    let failed = |source: std::io::Error| FileError::WriteFailed {
         path: path.to_path_buf(),
         source,
     };
-    let (file, tmp) = create_temporary(&target).map_err(failed)?;
-    let result = (|| {
-        let mut out = BufWriter::new(file);
-        fill(&mut out)?;
-        out.flush()?;
-        let file = out.into_inner().map_err(|e| e.into_error())?;
-        // Keep the permissions of a file being replaced.
-        if let Ok(meta) = fs::metadata(&target) {
-            file.set_permissions(meta.permissions())?;
+    let file = tmp
+        .file
+        .take()
+        .ok_or_else(|| failed(std::io::Error::other("no file")))?;
+    let mut out = BufWriter::new(file);
+    fill(&mut out).and_then(|()| out.flush()).map_err(failed)?;
+    tmp.file = Some(out.into_inner().map_err(|e| failed(e.into_error()))?);
+    tmp.commit()
+}
+
+/// The temporary file an output is written through: `.NAME.tmp-PID` in the
+/// output's own directory. Dropped, it is removed; [`Temporary::commit`]
+/// renames it onto the output.
+#[derive(Debug)]
+pub struct Temporary {
+    /// The output it becomes (a link's target when the output is a link).
+    target: PathBuf,
+    /// The output as named (for messages).
+    named: PathBuf,
+    /// The temporary file.
+    path: PathBuf,
+    file: Option<File>,
+    /// Renamed onto the output.
+    committed: bool,
+}
+
+impl Temporary {
+    /// Create the (empty) temporary file of the output `out`.
+    pub fn create(out: &Path) -> Result<Temporary> {
+        let target = resolve(out);
+        let (file, path) = create_temporary(&target).map_err(|source| FileError::WriteFailed {
+            path: out.to_path_buf(),
+            source,
+        })?;
+        Ok(Temporary {
+            target,
+            named: out.to_path_buf(),
+            path,
+            file: Some(file),
+            committed: false,
+        })
+    }
+
+    /// The temporary file's path (other processes may write into it).
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// The open temporary file.
+    pub fn file(&mut self) -> Result<&mut File> {
+        match &mut self.file {
+            Some(f) => Ok(f),
+            None => Err(FileError::WriteFailed {
+                path: self.named.clone(),
+                source: std::io::Error::other("the temporary file is closed"),
+            }),
         }
-        file.sync_all()?;
-        drop(file);
-        fs::rename(&tmp, &target)
-    })();
-    let result = result.map_err(|e| {
-        let _ = fs::remove_file(&tmp);
-        failed(e)
-    });
-    crate::interrupt::forget_temporary(&tmp);
-    result
+    }
+
+    /// Sync the temporary file (keeping the permissions of a file being
+    /// replaced) and rename it onto the output. On failure it is removed
+    /// and the output is untouched.
+    pub fn commit(mut self) -> Result<()> {
+        let result = (|| {
+            let file = match self.file.take() {
+                Some(f) => f,
+                None => OpenOptions::new().write(true).open(&self.path)?,
+            };
+            if let Ok(meta) = fs::metadata(&self.target) {
+                file.set_permissions(meta.permissions())?;
+            }
+            file.sync_all()?;
+            drop(file);
+            fs::rename(&self.path, &self.target)
+        })();
+        self.committed = result.is_ok();
+        // Dropped on return: the temporary file is removed unless renamed.
+        result.map_err(|source| FileError::WriteFailed {
+            path: self.named.clone(),
+            source,
+        })
+    }
+}
+
+impl Drop for Temporary {
+    fn drop(&mut self) {
+        drop(self.file.take());
+        if !self.committed {
+            let _ = fs::remove_file(&self.path);
+        }
+        forget_temporary(&self.path);
+    }
+}
+
+static TEMP_FILES: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Remember a temporary file to remove on interrupt.
+fn register_temporary(path: &Path) {
+    if let Ok(mut files) = TEMP_FILES.lock() {
+        files.push(path.to_path_buf());
+    }
+}
+
+/// Forget a temporary file (renamed into place or removed).
+fn forget_temporary(path: &Path) {
+    if let Ok(mut files) = TEMP_FILES.lock() {
+        files.retain(|p| p != path);
+    }
+}
+
+/// Remove every temporary output file that exists now (for a signal
+/// handler's thread, before it exits the process).
+pub fn remove_temporaries() {
+    // A poisoned lock still holds the list.
+    let files = match TEMP_FILES.lock() {
+        Ok(f) => f,
+        Err(e) => e.into_inner(),
+    };
+    for f in files.iter() {
+        let _ = fs::remove_file(f);
+    }
 }
 
 /// `path`, or the file it links to when it is a symbolic link to an
@@ -154,7 +264,7 @@ fn create_temporary(target: &Path) -> std::io::Result<(File, PathBuf)> {
         let tmp = dir.join(tmp_name);
         match OpenOptions::new().write(true).create_new(true).open(&tmp) {
             Ok(f) => {
-                crate::interrupt::register_temporary(&tmp);
+                register_temporary(&tmp);
                 return Ok((f, tmp));
             }
             Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => last = Some(e),

@@ -16,22 +16,29 @@
 //! then one record per line, each value in Rust's shortest round-trip
 //! scientific notation (`1.2345e-3`), which NumPy, pandas and spreadsheets read.
 
-use std::io::Write;
+use std::io::{BufRead, BufReader, Read, Write};
 use std::path::Path;
 
 use super::{Contents, Values};
-use crate::error::{CliError, Result};
+use crate::error::{FileError, Result};
 
-/// Read `contents` from the CSV file `path` (interleaved values).
-pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
-    let text = std::fs::read_to_string(path).map_err(|e| CliError::io(path, e))?;
-    parse(&text, contents).map_err(|(line, message)| match message {
-        ParseError::Message(message) => CliError::Csv {
+/// The longest line read (a record holds at most a few dozen numbers): a
+/// binary file or an endless stream without line breaks stops here.
+pub const MAX_LINE: u64 = 1 << 16;
+
+/// Read `contents` from the CSV file `path` (interleaved values), line by
+/// line: the memory taken is that of the values and of one line, and more
+/// than `limit` bytes of them (an endless stream) is
+/// [`FileError::TooLarge`]. `path` may be a pipe.
+pub fn read(path: &Path, contents: Contents, limit: Option<u64>) -> Result<Vec<f64>> {
+    let file = std::fs::File::open(path).map_err(|e| FileError::io(path, e))?;
+    parse_reader(BufReader::new(file), contents, limit).map_err(|(line, error)| match error {
+        ParseError::Message(message) => FileError::Csv {
             path: path.to_path_buf(),
             line,
             message,
         },
-        ParseError::NonFinite { column, value } => CliError::NonFinite {
+        ParseError::NonFinite { column, value } => FileError::NonFinite {
             path: path.to_path_buf(),
             location: if contents.columns() == 1 {
                 format!("the value on line {line}")
@@ -40,11 +47,16 @@ pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
             },
             value,
         },
+        ParseError::TooLarge(limit) => FileError::TooLarge {
+            path: path.to_path_buf(),
+            limit,
+        },
+        ParseError::Io(source) => FileError::io(path, source),
     })
 }
 
 /// Why a line was rejected.
-#[derive(Debug, PartialEq)]
+#[derive(Debug)]
 pub enum ParseError {
     /// Malformed line.
     Message(String),
@@ -55,16 +67,83 @@ pub enum ParseError {
         /// The value.
         value: f64,
     },
+    /// The values and the line being read passed this many bytes.
+    TooLarge(u64),
+    /// Reading failed.
+    Io(std::io::Error),
+}
+
+impl PartialEq for ParseError {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (ParseError::Message(a), ParseError::Message(b)) => a == b,
+            (
+                ParseError::NonFinite { column, value },
+                ParseError::NonFinite {
+                    column: c,
+                    value: v,
+                },
+            ) => column == c && value.to_bits() == v.to_bits(),
+            (ParseError::TooLarge(a), ParseError::TooLarge(b)) => a == b,
+            _ => false,
+        }
+    }
 }
 
 /// Parse CSV text; on error, the 1-based line number and what is wrong.
 pub fn parse(text: &str, contents: Contents) -> Result<Vec<f64>, (usize, ParseError)> {
+    parse_reader(text.as_bytes(), contents, None)
+}
+
+/// Parse CSV from `reader` line by line, keeping at most `limit` bytes (of
+/// values, plus the line being read); on error, the 1-based line number
+/// and what is wrong.
+pub fn parse_reader(
+    mut reader: impl BufRead,
+    contents: Contents,
+    limit: Option<u64>,
+) -> Result<Vec<f64>, (usize, ParseError)> {
     let columns = contents.columns();
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
-    let mut values = Vec::new();
+    let limit_bytes = limit.unwrap_or(u64::MAX);
+    let mut values: Vec<f64> = Vec::new();
     let mut first_record = true;
-    for (index, line) in text.lines().enumerate() {
-        let line_no = index + 1;
+    let mut buf = Vec::new();
+    let mut line_no = 0;
+    loop {
+        line_no += 1;
+        buf.clear();
+        let held = 8 * values.len() as u64;
+        let budget = limit_bytes.saturating_sub(held);
+        let n = (&mut reader)
+            .take(budget.min(MAX_LINE).saturating_add(1))
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| (line_no, ParseError::Io(e)))?;
+        if n == 0 {
+            break;
+        }
+        if n as u64 > budget {
+            return Err((line_no, ParseError::TooLarge(limit_bytes)));
+        }
+        if n as u64 > MAX_LINE {
+            return Err((
+                line_no,
+                ParseError::Message(format!(
+                    "longer than {MAX_LINE} bytes without a line break: not a CSV file of numbers"
+                )),
+            ));
+        }
+        let mut bytes = &buf[..];
+        if line_no == 1 {
+            bytes = bytes.strip_prefix("\u{feff}".as_bytes()).unwrap_or(bytes);
+        }
+        let Ok(line) = std::str::from_utf8(bytes) else {
+            return Err((
+                line_no,
+                ParseError::Message(
+                    "not UTF-8 text (a binary file? NumPy arrays need the .npy extension)".into(),
+                ),
+            ));
+        };
         let line = line.trim();
         if line.is_empty() || line.starts_with('#') {
             continue;
@@ -121,6 +200,9 @@ pub fn parse(text: &str, contents: Contents) -> Result<Vec<f64>, (usize, ParseEr
                 Some(v) => values.push(*v),
             }
         }
+        if 8 * values.len() as u64 > limit_bytes {
+            return Err((line_no, ParseError::TooLarge(limit_bytes)));
+        }
     }
     Ok(values)
 }
@@ -136,19 +218,28 @@ fn split(line: &str) -> Vec<&str> {
 
 /// Write `values` as CSV with a header line of `names` (one column each).
 pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
-    super::output::write_atomically(path, |out| match values {
-        Values::F64(v) => write_records(out, v, names),
-        Values::F32(v) => write_records(out, v, names),
+    super::output::write_atomically(path, |out| {
+        write_header(out, names)?;
+        match values {
+            Values::F64(v) => write_records(out, v, names.len()),
+            Values::F32(v) => write_records(out, v, names.len()),
+        }
     })
 }
 
-fn write_records<T: std::fmt::LowerExp>(
+/// The header line: `names`, comma-separated.
+pub fn write_header(out: &mut impl Write, names: &[&str]) -> std::io::Result<()> {
+    writeln!(out, "{}", names.join(","))
+}
+
+/// `values` as records of `columns` values, one per line, each value in
+/// Rust's shortest round-trip scientific notation.
+pub fn write_records<T: std::fmt::LowerExp>(
     out: &mut impl Write,
     values: &[T],
-    names: &[&str],
+    columns: usize,
 ) -> std::io::Result<()> {
-    writeln!(out, "{}", names.join(","))?;
-    for record in values.chunks_exact(names.len()) {
+    for record in values.chunks_exact(columns) {
         for (k, v) in record.iter().enumerate() {
             if k > 0 {
                 out.write_all(b",")?;
