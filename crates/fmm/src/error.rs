@@ -103,9 +103,9 @@ pub enum FmmError {
     /// input was finite: the sums overflow the float type (see
     /// [`crate::check_finite_output`]). No result is returned.
     #[error(
-        "the result overflowed {precision}: value {component} at target {target} is {value} \
-         (largest |density| {largest_density:e}); the sums exceed the largest {precision} \
-         number: scale the densities down (the result is linear in them){}",
+        "the result overflowed {precision} (output {component} of target {target} is {value}; \
+         largest |density| {largest_density:.3e}): the sums exceed the largest {precision} \
+         number; scale the densities down (the result is linear in them){}",
         if *precision == "f32" { " or use f64" } else { "" }
     )]
     NonFiniteResult {
