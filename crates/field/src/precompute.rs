@@ -277,9 +277,9 @@ impl Units<'_> {
 pub enum MemoryLimit {
     /// The environment variable `FERROFMM_MEMORY_LIMIT` when set (bytes,
     /// with an optional `K`, `M`, `G` or `T` suffix in powers of 1024, or
-    /// `unlimited`), else the memory the system says is available
-    /// (`MemAvailable` of `/proc/meminfo`; no limit where that cannot be
-    /// read).
+    /// `unlimited`), else the memory this process can still allocate
+    /// ([`available_memory`]: `MemAvailable` of `/proc/meminfo`, lowered
+    /// by `RLIMIT_AS`; no limit where neither can be read).
     #[default]
     Auto,
     /// At most this many bytes.
