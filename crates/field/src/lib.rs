@@ -105,6 +105,6 @@ pub use params::{MAX_ORDER, MIN_ORDER, OperatorParams, default_pinv_rcond};
 pub use pinv::PinvSummary;
 pub use precompute::{
     M2lUsage, MEMORY_LIMIT_ENV, MemoryLimit, PrecomputeEstimate, PrecomputeMonitor,
-    PrecomputeProgress, available_memory,
+    PrecomputeProgress, address_space_limit, available_memory,
 };
 pub use surface::{SurfaceKind, SurfaceRadii, expansion_len, n_surface_points, surface_points};

@@ -211,6 +211,25 @@ pub enum FmmError {
         /// Kernel matrices the precomputation would assemble.
         matrices: usize,
     },
+    /// A run whose buffers (points, densities, results) are predicted to
+    /// need more memory than the limit ([`crate::check_memory`]; by
+    /// default the memory available, which honours `RLIMIT_AS`). Nothing
+    /// was allocated.
+    #[error(
+        "{what} is predicted to need at least {} but the limit is {} (the memory available, \
+         lowered by the address-space limit RLIMIT_AS when set, or FERROFMM_MEMORY_LIMIT): \
+         use fewer points or density vectors, or force it with FERROFMM_MEMORY_LIMIT=unlimited",
+        crate::precompute::human_bytes(estimate_bytes),
+        crate::precompute::human_bytes(limit_bytes)
+    )]
+    RunMemory {
+        /// The run, as the message names it.
+        what: String,
+        /// Predicted bytes (a lower bound, [`crate::MemoryReport::predict`]).
+        estimate_bytes: u64,
+        /// The limit in bytes.
+        limit_bytes: u64,
+    },
 }
 
 impl FmmError {

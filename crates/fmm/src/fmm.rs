@@ -157,6 +157,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                             (None, Some(t)) => Domain::from_points(&[&src64[..], t])?.width,
                             (None, None) => Domain::from_points(&[&src64[..]])?.width,
                         };
+                        // The build's own checks first: the model has no
+                        // order for a domain beyond the float type or a
+                        // wavenumber beyond the low-frequency limit, and
+                        // would only say "no order reaches eps".
+                        check_domain_width(width, T::PRECISION)?;
+                        let k = b.kernel.wavenumber();
+                        if k * width > crate::MAX_WAVENUMBER_WIDTH {
+                            return Err(FmmError::BeyondLowFrequency {
+                                kernel: b.kernel.name(),
+                                wavenumber: k,
+                                width,
+                                limit: crate::MAX_WAVENUMBER_WIDTH,
+                            });
+                        }
                         tuning::default_model(&b.kernel, width)
                     }
                 };
@@ -806,12 +820,35 @@ pub(crate) fn permute_points<T: Real>(points: &[f64], perm: &[usize], centre: [f
 /// `(h / 2)^2` must not underflow (`>= MIN_POSITIVE`, else pairs silently
 /// count as coincident) and `64 W^2` must not overflow.
 pub(crate) fn width_range<T: Real>(depth: u32) -> (f64, f64) {
-    let largest = match T::PRECISION {
-        Precision::F32 => f32::MAX as f64,
-        Precision::F64 => f64::MAX,
+    width_range_of(T::PRECISION, depth)
+}
+
+/// [`width_range`] for a float type given as a value.
+pub(crate) fn width_range_of(precision: Precision, depth: u32) -> (f64, f64) {
+    let (largest, smallest) = match precision {
+        Precision::F32 => (f32::MAX as f64, f32::MIN_POSITIVE as f64),
+        Precision::F64 => (f64::MAX, f64::MIN_POSITIVE),
     };
-    let min = T::MIN_POSITIVE.to_f64().sqrt() * 2f64.powi(depth as i32 + 2);
+    let min = smallest.sqrt() * 2f64.powi(depth as i32 + 2);
     (min, largest.sqrt() / 8.0)
+}
+
+/// [`FmmError::DomainOutOfRange`] for a domain width no tree of any depth
+/// resolves in `precision` (outside [`width_range`] at depth 0): checked
+/// before parameters are chosen for a tolerance, whose error model would
+/// otherwise only find that no order reaches it.
+pub(crate) fn check_domain_width(width: f64, precision: Precision) -> Result<(), FmmError> {
+    let (min, max) = width_range_of(precision, 0);
+    if (min..=max).contains(&width) {
+        return Ok(());
+    }
+    Err(FmmError::DomainOutOfRange {
+        width,
+        min,
+        max,
+        depth: 0,
+        precision: precision.name(),
+    })
 }
 
 #[cfg(test)]
@@ -842,6 +879,46 @@ mod tests {
                     assert!(exact.abs() <= 2.5 * width + 1e-9, "{d:?} {c:?}");
                 }
             }
+        }
+    }
+
+    /// With a tolerance, a domain beyond the float type and a wavenumber
+    /// beyond the low-frequency limit are refused with the build's own
+    /// errors (naming the cause), not "no order reaches eps" (whose limit
+    /// was `inf`), in every path that chooses parameters.
+    #[test]
+    fn tolerance_paths_name_the_cause() {
+        use crate::tuning::choose_scheme;
+        use crate::{FmmBuilder, FmmError};
+        use ferrofmm_kernels::{EvalMode, Helmholtz3d, Precision};
+        let unit: Vec<f64> = (0..600)
+            .map(|i| ((i * 7919) % 997) as f64 / 997.0)
+            .collect();
+        for scale in [1e300, 1e-300] {
+            let x: Vec<f64> = unit.iter().map(|v| v * scale).collect();
+            let built = FmmBuilder::new(&x).tolerance(1e-6).build_dense();
+            assert!(
+                matches!(built, Err(FmmError::DomainOutOfRange { .. })),
+                "{scale}"
+            );
+            let chosen = choose_scheme(1e-6, EvalMode::Potential, Precision::F64, &x, None, false);
+            assert!(
+                matches!(chosen, Err(FmmError::DomainOutOfRange { .. })),
+                "{scale}"
+            );
+        }
+        let x32: Vec<f32> = unit.iter().map(|v| (v * 1e20) as f32).collect();
+        let built = FmmBuilder::new(&x32).tolerance(1e-3).build_dense();
+        assert!(matches!(built, Err(FmmError::DomainOutOfRange { .. })));
+        let built = FmmBuilder::new(&unit)
+            .kernel(Helmholtz3d::new(1e6).unwrap())
+            .tolerance(1e-6)
+            .build_dense();
+        match built {
+            Err(e @ FmmError::BeyondLowFrequency { .. }) => {
+                assert!(e.to_string().contains("narrower than 4.000e-5"), "{e}");
+            }
+            other => panic!("{:?}", other.err()),
         }
     }
 }

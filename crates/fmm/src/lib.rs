@@ -55,7 +55,7 @@ pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
 pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
-pub use memory::MemoryReport;
+pub use memory::{MemoryReport, RunSize, check_memory};
 pub use overflow::check_finite_output;
 pub use precompute::m2l_usage;
 pub use timings::{EvalTimings, SetupTimings};

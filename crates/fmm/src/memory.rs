@@ -11,6 +11,8 @@
 use std::mem::size_of;
 
 use ferrofmm_field::M2lScheme;
+#[cfg(doc)]
+use ferrofmm_field::MemoryLimit;
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::Fmm;
@@ -128,5 +130,117 @@ impl MemoryReport {
             m2l,
             total,
         }
+    }
+}
+
+/// The sizes a run's point-dependent buffers follow (see
+/// [`MemoryReport::predict`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct RunSize {
+    /// Number of sources.
+    pub n_sources: usize,
+    /// Number of separate targets (`None`: the targets are the sources).
+    pub n_targets: Option<usize>,
+    /// Values per source of one density vector
+    /// ([`Kernel::values_per_source`]).
+    pub values_per_source: usize,
+    /// Values per target ([`Kernel::values_per_target`]).
+    pub values_per_target: usize,
+    /// Density vectors evaluated in one call (their results kept).
+    pub n_vectors: usize,
+}
+
+impl MemoryReport {
+    /// Bytes that building an [`Fmm`] in `T` for `size` and evaluating
+    /// `size.n_vectors` density vectors need at least: the buffers whose
+    /// length follows from the point counts alone, with the same per-point
+    /// figures as [`MemoryReport::of`] (`points`, and of
+    /// `evaluation_scratch` the densities in tree order and the sorted and
+    /// returned outputs), plus the `f64` copy of the points the build
+    /// sorts them from and the results of every vector. Boxes, expansions
+    /// and operators are not counted (they depend on the tree), so this is
+    /// a lower bound of the peak: a run it puts beyond the memory
+    /// available cannot fit ([`check_memory`]).
+    ///
+    /// Saturates at `u64::MAX` instead of overflowing.
+    pub fn predict<T: Real>(size: &RunSize) -> u64 {
+        Self::predict_points::<T>(size).saturating_add(Self::predict_evaluation::<T>(size))
+    }
+
+    /// The build's share of [`MemoryReport::predict`]: sorted points in
+    /// `T`, sorted `f64` points with the permutations (the tree), and the
+    /// `f64` copy the tree is built from.
+    pub fn predict_points<T: Real>(size: &RunSize) -> u64 {
+        let t = size_of::<T>() as u128;
+        let us = size_of::<usize>() as u128;
+        let points = size.n_sources as u128 + size.n_targets.unwrap_or(0) as u128;
+        u64::try_from(points * (3 * t + 3 * 8 + 2 * us + 3 * 8)).unwrap_or(u64::MAX)
+    }
+
+    /// The evaluation's share of [`MemoryReport::predict`] (of an
+    /// [`Fmm`] already built): the densities in tree order, the outputs
+    /// sorted and returned for one vector, and the results of every
+    /// vector.
+    pub fn predict_evaluation<T: Real>(size: &RunSize) -> u64 {
+        let t = size_of::<T>() as u128;
+        let n = size.n_sources as u128;
+        let m = size.n_targets.unwrap_or(size.n_sources) as u128;
+        let (s, w, k) = (
+            size.values_per_source as u128,
+            size.values_per_target as u128,
+            size.n_vectors.max(1) as u128,
+        );
+        u64::try_from(n * s * t + 2 * w * m * t + k * w * m * t).unwrap_or(u64::MAX)
+    }
+}
+
+/// [`FmmError::RunMemory`] when `needed` bytes exceed `limit` (resolved as
+/// for the operator precomputation: [`MemoryLimit::Auto`] is
+/// `FERROFMM_MEMORY_LIMIT`, else the memory available, which honours
+/// `RLIMIT_AS`; see [`ferrofmm_field::available_memory`]). `what` names
+/// the run in the message.
+pub fn check_memory(
+    needed: u64,
+    limit: ferrofmm_field::MemoryLimit,
+    what: &str,
+) -> Result<(), crate::FmmError> {
+    match limit.resolve()? {
+        Some(limit_bytes) if needed > limit_bytes => Err(crate::FmmError::RunMemory {
+            what: what.to_string(),
+            estimate_bytes: needed,
+            limit_bytes,
+        }),
+        _ => Ok(()),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use ferrofmm_field::MemoryLimit;
+
+    #[test]
+    fn predicted_bytes_grow_with_the_points_and_saturate() {
+        let size = |n, m| RunSize {
+            n_sources: n,
+            n_targets: m,
+            values_per_source: 1,
+            values_per_target: 4,
+            n_vectors: 1,
+        };
+        let small = MemoryReport::predict::<f64>(&size(1000, None));
+        assert!(small > 1000 * 3 * 8 * 3);
+        assert!(MemoryReport::predict::<f64>(&size(1000, Some(1000))) > small);
+        assert!(MemoryReport::predict::<f32>(&size(1000, None)) < small);
+        assert_eq!(
+            MemoryReport::predict::<f64>(&size(usize::MAX, Some(usize::MAX))),
+            u64::MAX
+        );
+        let big = MemoryReport::predict::<f64>(&size(1_000_000_000, None));
+        let err = check_memory(big, MemoryLimit::Bytes(1 << 30), "test").unwrap_err();
+        assert!(matches!(err, crate::FmmError::RunMemory { .. }), "{err}");
+        assert!(err.to_string().contains("1.0 GiB"), "{err}");
+        assert!(check_memory(small, MemoryLimit::Bytes(1 << 30), "test").is_ok());
+        assert!(check_memory(big, MemoryLimit::Unlimited, "test").is_ok());
     }
 }

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
-use ferrofmm_field::{DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
+use ferrofmm_field::{CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
 use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
@@ -14,11 +14,12 @@ use ferrofmm_kernels::{
     EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SourceKind, Stokes3d,
 };
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
-use pyo3::exceptions::{PyTypeError, PyValueError};
+use pyo3::exceptions::{PyMemoryError, PyRuntimeWarning, PyTypeError, PyValueError};
 use pyo3::prelude::*;
 use serde_json::{Value, json};
 
 use crate::errors::fmm_error;
+use crate::limits::check_cache_dir;
 use crate::run::{Threads, interruptible};
 
 /// A float type a run can use: the library's [`Real`] and a NumPy element.
@@ -63,10 +64,10 @@ impl Floats {
     /// A flat, C-contiguous `float32` or `float64` NumPy array, copied.
     pub(crate) fn from_numpy(what: &str, array: &Bound<'_, PyAny>) -> PyResult<Self> {
         if let Ok(a) = array.extract::<PyReadonlyArray1<'_, f64>>() {
-            return Ok(Floats::F64(contiguous(what, &a)?.to_vec()));
+            return Ok(Floats::F64(try_copy(what, contiguous(what, &a)?)?));
         }
         if let Ok(a) = array.extract::<PyReadonlyArray1<'_, f32>>() {
-            return Ok(Floats::F32(contiguous(what, &a)?.to_vec()));
+            return Ok(Floats::F32(try_copy(what, contiguous(what, &a)?)?));
         }
         Err(PyTypeError::new_err(format!(
             "{what} must be a one-dimensional float32 or float64 NumPy array"
@@ -87,6 +88,21 @@ impl Floats {
             Floats::F64(v) => v.len(),
         }
     }
+}
+
+/// A copy of `values`, or `MemoryError` when it cannot be allocated
+/// (never the abort of a failed infallible allocation).
+pub(crate) fn try_copy<T: Copy>(what: &str, values: &[T]) -> PyResult<Vec<T>> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(values.len()).map_err(|_| {
+        PyMemoryError::new_err(format!(
+            "cannot allocate {} bytes for a copy of {what} ({} values)",
+            std::mem::size_of_val(values),
+            values.len()
+        ))
+    })?;
+    v.extend_from_slice(values);
+    Ok(v)
 }
 
 fn contiguous<'a, T: Element>(what: &str, a: &'a PyReadonlyArray1<'_, T>) -> PyResult<&'a [T]> {
@@ -121,6 +137,8 @@ trait Engine: Send + Sync {
     fn setup_timings(&self) -> SetupTimings;
     fn n_sources(&self) -> usize;
     fn n_targets(&self) -> usize;
+    /// Why the operator cache could not be written (one line per file).
+    fn cache_write_errors(&self) -> Vec<String>;
 }
 
 impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
@@ -179,6 +197,22 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
 
     fn n_targets(&self) -> usize {
         Fmm::n_targets(self)
+    }
+
+    fn cache_write_errors(&self) -> Vec<String> {
+        [
+            self.operators().cache_status().clone(),
+            self.m2l_scheme().cache_status(),
+        ]
+        .into_iter()
+        .filter_map(|status| match status {
+            CacheStatus::Computed {
+                write_error: Some(e),
+                ..
+            } => Some(e),
+            _ => None,
+        })
+        .collect()
     }
 }
 
@@ -420,6 +454,10 @@ impl NativeFmm {
             verify,
             cache_dir,
         };
+        if let Some(dir) = &options.cache_dir {
+            check_cache_dir(dir)?;
+        }
+        let threads = Threads::new(py, threads)?;
         // The run's float type: `dtype`, else the sources'. The points go
         // to the builder in f64 (f32 widens exactly) and are rounded to the
         // run's type only relative to the tree's origin.
@@ -438,7 +476,6 @@ impl NativeFmm {
         let targets = targets
             .map(|t| Floats::from_numpy("targets", t).map(f64::unwrap))
             .transpose()?;
-        let threads = Threads::new(threads)?;
         let cancel = Arc::new(AtomicBool::new(false));
         let monitor = PrecomputeMonitor::new().with_cancel_flag(cancel.clone());
         let job_options = options.clone();
@@ -456,6 +493,18 @@ impl NativeFmm {
             })
         };
         let engine = engine.map_err(fmm_error)?;
+        for e in engine.cache_write_errors() {
+            PyErr::warn(
+                py,
+                &py.get_type::<PyRuntimeWarning>(),
+                &std::ffi::CString::new(format!(
+                    "the operator cache was not saved (the operators were computed and are \
+                     correct): {e}"
+                ))
+                .unwrap_or_default(),
+                1,
+            )?;
+        }
         Ok(NativeFmm {
             engine: Arc::new(RwLock::new(engine)),
             threads,

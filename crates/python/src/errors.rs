@@ -7,14 +7,16 @@ use pyo3::exceptions::{PyKeyboardInterrupt, PyMemoryError, PyValueError};
 
 /// Bad input and impossible parameters are `ValueError` (with the
 /// library's message, the same the command line prints); a precomputation
-/// predicted beyond the memory limit is `MemoryError`; a cancelled one is
+/// or a run predicted beyond the memory limit is `MemoryError`; a cancelled one is
 /// `KeyboardInterrupt` (it was cancelled by Ctrl-C).
 pub(crate) fn fmm_error(e: FmmError) -> PyErr {
     if e.is_cancelled() {
         return PyKeyboardInterrupt::new_err("interrupted during the operator precomputation");
     }
     match e {
-        FmmError::PrecomputeMemory { .. } => PyMemoryError::new_err(e.to_string()),
+        FmmError::PrecomputeMemory { .. } | FmmError::RunMemory { .. } => {
+            PyMemoryError::new_err(e.to_string())
+        }
         other => PyValueError::new_err(other.to_string()),
     }
 }

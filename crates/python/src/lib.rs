@@ -22,6 +22,7 @@
 
 mod engine;
 mod errors;
+mod limits;
 mod octree;
 mod run;
 
@@ -32,6 +33,7 @@ use pyo3::prelude::*;
 fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<engine::NativeFmm>()?;
     m.add_class::<octree::NativeOctree>()?;
+    m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MIN_ORDER", ferrofmm_fmm::MIN_ORDER)?;
     m.add("MAX_ORDER", ferrofmm_fmm::MAX_ORDER)?;

@@ -18,11 +18,18 @@ const SIGNAL_POLL: Duration = Duration::from_millis(100);
 pub(crate) struct Threads(Option<Arc<ThreadPool>>);
 
 impl Threads {
-    /// `None`: rayon's global pool (`RAYON_NUM_THREADS`, else one thread
-    /// per core). `Some(t)`: a pool of `t` threads, lowered to the number
-    /// of cores (more threads than cores only slow the passes down, as on
-    /// the command line).
-    pub(crate) fn new(threads: Option<usize>) -> PyResult<Self> {
+    /// `None`: `RAYON_NUM_THREADS` when set to a positive integer (lowered
+    /// to the cores as below), else rayon's global pool (one thread per
+    /// core); any other value of `RAYON_NUM_THREADS` (`abc`, `-2`) is
+    /// ignored with a `RuntimeWarning` that says so (rayon itself ignores
+    /// it silently). `Some(t)`: a pool of `t` threads, lowered to the
+    /// number of cores (more threads than cores only slow the passes down,
+    /// as on the command line).
+    pub(crate) fn new(py: Python<'_>, threads: Option<usize>) -> PyResult<Self> {
+        let threads = match threads {
+            Some(t) => Some(t),
+            None => env_threads(py)?,
+        };
         let Some(t) = threads else {
             return Ok(Threads(None));
         };
@@ -45,6 +52,38 @@ impl Threads {
         match &self.0 {
             Some(p) => p.current_num_threads(),
             None => rayon::current_num_threads(),
+        }
+    }
+}
+
+/// Name of rayon's thread-count variable.
+const RAYON_ENV: &str = "RAYON_NUM_THREADS";
+
+/// `RAYON_NUM_THREADS` as a thread count: `None` when unset, empty or 0
+/// (rayon's "one per core"), with a `RuntimeWarning` when it is not a
+/// number of threads.
+fn env_threads(py: Python<'_>) -> PyResult<Option<usize>> {
+    let Some(raw) = std::env::var_os(RAYON_ENV) else {
+        return Ok(None);
+    };
+    let text = raw.to_string_lossy();
+    match text.trim().parse::<usize>() {
+        Ok(0) => Ok(None),
+        Ok(t) => Ok(Some(t)),
+        Err(_) if text.trim().is_empty() => Ok(None),
+        Err(_) => {
+            let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+            let message = format!(
+                "{RAYON_ENV}={text:?} is not a number of threads: ignored, using one thread per \
+                 core ({cores}); set it to a positive integer or pass threads="
+            );
+            PyErr::warn(
+                py,
+                &py.get_type::<pyo3::exceptions::PyRuntimeWarning>(),
+                &std::ffi::CString::new(message).unwrap_or_default(),
+                1,
+            )?;
+            Ok(None)
         }
     }
 }

@@ -164,6 +164,11 @@ impl Occupancy {
         })
     }
 
+    /// The cube the codes are taken in.
+    pub fn domain(&self) -> &Domain {
+        self.codes.domain()
+    }
+
     /// Number of sources.
     pub fn n_sources(&self) -> usize {
         self.codes.n_sources()

@@ -38,7 +38,10 @@ released while the library works, and Ctrl-C interrupts within a second.
 from __future__ import annotations
 
 import json
-from typing import Any, Dict, Optional
+import os
+import sys
+import warnings
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -55,6 +58,7 @@ __all__ = [
     "Fmm",
     "FmmResult",
     "Octree",
+    "AccuracyWarning",
     "MIN_ORDER",
     "MAX_ORDER",
     "DEFAULT_LEAF_SIZE",
@@ -67,6 +71,16 @@ DEFAULT_EPS = {np.dtype(np.float64): 1e-6, np.dtype(np.float32): 1e-4}
 
 _FLOATS = (np.dtype(np.float32), np.dtype(np.float64))
 _SCHEMES = ("auto", "svd", "dense", "fft")
+
+
+class AccuracyWarning(UserWarning):
+    """The error measured after an evaluation is above the ``eps`` asked for.
+
+    Issued once per :class:`Fmm`, by the evaluation that verified the
+    tolerance (``info["verified"]`` is then ``False`` and
+    ``info["measured_error"]`` holds the estimate). Turn it into an error
+    with ``warnings.simplefilter("error", ferrofmm.AccuracyWarning)``.
+    """
 
 
 def _float_dtype(dtype: Any) -> Optional[np.dtype]:
@@ -99,9 +113,30 @@ def _as_float_array(name: str, value: Any) -> np.ndarray:
         raise TypeError(
             f"{name} must be float32 or float64, got {a.dtype} (convert with .astype(np.float64))"
         )
-    if a.dtype not in _FLOATS:
+    if a.dtype not in _FLOATS and _native(a.dtype) not in _FLOATS:
         raise TypeError(f"{name} must be float32 or float64, got {a.dtype}")
     return a
+
+
+def _native(dtype: np.dtype) -> np.dtype:
+    """``dtype`` in the machine's byte order (``>f8`` is float64 too)."""
+    return dtype.newbyteorder("=")
+
+
+def _bool(name: str, value: Any) -> bool:
+    """A flag: ``True`` / ``False`` (or NumPy's), nothing else (``"no"`` is truthy)."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    raise TypeError(f"{name} must be True or False, got {type(value).__name__} {value!r}")
+
+
+def _real(name: str, value: Any) -> Optional[float]:
+    """A real number (int or float, not bool, str or complex), or None."""
+    if value is None:
+        return None
+    if isinstance(value, bool) or not isinstance(value, (int, float, np.floating, np.integer)):
+        raise TypeError(f"{name} must be a float, got {type(value).__name__}")
+    return float(value)
 
 
 _COMPONENTS = {"laplace": 1, "yukawa": 1, "helmholtz": 2, "stokes": 3}
@@ -131,20 +166,29 @@ def _points(name: str, value: Any) -> np.ndarray:
 
 
 def _flat(a: np.ndarray, dtype: np.dtype) -> np.ndarray:
-    """A new C-contiguous copy of ``a`` in ``dtype``, flattened (x, y, z interleaved)."""
-    return np.array(a, dtype=dtype, order="C", copy=True).reshape(-1)
+    """``a`` as a C-contiguous array of ``dtype``, flattened (x, y, z interleaved).
+
+    No copy when ``a`` already is one (the native module copies what it
+    keeps); call it only after :func:`_check_memory`.
+    """
+    return np.ascontiguousarray(a, dtype=dtype).reshape(-1)
+
+
+def _check_memory(what: str, dtype: np.dtype, n: int, m: Optional[int], per_source: int,
+                  per_target: int, k: int, build: bool = True) -> None:
+    """MemoryError, before anything is copied, when the run cannot fit (see the native check)."""
+    _ferrofmm.check_run_memory(what, str(dtype), n, m, per_source, per_target, k, build)
 
 
 def _check_eps_order(eps: Optional[float], order: Optional[int]) -> None:
     """Types here; ranges in the library (one message for every front end)."""
-    if eps is not None and (
-        isinstance(eps, bool) or not isinstance(eps, (int, float, np.floating, np.integer))
-    ):
-        raise TypeError(f"eps must be a float, got {type(eps).__name__}")
+    _real("eps", eps)
     if order is not None:
         if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
             raise TypeError(f"order must be an int, got {type(order).__name__}")
-        if order < 0:
+        # The library's message; an order beyond any integer the library
+        # takes (-3, 10**30) would be an OverflowError on the way.
+        if not (MIN_ORDER <= order <= MAX_ORDER):
             raise ValueError(
                 f"expansion order {order} is not supported (use {MIN_ORDER}..={MAX_ORDER})"
             )
@@ -157,7 +201,101 @@ def _positive_int(name: str, value: Optional[int]) -> Optional[int]:
         raise TypeError(f"{name} must be an int, got {type(value).__name__}")
     if value < 1:
         raise ValueError(f"{name} must be at least 1 (got {value})")
-    return int(value)
+    # Beyond any size the native module takes: one leaf, or every core.
+    return min(int(value), sys.maxsize)
+
+
+def _cache_dir(value: Any) -> Optional[str]:
+    if value is None:
+        return None
+    if not isinstance(value, (str, bytes, os.PathLike)):
+        raise TypeError(f"cache_dir must be a path (str or os.PathLike), got {type(value).__name__}")
+    path = os.fsdecode(os.fspath(value))
+    if not path:
+        raise ValueError("cache_dir is an empty path")
+    return path
+
+
+def _per_target(kernel: str, gradient: bool, hessian: bool) -> int:
+    """Values per target and vector: quantities times the kernel's components."""
+    return (10 if hessian else 4 if gradient else 1) * _COMPONENTS.get(kernel, 1)
+
+
+def _per_source(kernel: str, charges: bool, dipoles: bool) -> int:
+    """Values per source and vector."""
+    return (int(charges) + 3 * int(dipoles)) * _COMPONENTS.get(kernel, 1)
+
+
+def _check_float32_range(name: str, a: np.ndarray) -> None:
+    """Densities beyond float32 would become infinite in a float32 run: refuse them, naming one
+    (the command line's message)."""
+    largest = float(np.finfo(np.float32).max)
+    beyond = np.abs(a) > largest
+    if np.any(beyond):
+        i = int(np.flatnonzero(beyond)[0])
+        raise ValueError(
+            f"{name} value {i} ({a.reshape(-1)[i]:.3e}) exceeds the largest f32 number "
+            f"({largest:.3e}): use dtype=\"float64\" or scale the densities down (the result is "
+            "linear in them)"
+        )
+
+
+def _check_densities(
+    kernel: str, n: int, given: List[Tuple[str, str, Any]]
+) -> Tuple[List[Tuple[str, np.ndarray, Tuple[int, ...]]], int, bool]:
+    """Dtypes and shapes of the densities, before anything is built or copied.
+
+    ``given`` holds ``(name the caller used, "charges" or "dipoles", value)``;
+    returns ``(name shown, array as given, not converted, trailing shape)``
+    per density, the number of vectors and
+    whether they were batched. Messages name the caller's argument
+    (``forces`` for :func:`stokes`).
+    """
+    out = []
+    shapes = set()
+    for shown, key, value in given:
+        if kernel == "helmholtz":
+            try:
+                a = np.asarray(value)
+            except Exception as e:  # noqa: BLE001 - anything numpy cannot take
+                raise TypeError(f"{shown} must be an array of numbers: {e}") from None
+            if a.dtype.kind not in "biufc":
+                raise TypeError(f"{shown} must hold numbers, got dtype {a.dtype}")
+        else:
+            a = _as_float_array(shown, value)
+        tail = () if key == "charges" and kernel != "stokes" else (3,)
+        one = "(n,)" if tail == () else "(n, 3)"
+        many = "(k, n)" if tail == () else "(k, n, 3)"
+        if a.ndim == 1 + len(tail):
+            batched = False
+        elif a.ndim == 2 + len(tail):
+            batched = True
+        else:
+            raise ValueError(f"{shown} must have shape {one} or {many}, got {a.shape}")
+        rows = a.shape[1:] if batched else a.shape
+        if rows != (n,) + tail:
+            if tail == () and not batched:
+                raise ValueError(f"{shown} has {a.shape[0]} values but there are {n} sources")
+            if tail == ():
+                raise ValueError(
+                    f"{shown} must have shape (k, {n}) (one row per charge vector), got {a.shape}"
+                )
+            raise ValueError(
+                f"{shown} has shape {a.shape} but there are {n} sources: use "
+                f"({n}, 3) or (k, {n}, 3)"
+            )
+        k = a.shape[0] if batched else 1
+        if k == 0:
+            what = "charge vector" if tail == () else "vector set"
+            raise ValueError(f"{shown} holds no {what} (shape {a.shape})")
+        out.append((shown, a, tail))
+        shapes.add((k, batched))
+    if len(shapes) > 1:
+        raise ValueError(
+            "charges and dipoles must both be single or hold the same number of vectors"
+        )
+    k, batched = shapes.pop()
+    return out, k, batched
 
 
 class FmmResult:
@@ -295,7 +433,9 @@ class Fmm:
         dipoles: bool = False,
         at_sources: bool = False,
     ) -> None:
-        charges, dipoles = bool(charges), bool(dipoles)
+        charges, dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
+        gradient, hessian = _bool("gradient", gradient), _bool("hessian", hessian)
+        verify, at_sources = _bool("verify", verify), _bool("at_sources", at_sources)
         if not (charges or dipoles):
             raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
         source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
@@ -303,12 +443,7 @@ class Fmm:
         ]
         src = _points("sources", sources)
         tgt = None if targets is None else _points("targets", targets)
-        # Values at the sources too: the sources lead the targets (a target
-        # on a source skips it, K(x, x) := 0).
-        self._n_at_sources = len(src) if (at_sources and tgt is not None) else 0
-        if self._n_at_sources:
-            tgt = np.concatenate([src, tgt.astype(src.dtype, copy=False)])
-        run = _float_dtype(dtype) or src.dtype
+        run = _float_dtype(dtype) or _native(src.dtype)
         _check_eps_order(eps, order)
         if eps is None and order is None:
             eps = DEFAULT_EPS[run]
@@ -316,12 +451,26 @@ class Fmm:
             raise TypeError(f"kernel must be a string, got {type(kernel).__name__}")
         if not isinstance(scheme, str) or scheme not in _SCHEMES:
             raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
-        if k is not None:
-            k = float(k)
+        k = _real("k", k)
+        leaf_size = _positive_int("leaf_size", leaf_size)
+        threads = _positive_int("threads", threads)
+        cache_dir = _cache_dir(cache_dir)
+        # Values at the sources too: the sources lead the targets (a target
+        # on a source skips it, K(x, x) := 0).
+        self._n_at_sources = len(src) if (at_sources and tgt is not None) else 0
+        n_targets = None if tgt is None else len(tgt) + self._n_at_sources
+        # Nothing copied yet: refuse a run that cannot fit first.
+        _check_memory(
+            f"an FMM of {len(src)} sources and {n_targets or len(src)} targets ({run})",
+            run, len(src), n_targets, _per_source(kernel, charges, dipoles),
+            _per_target(kernel, gradient, hessian), 1,
+        )
+        if self._n_at_sources:
+            tgt = np.concatenate([src, tgt])
         # Points go over in their own precision (float64 unless both sets
         # are float32): a float32 run rounds them only relative to the
         # tree's origin, so a domain far from zero keeps its separations.
-        wide = np.result_type(src, np.float32 if tgt is None else tgt)
+        wide = _native(np.result_type(src, np.float32 if tgt is None else tgt))
         self._native = _ferrofmm.NativeFmm(
             _flat(src, wide),
             None if tgt is None else _flat(tgt, wide),
@@ -329,13 +478,13 @@ class Fmm:
             k,
             None if eps is None else float(eps),
             None if order is None else int(order),
-            _positive_int("leaf_size", leaf_size),
+            leaf_size,
             scheme,
-            bool(gradient),
-            bool(verify),
-            _positive_int("threads", threads),
-            None if cache_dir is None else str(cache_dir),
-            bool(hessian),
+            gradient,
+            verify,
+            threads,
+            cache_dir,
+            hessian,
             source,
             str(run),
         )
@@ -346,6 +495,7 @@ class Fmm:
         self._charges = charges
         self._dipoles = dipoles
         self._last_info: Optional[Dict[str, Any]] = None
+        self._accuracy_warned = False
 
     @property
     def n_sources(self) -> int:
@@ -371,9 +521,7 @@ class Fmm:
         carry (``charges=True`` / ``dipoles=True`` of :class:`Fmm`);
         nothing is rebuilt.
         """
-        n = self.n_sources
-        parts = []
-        shapes = []
+        given = []
         for name, value, wanted, flag in (
             ("charges", charges, self._charges, "charges"),
             ("dipoles", dipoles, self._dipoles, "dipoles"),
@@ -388,49 +536,58 @@ class Fmm:
                     f"this Fmm's sources carry no {name} (only {carried}): "
                     f"build it with {flag}=True"
                 )
-            if self._kernel == "helmholtz":
-                a = _as_complex_array(name, value)
-            else:
-                a = _as_float_array(name, value)
-            tail = () if name == "charges" and self._kernel != "stokes" else (3,)
-            one = "(n,)" if tail == () else "(n, 3)"
-            many = "(k, n)" if tail == () else "(k, n, 3)"
-            if a.ndim == 1 + len(tail):
-                batched = False
+            given.append((name, name, value))
+        return self._evaluate(*_check_densities(self._kernel, self.n_sources, given))
+
+    def _evaluate(
+        self,
+        arrays: List[Tuple[str, np.ndarray, Tuple[int, ...]]],
+        k: int,
+        batched: bool,
+        stacklevel: int = 3,
+    ) -> FmmResult:
+        """Evaluate densities checked by :func:`_check_densities`.
+
+        ``stacklevel`` points an :class:`AccuracyWarning` at the caller's line.
+        """
+        n = self.n_sources
+        m = self._native.n_targets
+        _check_memory(
+            f"evaluating {k} density vector(s) for {n} sources and {m} targets ({self._dtype})",
+            self._dtype, n, m, _per_source(self._kernel, self._charges, self._dipoles),
+            _per_target(self._kernel, self._gradient, self._hessian), k, build=False,
+        )
+        parts = []
+        for name, a, tail in arrays:
+            if not batched:
                 a = a[None]
-            elif a.ndim == 2 + len(tail):
-                batched = True
-            else:
-                raise ValueError(f"{name} must have shape {one} or {many}, got {a.shape}")
-            if a.shape[1:] != (n,) + tail:
-                if name == "charges" and tail == () and not batched:
-                    raise ValueError(f"charges has {a.shape[1]} values but there are {n} sources")
-                if name == "charges" and tail == ():
-                    raise ValueError(
-                        f"charges must have shape (k, {n}) (one row per charge vector), "
-                        f"got {a.shape}"
-                    )
-                raise ValueError(
-                    f"dipoles has shape {a.shape if batched else a.shape[1:]} but there are "
-                    f"{n} sources: use {one} or {many}"
-                )
-            if a.shape[0] == 0:
-                what = "charge vector" if name == "charges" else "dipole vector set"
-                raise ValueError(f"{name} holds no {what} (shape {a.shape})")
             if self._kernel == "helmholtz":
+                a = _as_complex_array(name, a)
                 # Complex values as (re, im) pairs, the kernel's layout.
                 a = np.stack((a.real, a.imag), axis=-1)
+            if self._dtype == np.float32 and a.dtype.itemsize > 4:
+                _check_float32_range(name, a)
             parts.append(a.reshape(a.shape[0], n, -1))
-            shapes.append((a.shape[0], batched))
-        if len(set(shapes)) > 1:
-            raise ValueError(
-                "charges and dipoles must both be single or hold the same number of vectors"
-            )
-        k, batched = shapes[0]
         dens = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
         values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
         info = json.loads(info_json)
         self._last_info = info
+        if info.get("verified") is False and not self._accuracy_warned:
+            self._accuracy_warned = True
+            measured = info.get("measured_error") or {}
+            errors = ", ".join(
+                f"{q} {measured[q]:.2e}"
+                for q in ("potential", "gradient", "hessian")
+                if measured.get(q) is not None
+            )
+            warnings.warn(
+                f"the tolerance eps={info.get('eps'):g} was not met: error measured on "
+                f"{measured.get('sampled_targets')} sampled targets: {errors} at order "
+                f"{info.get('order')} (info['verified'] is False); the results are returned. "
+                f"Ask for a larger eps (or float64), or give order",
+                AccuracyWarning,
+                stacklevel=stacklevel,
+            )
         m = self._native.n_targets
         per = 10 if self._hessian else 4 if self._gradient else 1
         comps = _COMPONENTS[self._kernel]
@@ -495,11 +652,20 @@ def _one_call(
 ) -> FmmResult:
     if charges is None and dipoles is None:
         raise ValueError("give charges, dipoles or both")
+    # Every argument's shape before any work (the build takes seconds).
+    n = len(_points("sources", sources))
+    names = {"charges": "forces"} if kernel == "stokes" else {}
+    given = [
+        (names.get(key, key), key, value)
+        for key, value in (("charges", charges), ("dipoles", dipoles))
+        if value is not None
+    ]
+    checked = _check_densities(kernel, n, given)
     fmm = Fmm(
         sources, kw.pop("targets"), kernel, k=k, charges=charges is not None,
         dipoles=dipoles is not None, **kw,
     )
-    return fmm.evaluate(charges, dipoles)
+    return fmm._evaluate(*checked, stacklevel=4)
 
 
 def laplace(
@@ -742,12 +908,19 @@ class Octree:
     ) -> None:
         p = _points("points", points)
         t = None if targets is None else _points("targets", targets)
+        if leaf_size is None:
+            raise TypeError("leaf_size must be an int, got NoneType")
         leaf = _positive_int("leaf_size", leaf_size)
+        balance = _bool("balance", balance)
         if isinstance(max_level, bool) or not isinstance(max_level, (int, np.integer)):
             raise TypeError(f"max_level must be an int, got {type(max_level).__name__}")
         if not (0 <= max_level <= DEEPEST_LEVEL):
             raise ValueError(f"max_level must lie in 0..={DEEPEST_LEVEL}, got {max_level}")
         f64 = np.dtype(np.float64)
+        _check_memory(
+            f"an octree of {len(p)} points" + ("" if t is None else f" and {len(t)} targets"),
+            f64, len(p), None if t is None else len(t), 0, 0, 0,
+        )
         self._native = _ferrofmm.NativeOctree(
             _flat(p, f64), None if t is None else _flat(t, f64), leaf, bool(balance), int(max_level)
         )

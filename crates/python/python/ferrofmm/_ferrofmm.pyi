@@ -11,6 +11,17 @@ MAX_ORDER: int
 DEFAULT_LEAF_SIZE: int
 DEEPEST_LEVEL: int
 
+def check_run_memory(
+    what: str,
+    dtype: str,
+    n_sources: int,
+    n_targets: Optional[int],
+    values_per_source: int,
+    values_per_target: int,
+    n_vectors: int,
+    build: bool = ...,
+) -> None: ...
+
 class NativeFmm:
     def __init__(
         self,
