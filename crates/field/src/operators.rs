@@ -291,19 +291,68 @@ impl<T: Real> Operators<T> {
         domain_width: f64,
         depth: u32,
     ) -> Result<Self, FieldError> {
+        Self::from_level(kernel, params, domain_width, depth, 0)
+    }
+
+    /// [`Operators::new`] for the levels `first_level..=depth` only: a
+    /// kernel that needs one operator set per level (not homogeneous) gets
+    /// no check-to-equivalent operators for the levels above
+    /// `first_level` and no M2M / L2L between them (children at levels
+    /// `first_level + 1..=depth` only). A tree whose far field (V, W and X
+    /// lists) starts at level `l` needs nothing above it unless the root's
+    /// expansions are used (coupling of far clusters): levels 0 and 1 have
+    /// no V list, and each level's set costs an SVD of the check matrix.
+    /// A homogeneous kernel has one set for every level and ignores
+    /// `first_level` ([`Operators::first_level`] is then 0).
+    ///
+    /// ```
+    /// use ferrofmm_field::{OperatorParams, Operators};
+    /// use ferrofmm_kernels::ModifiedHelmholtz3d;
+    /// let yukawa = ModifiedHelmholtz3d::new(2.0).unwrap();
+    /// let params = OperatorParams::new(4);
+    /// let ops = Operators::<f64>::from_level(&yukawa, &params, 1.0, 3, 2).unwrap();
+    /// assert_eq!(ops.first_level(), 2);
+    /// assert_eq!(ops.diagnostics().uc2e.len(), 2); // levels 2 and 3
+    /// let n = ops.n_surface();
+    /// let mut parent = vec![0.0; n];
+    /// ops.m2m(3, 0, &vec![1.0; n], &mut parent); // children at level 3
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Operators::new`].
+    pub fn from_level<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        domain_width: f64,
+        depth: u32,
+        first_level: u32,
+    ) -> Result<Self, FieldError> {
         params.validate()?;
         let homogeneity = kernel.homogeneity();
-        let levels = LevelMap::new(homogeneity, domain_width, depth, 0)?;
-        let child_levels = LevelMap::new(homogeneity, domain_width, depth, 1)?;
+        let first = if homogeneity.is_some() {
+            0
+        } else {
+            first_level
+        };
+        let levels = LevelMap::new(homogeneity, domain_width, depth, first)?;
+        let child_levels = LevelMap::new(homogeneity, domain_width, depth, first + 1)?;
         let n = expansion_len(kernel, params.order);
         let rcond = params.rcond_for_kernel(kernel, T::PRECISION);
-        let n_child_sets = if depth >= 1 { child_levels.n_sets() } else { 0 };
+        let n_child_sets = if depth > first {
+            child_levels.n_sets()
+        } else {
+            0
+        };
 
         let mut key =
             CacheKey::new::<K, T>("operators", kernel, params.order, params.radii.to_array())
                 .for_domain(domain_width, depth);
         key.rcond = Some(rcond);
         key.flags = vec![n_child_sets as u64];
+        if first > 0 {
+            // Files of the full set keep their key.
+            key.flags.push(u64::from(first));
+        }
         let accept = |l: &OperatorLayout| {
             if l.n == n && l.sets.len() == levels.n_sets() && l.child_sets == n_child_sets {
                 Ok(())
@@ -325,6 +374,17 @@ impl<T: Real> Operators<T> {
             tables,
             cache_status,
         })
+    }
+
+    /// Shallowest level with operators (see [`Operators::from_level`]):
+    /// the check-to-equivalent operators serve `first_level()..=depth()`,
+    /// M2M and L2L children at `first_level() + 1..=depth()`. Always 0 for
+    /// a homogeneous kernel.
+    pub fn first_level(&self) -> u32 {
+        match self.levels.homogeneity {
+            Some(_) => 0,
+            None => self.levels.first_level,
+        }
     }
 
     /// Expansion order `p`.
@@ -479,7 +539,7 @@ impl<T: Real> Operators<T> {
         assert!(child_level >= 1, "child level must be at least 1");
         assert!(
             !self.tables.children.is_empty(),
-            "operators were built with depth 0: no M2M/L2L"
+            "operators were built without M2M/L2L (depth 0, or no level below the first)"
         );
         let (set, _) = self.child_levels.lookup(child_level, 0.0);
         &self.tables.children[set]
@@ -558,7 +618,7 @@ impl ChildGeometry {
                 child_scale: 0.5f64.powf(-d),
             },
             None => {
-                let hc = levels.half_width(c as u32 + 1);
+                let hc = levels.half_width(levels.first_level + c as u32 + 1);
                 ChildGeometry {
                     parent_set: c,
                     parent_half_width: 2.0 * hc,
