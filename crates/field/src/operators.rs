@@ -10,7 +10,7 @@ use crate::cache::{
 };
 use crate::levels::LevelMap;
 use crate::linalg::{col_major, kernel_matrix, round_to};
-use crate::pinv::{PinvF64, PinvSummary, pinv};
+use crate::pinv::{PinvF64, PinvSummary, pinv, pinv_pair};
 use crate::{
     FieldError, OperatorParams, SurfaceKind, SurfaceRadii, Update, expansion_len, gemm_scaled,
     surface_points,
@@ -291,19 +291,68 @@ impl<T: Real> Operators<T> {
         domain_width: f64,
         depth: u32,
     ) -> Result<Self, FieldError> {
+        Self::from_level(kernel, params, domain_width, depth, 0)
+    }
+
+    /// [`Operators::new`] for the levels `first_level..=depth` only: a
+    /// kernel that needs one operator set per level (not homogeneous) gets
+    /// no check-to-equivalent operators for the levels above
+    /// `first_level` and no M2M / L2L between them (children at levels
+    /// `first_level + 1..=depth` only). A tree whose far field (V, W and X
+    /// lists) starts at level `l` needs nothing above it unless the root's
+    /// expansions are used (coupling of far clusters): levels 0 and 1 have
+    /// no V list, and each level's set costs an SVD of the check matrix.
+    /// A homogeneous kernel has one set for every level and ignores
+    /// `first_level` ([`Operators::first_level`] is then 0).
+    ///
+    /// ```
+    /// use ferrofmm_field::{OperatorParams, Operators};
+    /// use ferrofmm_kernels::ModifiedHelmholtz3d;
+    /// let yukawa = ModifiedHelmholtz3d::new(2.0).unwrap();
+    /// let params = OperatorParams::new(4);
+    /// let ops = Operators::<f64>::from_level(&yukawa, &params, 1.0, 3, 2).unwrap();
+    /// assert_eq!(ops.first_level(), 2);
+    /// assert_eq!(ops.diagnostics().uc2e.len(), 2); // levels 2 and 3
+    /// let n = ops.n_surface();
+    /// let mut parent = vec![0.0; n];
+    /// ops.m2m(3, 0, &vec![1.0; n], &mut parent); // children at level 3
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Operators::new`].
+    pub fn from_level<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        domain_width: f64,
+        depth: u32,
+        first_level: u32,
+    ) -> Result<Self, FieldError> {
         params.validate()?;
         let homogeneity = kernel.homogeneity();
-        let levels = LevelMap::new(homogeneity, domain_width, depth, 0)?;
-        let child_levels = LevelMap::new(homogeneity, domain_width, depth, 1)?;
+        let first = if homogeneity.is_some() {
+            0
+        } else {
+            first_level
+        };
+        let levels = LevelMap::new(homogeneity, domain_width, depth, first)?;
+        let child_levels = LevelMap::new(homogeneity, domain_width, depth, first + 1)?;
         let n = expansion_len(kernel, params.order);
         let rcond = params.rcond_for_kernel(kernel, T::PRECISION);
-        let n_child_sets = if depth >= 1 { child_levels.n_sets() } else { 0 };
+        let n_child_sets = if depth > first {
+            child_levels.n_sets()
+        } else {
+            0
+        };
 
         let mut key =
             CacheKey::new::<K, T>("operators", kernel, params.order, params.radii.to_array())
                 .for_domain(domain_width, depth);
         key.rcond = Some(rcond);
         key.flags = vec![n_child_sets as u64];
+        if first > 0 {
+            // Files of the full set keep their key.
+            key.flags.push(u64::from(first));
+        }
         let accept = |l: &OperatorLayout| {
             if l.n == n && l.sets.len() == levels.n_sets() && l.child_sets == n_child_sets {
                 Ok(())
@@ -325,6 +374,17 @@ impl<T: Real> Operators<T> {
             tables,
             cache_status,
         })
+    }
+
+    /// Shallowest level with operators (see [`Operators::from_level`]):
+    /// the check-to-equivalent operators serve `first_level()..=depth()`,
+    /// M2M and L2L children at `first_level() + 1..=depth()`. Always 0 for
+    /// a homogeneous kernel.
+    pub fn first_level(&self) -> u32 {
+        match self.levels.homogeneity {
+            Some(_) => 0,
+            None => self.levels.first_level,
+        }
     }
 
     /// Expansion order `p`.
@@ -479,7 +539,7 @@ impl<T: Real> Operators<T> {
         assert!(child_level >= 1, "child level must be at least 1");
         assert!(
             !self.tables.children.is_empty(),
-            "operators were built with depth 0: no M2M/L2L"
+            "operators were built without M2M/L2L (depth 0, or no level below the first)"
         );
         let (set, _) = self.child_levels.lookup(child_level, 0.0);
         &self.tables.children[set]
@@ -558,7 +618,7 @@ impl ChildGeometry {
                 child_scale: 0.5f64.powf(-d),
             },
             None => {
-                let hc = levels.half_width(c as u32 + 1);
+                let hc = levels.half_width(levels.first_level + c as u32 + 1);
                 ChildGeometry {
                     parent_set: c,
                     parent_half_width: 2.0 * hc,
@@ -572,7 +632,8 @@ impl ChildGeometry {
     }
 }
 
-/// Compute all operator sets in `f64` and round to `T`.
+/// Compute all operator sets in `f64` and round to `T`, using the kernel's
+/// symmetries where they hold ([`Symmetry::Use`]).
 fn compute<K: Kernel, T: Real>(
     kernel: &K,
     params: &OperatorParams,
@@ -580,53 +641,162 @@ fn compute<K: Kernel, T: Real>(
     levels: &LevelMap,
     n_child_sets: usize,
 ) -> Result<OperatorTables<T>, FieldError> {
+    compute_with(kernel, params, rcond, levels, n_child_sets, Symmetry::Use)
+}
+
+/// Whether [`compute_with`] may use the symmetries of the kernel matrices.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Symmetry {
+    /// Where the matrices show them (checked entry by entry): DC2E from the
+    /// SVD of UC2E, and the M2M / L2L of octants `1..8` permuted from
+    /// octant 0's.
+    Use,
+    /// Every SVD and product computed directly (the reference for tests).
+    #[cfg_attr(not(test), allow(dead_code))]
+    Ignore,
+}
+
+/// Relative agreement (to the largest entry) at which two kernel matrices
+/// count as equal up to a symmetry: far below any truncation, far above the
+/// rounding of surface points that are mirror images of each other.
+const SYMMETRY_TOLERANCE: f64 = 1e-12;
+
+/// The check-to-equivalent pseudo-inverses of one set at half-width `h`,
+/// and for each reflection mask `1..8` whether both check matrices are
+/// invariant under the reflection of the surfaces.
+fn check_to_equivalent<K: Kernel>(
+    kernel: &K,
+    params: &OperatorParams,
+    rcond: f64,
+    h: f64,
+    reflections: &[Vec<usize>],
+    symmetry: Symmetry,
+) -> Result<(PinvF64, PinvF64, [bool; 8]), FieldError> {
+    let (p, r, origin) = (params.order, params.radii, [0.0; 3]);
+    let ue: Vec<f64> = surface_points(p, origin, h, r.upward_equivalent);
+    let uc: Vec<f64> = surface_points(p, origin, h, r.upward_check);
+    let de: Vec<f64> = surface_points(p, origin, h, r.downward_equivalent);
+    let dc: Vec<f64> = surface_points(p, origin, h, r.downward_check);
+    let a_u = kernel_matrix(kernel, &ue, &uc, "the upward check matrix")?;
+    let a_d = kernel_matrix(kernel, &de, &dc, "the downward check matrix")?;
+    let mut invariant = [false; 8];
+    if symmetry == Symmetry::Use {
+        for (mask, sigma) in reflections.iter().enumerate().skip(1) {
+            invariant[mask] = is_permuted(a_u.as_ref(), a_u.as_ref(), sigma)
+                && is_permuted(a_d.as_ref(), a_d.as_ref(), sigma);
+        }
+    }
+    let signs = match symmetry {
+        Symmetry::Use => transpose_signs(a_u.as_ref(), a_d.as_ref()),
+        Symmetry::Ignore => None,
+    };
+    let (pu, pd) = match signs {
+        Some(d) => pinv_pair(a_u.as_ref(), &d, rcond, "UC2E")?,
+        None => (
+            pinv(a_u.as_ref(), rcond, "UC2E")?,
+            pinv(a_d.as_ref(), rcond, "DC2E")?,
+        ),
+    };
+    Ok((pu, pd, invariant))
+}
+
+/// Compute all operator sets in `f64` and round to `T`.
+///
+/// The sets are independent: with at least as many sets as threads they
+/// run in parallel (each factorisation sequential), otherwise one after
+/// another with faer's own parallelism.
+fn compute_with<K: Kernel, T: Real>(
+    kernel: &K,
+    params: &OperatorParams,
+    rcond: f64,
+    levels: &LevelMap,
+    n_child_sets: usize,
+    symmetry: Symmetry,
+) -> Result<OperatorTables<T>, FieldError> {
     let p = params.order;
     let n = expansion_len(kernel, p);
+    let c = kernel.components();
     let r = params.radii;
     let origin = [0.0; 3];
+    // Per reflection mask, the permutation of the (component-expanded)
+    // surface indices; mask 0 is the identity.
+    let reflections: Vec<Vec<usize>> = (0..8).map(|mask| reflection(p, mask, c)).collect();
     // Check-to-equivalent pseudo-inverses, one pair per set.
-    let mut pinvs: Vec<(PinvF64, PinvF64)> = Vec::with_capacity(levels.n_sets());
-    for s in 0..levels.n_sets() {
-        let h = levels.set_half_width(s);
-        let ue: Vec<f64> = surface_points(p, origin, h, r.upward_equivalent);
-        let uc: Vec<f64> = surface_points(p, origin, h, r.upward_check);
-        let de: Vec<f64> = surface_points(p, origin, h, r.downward_equivalent);
-        let dc: Vec<f64> = surface_points(p, origin, h, r.downward_check);
-        let a_u = kernel_matrix(kernel, &ue, &uc, "the upward check matrix")?;
-        let a_d = kernel_matrix(kernel, &de, &dc, "the downward check matrix")?;
-        let pu = pinv(a_u.as_ref(), rcond, "UC2E")?;
-        let pd = pinv(a_d.as_ref(), rcond, "DC2E")?;
-        pinvs.push((pu, pd));
-    }
+    let one_set = |s: usize| {
+        check_to_equivalent(
+            kernel,
+            params,
+            rcond,
+            levels.set_half_width(s),
+            &reflections,
+            symmetry,
+        )
+    };
+    let n_sets = levels.n_sets();
+    let pinvs: Vec<(PinvF64, PinvF64, [bool; 8])> =
+        if n_sets >= 2 && n_sets >= crate::precompute::effective_threads() {
+            (0..n_sets)
+                .into_par_iter()
+                .map(one_set)
+                .collect::<Result<_, _>>()?
+        } else {
+            (0..n_sets).map(one_set).collect::<Result<_, _>>()?
+        };
     // Child operators: M2M_o = UC2E(parent) K(uc_parent <- ue_child),
-    // L2L_o = DC2E(child) K(dc_child <- de_parent).
+    // L2L_o = DC2E(child) K(dc_child <- de_parent). A reflection that maps
+    // octant 0 to octant o maps the surfaces onto themselves; where the
+    // kernel matrices are invariant under it (a radial kernel), so is the
+    // (unique) truncated pseudo-inverse, and M2M_o is M2M_0 with rows and
+    // columns permuted: one product per set instead of eight.
     let children = (0..n_child_sets)
-        .map(|c| -> Result<ChildTranslations<T>, FieldError> {
-            let g = ChildGeometry::of(levels, c);
-            let (pu, _) = &pinvs[g.parent_set];
-            let (_, pd) = &pinvs[g.child_set];
+        .into_par_iter()
+        .map(|cs| -> Result<ChildTranslations<T>, FieldError> {
+            let g = ChildGeometry::of(levels, cs);
+            let (pu, _, parent_invariant) = &pinvs[g.parent_set];
+            let (_, pd, child_invariant) = &pinvs[g.child_set];
             let (hp, hc) = (g.parent_half_width, g.child_half_width);
-            let translation = |octant: usize, m2m: bool| -> Result<Vec<T>, FieldError> {
+            let matrix = |octant: usize, m2m: bool| -> Result<Mat<f64>, FieldError> {
                 let off = octant_offset(octant);
                 let cc = [hc * off[0], hc * off[1], hc * off[2]];
-                let op = if m2m {
+                if m2m {
                     let ue_c: Vec<f64> = surface_points(p, cc, hc, r.upward_equivalent);
                     let uc_p: Vec<f64> = surface_points(p, origin, hp, r.upward_check);
-                    let k = kernel_matrix(kernel, &ue_c, &uc_p, "M2M")?;
-                    apply_pinv_f64(pu, g.parent_scale, k.as_ref())
+                    kernel_matrix(kernel, &ue_c, &uc_p, "M2M")
                 } else {
                     let de_p: Vec<f64> = surface_points(p, origin, hp, r.downward_equivalent);
                     let dc_c: Vec<f64> = surface_points(p, cc, hc, r.downward_check);
-                    let k = kernel_matrix(kernel, &de_p, &dc_c, "L2L")?;
-                    apply_pinv_f64(pd, g.child_scale, k.as_ref())
-                };
-                Ok(round_to(&op))
+                    kernel_matrix(kernel, &de_p, &dc_c, "L2L")
+                }
+            };
+            let apply = |k: MatRef<'_, f64>, m2m: bool| {
+                if m2m {
+                    apply_pinv_f64(pu, g.parent_scale, k)
+                } else {
+                    apply_pinv_f64(pd, g.child_scale, k)
+                }
             };
             let octants = |m2m: bool| -> Result<[Vec<T>; 8], FieldError> {
-                let mats: Vec<Vec<T>> = (0..8)
+                let invariant = if m2m {
+                    parent_invariant
+                } else {
+                    child_invariant
+                };
+                let k0 = matrix(0, m2m)?;
+                let op0 = apply(k0.as_ref(), m2m);
+                let mut mats: Vec<Vec<T>> = (1..8)
                     .into_par_iter()
-                    .map(|o| translation(o, m2m))
+                    .map(|o| -> Result<Vec<T>, FieldError> {
+                        let ko = matrix(o, m2m)?;
+                        let sigma = &reflections[o];
+                        let op = if invariant[o] && is_permuted(k0.as_ref(), ko.as_ref(), sigma) {
+                            permute(&op0, n, sigma)
+                        } else {
+                            apply(ko.as_ref(), m2m)
+                        };
+                        Ok(round_to(&op))
+                    })
                     .collect::<Result<_, _>>()?;
+                mats.insert(0, round_to(&op0));
                 Ok(mats.try_into().expect("eight octants"))
             };
             let (m2m, l2l) = rayon::join(|| octants(true), || octants(false));
@@ -638,12 +808,97 @@ fn compute<K: Kernel, T: Real>(
         .collect::<Result<Vec<_>, _>>()?;
     let sets = pinvs
         .iter()
-        .map(|(u, d)| CheckToEquivalent {
+        .map(|(u, d, _)| CheckToEquivalent {
             uc2e: PinvFactors::from_f64(u),
             dc2e: PinvFactors::from_f64(d),
         })
         .collect();
     Ok(OperatorTables { n, sets, children })
+}
+
+/// Per index of a surface expanded to `c` components per point (point
+/// major, as [`Kernel::assemble`] writes them), the index of its mirror
+/// image under the reflection of the axes set in `mask` (bit 0: x).
+fn reflection(order: usize, mask: usize, c: usize) -> Vec<usize> {
+    let unit = crate::surface::unit_surface(order);
+    let last = (order - 1) as i64;
+    let grid = |u: &[f64; 3]| u.map(|x| ((x + 1.0) * 0.5 * last as f64).round() as i64);
+    let index: std::collections::HashMap<[i64; 3], usize> =
+        unit.iter().enumerate().map(|(i, u)| (grid(u), i)).collect();
+    let mut out = Vec::with_capacity(c * unit.len());
+    for u in &unit {
+        let mut k = grid(u);
+        for (d, k) in k.iter_mut().enumerate() {
+            if mask >> d & 1 == 1 {
+                *k = last - *k;
+            }
+        }
+        let j = index[&k];
+        out.extend((0..c).map(|a| c * j + a));
+    }
+    out
+}
+
+/// Largest absolute entry.
+fn max_abs(a: MatRef<'_, f64>) -> f64 {
+    let mut m: f64 = 0.0;
+    for j in 0..a.ncols() {
+        for i in 0..a.nrows() {
+            m = m.max(a[(i, j)].abs());
+        }
+    }
+    m
+}
+
+/// Whether `b[sigma(j), sigma(i)] = a[j, i]` for every entry (square
+/// matrices, to [`SYMMETRY_TOLERANCE`] of the largest entry of `a`).
+fn is_permuted(a: MatRef<'_, f64>, b: MatRef<'_, f64>, sigma: &[usize]) -> bool {
+    let n = a.nrows();
+    if a.shape() != (n, n) || b.shape() != (n, n) || sigma.len() != n {
+        return false;
+    }
+    let scale = max_abs(a);
+    if !(scale > 0.0 && scale.is_finite()) {
+        return false;
+    }
+    let tol = SYMMETRY_TOLERANCE * scale;
+    (0..n).all(|i| (0..n).all(|j| (b[(sigma[j], sigma[i])] - a[(j, i)]).abs() <= tol))
+}
+
+/// `out[sigma(j), sigma(i)] = a[j, i]` for a column-major `n x n` matrix.
+fn permute(a: &[f64], n: usize, sigma: &[usize]) -> Vec<f64> {
+    let mut out = vec![0.0; n * n];
+    for i in 0..n {
+        for j in 0..n {
+            out[sigma[i] * n + sigma[j]] = a[i * n + j];
+        }
+    }
+    out
+}
+
+/// The signs `d` with `b = D a^T D` (`D = diag(d)`, `d_0 = 1`) when `b` is
+/// of that form to [`SYMMETRY_TOLERANCE`]; `None` otherwise (including
+/// when a sign cannot be read off the first row and column).
+fn transpose_signs(a: MatRef<'_, f64>, b: MatRef<'_, f64>) -> Option<Vec<f64>> {
+    let n = a.nrows();
+    if n == 0 || a.shape() != (n, n) || b.shape() != (n, n) {
+        return None;
+    }
+    let scale = max_abs(a);
+    if !(scale > 0.0 && scale.is_finite()) {
+        return None;
+    }
+    let tol = SYMMETRY_TOLERANCE * scale;
+    let mut d = vec![1.0; n];
+    for (i, di) in d.iter_mut().enumerate().skip(1) {
+        let (x, y) = (b[(0, i)], a[(i, 0)]);
+        if x.abs() <= tol || y.abs() <= tol {
+            return None;
+        }
+        *di = if (x > 0.0) == (y > 0.0) { 1.0 } else { -1.0 };
+    }
+    let ok = (0..n).all(|i| (0..n).all(|j| (b[(j, i)] - d[j] * d[i] * a[(i, j)]).abs() <= tol));
+    ok.then_some(d)
 }
 
 /// `factor * vs * (ut * k)` in `f64`, column-major.
@@ -696,6 +951,127 @@ mod tests {
         let mut bad = layout;
         bad.sets[1].dc2e.rank = bad.n + 1;
         assert!(bad.n_values().is_err());
+    }
+
+    /// `A^+` formed from its factors, column-major `n x n`.
+    fn formed(f: &PinvFactors<f64>) -> Vec<f64> {
+        let (n, r) = (f.summary.n, f.summary.rank);
+        let vs = MatRef::from_column_major_slice(&f.vs, n, r);
+        let ut = MatRef::from_column_major_slice(&f.ut, r, n);
+        col_major((vs * ut).as_ref())
+    }
+
+    fn relative_difference(a: &[f64], b: &[f64]) -> f64 {
+        let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let diff = a
+            .iter()
+            .zip(b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        diff / scale
+    }
+
+    /// DC2E from the SVD of UC2E and the octants' M2M / L2L permuted from
+    /// octant 0's equal what the direct SVDs and products give, for real
+    /// (Yukawa), complex (Helmholtz, real form) and homogeneous (Laplace)
+    /// kernels; and the symmetries are found (the matrices are permuted
+    /// copies, not recomputed).
+    #[test]
+    fn symmetric_shortcuts_equal_the_direct_computation() {
+        use ferrofmm_kernels::Helmholtz3d;
+        let params = OperatorParams::new(5);
+        let check = |name: &str, tables: (OperatorTables<f64>, OperatorTables<f64>)| {
+            let (fast, direct) = tables;
+            assert_eq!(fast.sets.len(), direct.sets.len());
+            for (s, (a, b)) in fast.sets.iter().zip(&direct.sets).enumerate() {
+                assert_eq!(a.uc2e.summary, b.uc2e.summary, "{name} set {s}");
+                assert_eq!(a.dc2e.summary.rank, b.dc2e.summary.rank, "{name} set {s}");
+                for (x, y) in [(&a.uc2e, &b.uc2e), (&a.dc2e, &b.dc2e)] {
+                    let d = relative_difference(&formed(y), &formed(x));
+                    assert!(
+                        d < 1e-8,
+                        "{name} set {s}: pseudo-inverses differ by {d:.1e}"
+                    );
+                }
+            }
+            for (cs, (a, b)) in fast.children.iter().zip(&direct.children).enumerate() {
+                for o in 0..8 {
+                    for (x, y) in [(&a.m2m[o], &b.m2m[o]), (&a.l2l[o], &b.l2l[o])] {
+                        let d = relative_difference(y, x);
+                        assert!(d < 1e-8, "{name} child set {cs} octant {o}: {d:.1e}");
+                    }
+                }
+            }
+        };
+        let both = |kernel: &dyn Fn(Symmetry) -> OperatorTables<f64>| {
+            (kernel(Symmetry::Use), kernel(Symmetry::Ignore))
+        };
+        let yukawa = ModifiedHelmholtz3d::new(3.0).unwrap();
+        let levels = LevelMap::new(None, 1.0, 3, 0).unwrap();
+        check(
+            "yukawa",
+            both(&|s| compute_with(&yukawa, &params, 1e-13, &levels, 3, s).unwrap()),
+        );
+        let helmholtz = Helmholtz3d::new(5.0).unwrap();
+        check(
+            "helmholtz",
+            both(&|s| compute_with(&helmholtz, &params, 1e-13, &levels, 3, s).unwrap()),
+        );
+        let one = LevelMap::new(Some(-1.0), 1.0, 3, 0).unwrap();
+        check(
+            "laplace",
+            both(&|s| compute_with(&Laplace3d, &params, 1e-13, &one, 1, s).unwrap()),
+        );
+        // The shortcuts are taken: the downward check matrix is the upward
+        // one transposed up to signs (conjugation of the real form), and
+        // octant 7 is octant 0 permuted exactly.
+        let h = levels.half_width(2);
+        let r = params.radii;
+        let at = |radius: f64| surface_points::<f64>(params.order, [0.0; 3], h, radius);
+        let a_u = kernel_matrix(
+            &helmholtz,
+            &at(r.upward_equivalent),
+            &at(r.upward_check),
+            "",
+        )
+        .unwrap();
+        let a_d = kernel_matrix(
+            &helmholtz,
+            &at(r.downward_equivalent),
+            &at(r.downward_check),
+            "",
+        )
+        .unwrap();
+        let d = transpose_signs(a_u.as_ref(), a_d.as_ref()).expect("a symmetric kernel");
+        assert_eq!(d[..4], [1.0, -1.0, 1.0, -1.0]);
+        let fast: OperatorTables<f64> = compute(&helmholtz, &params, 1e-13, &levels, 3).unwrap();
+        let n = fast.n;
+        let sigma = reflection(params.order, 7, 2);
+        let m2m0: Vec<f64> = fast.children[1].m2m[0].clone();
+        assert_eq!(permute(&m2m0, n, &sigma), fast.children[1].m2m[7]);
+    }
+
+    /// Surfaces map onto themselves under every reflection, components
+    /// kept together.
+    #[test]
+    fn reflections_are_permutations() {
+        for (order, c) in [(2, 1), (5, 2), (6, 3)] {
+            let n = c * crate::n_surface_points(order);
+            for mask in 0..8 {
+                let sigma = reflection(order, mask, c);
+                let mut seen = vec![false; n];
+                for (i, &j) in sigma.iter().enumerate() {
+                    assert_eq!(i % c, j % c);
+                    seen[j] = true;
+                }
+                assert!(seen.iter().all(|&s| s));
+                let twice: Vec<usize> = sigma.iter().map(|&j| sigma[j]).collect();
+                assert_eq!(
+                    twice,
+                    (0..n).collect::<Vec<_>>(),
+                    "a reflection is an involution"
+                );
+            }
+        }
     }
 
     /// M2M and L2L come from the per-octant arrays: octant `o`'s M2M of a

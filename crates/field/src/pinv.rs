@@ -57,15 +57,46 @@ impl PinvSummary {
 /// sigma_0` (and `sigma_i > 0`).
 pub(crate) fn pinv(a: MatRef<'_, f64>, rcond: f64, what: &str) -> Result<PinvF64, FieldError> {
     let SvdF64 { u, s, v } = svd(a, what)?;
+    Ok(from_svd(u.as_ref(), &s, v.as_ref(), rcond, None))
+}
+
+/// The truncated pseudo-inverses of `a` and of `b = D a^T D` (`a` square,
+/// `D = diag(signs)`), from one SVD: with `a = U S V^T`, `b = (D V) S (D
+/// U)^T`, so `b^+ = (D U_r S_r^-1) (V_r^T D)`. The downward check matrix of
+/// a symmetric kernel is such a `b` of the upward one (the surfaces swap
+/// radii; a complex kernel in real form needs `D = diag(1, -1, ...)`, the
+/// conjugation), and the SVD is nearly all of the cost.
+pub(crate) fn pinv_pair(
+    a: MatRef<'_, f64>,
+    signs: &[f64],
+    rcond: f64,
+    what: &str,
+) -> Result<(PinvF64, PinvF64), FieldError> {
+    let SvdF64 { u, s, v } = svd(a, what)?;
+    let pa = from_svd(u.as_ref(), &s, v.as_ref(), rcond, None);
+    let pb = from_svd(v.as_ref(), &s, u.as_ref(), rcond, Some(signs));
+    Ok((pa, pb))
+}
+
+/// `(V_r S_r^-1, U_r^T)` of `A = U S V^T`, with the rows of `U` and `V`
+/// scaled by `signs` when given (the pseudo-inverse of `D A D`).
+fn from_svd(
+    u: MatRef<'_, f64>,
+    s: &[f64],
+    v: MatRef<'_, f64>,
+    rcond: f64,
+    signs: Option<&[f64]>,
+) -> PinvF64 {
     let sigma0 = s.first().copied().unwrap_or(0.0);
     let rank = s
         .iter()
         .take_while(|&&x| x > rcond * sigma0 && x > 0.0)
         .count();
-    let (m, n) = (a.nrows(), a.ncols());
-    let vs_mat = faer::Mat::from_fn(n, rank, |i, j| v[(i, j)] / s[j]);
-    let ut_mat = faer::Mat::from_fn(rank, m, |i, j| u[(j, i)]);
-    Ok(PinvF64 {
+    let (m, n) = (u.nrows(), v.nrows());
+    let sign = |i: usize| signs.map_or(1.0, |d| d[i]);
+    let vs_mat = faer::Mat::from_fn(n, rank, |i, j| sign(i) * v[(i, j)] / s[j]);
+    let ut_mat = faer::Mat::from_fn(rank, m, |i, j| sign(j) * u[(j, i)]);
+    PinvF64 {
         vs: col_major(vs_mat.as_ref()),
         ut: col_major(ut_mat.as_ref()),
         rank,
@@ -76,7 +107,7 @@ pub(crate) fn pinv(a: MatRef<'_, f64>, rcond: f64, what: &str) -> Result<PinvF64
             sigma_min_kept: if rank > 0 { s[rank - 1] } else { 0.0 },
             sigma_min: s.last().copied().unwrap_or(0.0),
         },
-    })
+    }
 }
 
 #[cfg(test)]

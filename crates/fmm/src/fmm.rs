@@ -298,6 +298,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     &params,
                     &config,
                     &t.tree,
+                    self.parts.len() > 1,
                     &mut s,
                 )?);
                 setup.operators += s.operators;
@@ -545,17 +546,26 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 }
 
 /// The check-to-equivalent and parent/child operators and the M2L scheme
-/// for `params` on `tree` (their times written into `setup`).
+/// for `params` on `tree` (their times written into `setup`). `coupled`:
+/// the tree's root expansions couple it to other parts (far clusters), so
+/// every level needs its operators; otherwise only the levels from the
+/// first with far-field work down ([`crate::precompute::first_far_level`]).
 fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     kernel: &K,
     params: &OperatorParams,
     config: &S::Config,
     tree: &Octree,
+    coupled: bool,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
     // Only what the tree needs, and only when it fits (issue 18).
     let t = Instant::now();
     let usage = crate::precompute::m2l_usage(tree);
+    let first_level = if coupled {
+        0
+    } else {
+        crate::precompute::first_far_level(tree)
+    };
     let usage_time = t.elapsed();
     let built = operators_for(
         kernel,
@@ -563,6 +573,7 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
         config,
         tree.domain().width,
         tree.depth(),
+        first_level,
         &usage,
         setup,
     );
@@ -572,14 +583,17 @@ fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     built
 }
 
-/// [`build_operators`] for a domain `width`, levels `0..=depth` and the
-/// transfer vectors `usage` (which may come from more than one tree).
+/// [`build_operators`] for a domain `width`, levels `first_level..=depth`
+/// (see [`Operators::from_level`]) and the transfer vectors `usage` (which
+/// may come from more than one tree).
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
     kernel: &K,
     params: &OperatorParams,
     config: &S::Config,
     width: f64,
     depth: u32,
+    first_level: u32,
     usage: &ferrofmm_field::M2lUsage,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
@@ -594,7 +608,7 @@ pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
     }
     let t = Instant::now();
     crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, usage)?;
-    let operators = Operators::<T>::new(kernel, params, width, depth)?;
+    let operators = Operators::<T>::from_level(kernel, params, width, depth, first_level)?;
     let diagnostics = operators.diagnostics();
     if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
         return Err(FmmError::IllConditioned {
@@ -754,7 +768,9 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         });
     }
     let mut timings = SetupTimings::default();
-    let (operators, m2l) = build_operators(&b.kernel, params, config, &tree, &mut timings)?;
+    let coupled = input.ids.is_some();
+    let (operators, m2l) =
+        build_operators(&b.kernel, params, config, &tree, coupled, &mut timings)?;
     setup.operators += timings.operators;
     setup.m2l_precompute += timings.m2l_precompute;
 

@@ -235,7 +235,9 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
             cx.kernel
                 .evaluate_sources(cx.kind, EvalMode::Potential, x, qb, surface, col);
         });
-    for level in 0..=tree.depth() {
+    // Levels above the operators' first hold no multipole anyone reads
+    // (`Operators::from_level`).
+    for level in ops.first_level()..=tree.depth() {
         let r = tree.level_range(level);
         let check = &check[n * r.start..n * r.end];
         if part.active.is_some() {
@@ -261,7 +263,7 @@ fn m2m<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, multipoles: &mut [T]) {
     let tree = &part.tree;
     let ops = &part.operators;
     let n = ops.n_surface();
-    for level in (1..=tree.depth()).rev() {
+    for level in (ops.first_level() + 1..=tree.depth()).rev() {
         let r = tree.level_range(level);
         let (parents, children) = multipoles.split_at_mut(n * r.start);
         for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {
@@ -316,7 +318,9 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         timings.l2l += t.elapsed();
     }
     let from_root = root_check.is_some();
-    for level in 1..=tree.depth() {
+    // Above the operators' first level there is no V or X list and (without
+    // a root check) no local expansion: nothing to compute.
+    for level in ops.first_level().max(1)..=tree.depth() {
         let r = tree.level_range(level);
         if r.is_empty() {
             continue;
@@ -370,7 +374,7 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         } else {
             par_columns(n, &check, level_locals, |c, d| ops.dc2e(level, c, d));
         }
-        if level >= 2 || from_root {
+        if (level >= 2 || from_root) && level > ops.first_level() {
             for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {
                 let pairs: Vec<(usize, usize)> = pairs.iter().map(|&(c, p)| (p, c)).collect();
                 gather_apply_scatter(n, &pairs, parents, level_locals, |p, c| {

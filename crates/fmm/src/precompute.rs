@@ -30,6 +30,30 @@ pub fn m2l_usage(tree: &Octree) -> M2lUsage {
     usage
 }
 
+/// The shallowest level with far-field work: a box with a V or X list
+/// (its downward check potential), or a box in a V or W list (its
+/// multipole). Levels above it need no operators of their own: their
+/// multipoles are never read, their local expansions stay zero (unless
+/// the root is coupled to other parts). `depth + 1` for a tree without
+/// far field.
+pub fn first_far_level(tree: &Octree) -> u32 {
+    let mut first = tree.depth() + 1;
+    for level in 0..=tree.depth() {
+        if level >= first {
+            break;
+        }
+        for b in tree.level_range(level) {
+            if !tree.v_list(b).is_empty() || !tree.x_list(b).is_empty() {
+                first = first.min(level);
+            }
+            for &a in tree.v_list(b).iter().chain(tree.w_list(b)) {
+                first = first.min(tree.level(a));
+            }
+        }
+    }
+    first
+}
+
 /// Predict the precomputation of `S` for `usage` and refuse it with
 /// [`FmmError::PrecomputeMemory`] when its peak memory exceeds the limit of
 /// `params` ([`ferrofmm_field::MemoryLimit`]).

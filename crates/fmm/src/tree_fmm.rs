@@ -132,6 +132,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             config,
             width,
             depth,
+            // Pieces of a distributed tree: the coarse levels serve the
+            // coarse tree's passes, so every level gets its operators.
+            0,
             local.usage,
             &mut setup,
         )?;

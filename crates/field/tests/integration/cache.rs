@@ -295,3 +295,73 @@ fn fft_spectra_round_trip_and_damaged_files_are_rebuilt() {
     let f = FftM2l::<f64>::precompute(&Laplace3d, &p, &FftConfig, 1.0, 3).unwrap();
     assert!(f.cache_status().is_hit(), "file was not rewritten");
 }
+
+/// Operators built only from level 2 down (`Operators::from_level`) apply
+/// the same operators at those levels as the full set (to rounding: the
+/// sets may be factorised with other parallel splits), are cached under
+/// their own key, and a cached run is bit-identical to the cold one.
+#[test]
+fn operators_from_a_level_equal_the_full_set_and_cache() {
+    let dir = TempDir::new("ferrofmm-from-level");
+    let yukawa = ModifiedHelmholtz3d::new(3.0).unwrap();
+    let plain = OperatorParams::new(4);
+    let full = Operators::<f64>::new(&yukawa, &plain, 1.0, 4).unwrap();
+    let part = Operators::<f64>::from_level(&yukawa, &plain, 1.0, 4, 2).unwrap();
+    assert_eq!((full.first_level(), part.first_level()), (0, 2));
+    assert_eq!(part.diagnostics().uc2e.len(), 3);
+    assert_eq!(part.diagnostics().uc2e[..], full.diagnostics().uc2e[2..]);
+    let n = full.n_surface();
+    let input: Vec<f64> = (0..2 * n).map(|i| (i as f64 * 0.37).sin()).collect();
+    let close = |what: &str, f: &dyn Fn(&Operators<f64>, &mut [f64])| {
+        let (mut a, mut b) = (vec![0.0; 2 * n], vec![0.0; 2 * n]);
+        f(&full, &mut a);
+        f(&part, &mut b);
+        let scale = a.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        let diff = a
+            .iter()
+            .zip(&b)
+            .fold(0.0f64, |m, (x, y)| m.max((x - y).abs()));
+        assert!(diff <= 1e-9 * scale, "{what}: {diff:.1e} of {scale:.1e}");
+    };
+    for level in 2..=4 {
+        close("uc2e", &|o, out| o.uc2e(level, &input, out));
+        close("dc2e", &|o, out| o.dc2e(level, &input, out));
+        if level >= 3 {
+            for oct in 0..8 {
+                close("m2m", &|o, out| o.m2m(level, oct, &input, out));
+                close("l2l", &|o, out| o.l2l(level, oct, &input, out));
+            }
+        }
+    }
+    // Cold, then from the cache: identical; the full set's file is another.
+    let cached = params(4, dir.path());
+    let cold = Operators::<f64>::from_level(&yukawa, &cached, 1.0, 4, 2).unwrap();
+    let path = assert_computed(cold.cache_status(), false);
+    let warm = Operators::<f64>::from_level(&yukawa, &cached, 1.0, 4, 2).unwrap();
+    assert_eq!(
+        warm.cache_status(),
+        &CacheStatus::Hit { path: path.clone() }
+    );
+    let bits = |ops: &Operators<f64>| {
+        let mut out = vec![0.0; 2 * n];
+        let mut bits = Vec::new();
+        for level in 2..=4 {
+            ops.uc2e(level, &input, &mut out);
+            ops.dc2e(level, &input, &mut out);
+            if level >= 3 {
+                for o in 0..8 {
+                    ops.m2m(level, o, &input, &mut out);
+                    ops.l2l(level, o, &input, &mut out);
+                }
+            }
+            bits.extend(out.iter().map(|x| x.to_bits()));
+        }
+        bits
+    };
+    assert_eq!(bits(&cold), bits(&warm));
+    let whole = Operators::<f64>::new(&yukawa, &cached, 1.0, 4).unwrap();
+    assert_ne!(assert_computed(whole.cache_status(), false), path);
+    // A homogeneous kernel has one set for all levels: nothing to skip.
+    let laplace = Operators::<f64>::from_level(&Laplace3d, &plain, 1.0, 4, 2).unwrap();
+    assert_eq!(laplace.first_level(), 0);
+}

@@ -185,3 +185,36 @@ fn separate_targets_and_several_charge_vectors() {
     );
     assert!(e.potential <= 1e-4, "potential error {:.3e}", e.potential);
 }
+
+/// Non-homogeneous kernels get operators only from the first level with
+/// far-field work down (levels 0 and 1 have no V list): the results stay
+/// as accurate as promised on uniform, flat (leaves at many levels) and
+/// clustered (coupled far clusters: every level built) inputs, in f64 and
+/// f32 (the complex kernel: `components.rs`, `fft_scheme.rs`).
+#[test]
+fn per_level_operators_from_the_first_far_level() {
+    let yukawa = ModifiedHelmholtz3d::new(3.0).unwrap();
+    for geometry in [Geometry::Cube, Geometry::Plane, Geometry::TwoClusters] {
+        let e = run::<f64, _>(
+            yukawa,
+            geometry,
+            6000,
+            6,
+            EvalMode::PotentialGradient,
+            false,
+        );
+        assert_within(&format!("yukawa {geometry:?}"), &e, 1e-4, 1e-3);
+    }
+    let e = run::<f32, _>(yukawa, Geometry::Cube, 6000, 4, EvalMode::Potential, true);
+    assert_within("yukawa f32 dense", &e, 1e-3, 1e-2);
+    // The first far level of a uniform tree is 2; its operators are built
+    // for levels 2..=depth only.
+    let points: Vec<f64> = Geometry::Cube.points(6000, 7);
+    let fmm = FmmBuilder::new(&points)
+        .kernel(yukawa)
+        .order(4)
+        .leaf_size(64)
+        .build_svd()
+        .unwrap();
+    assert_eq!(ferrofmm_fmm::first_far_level(fmm.tree()), 2);
+}
