@@ -120,6 +120,22 @@ pub enum FmmError {
         /// `"f32"` or `"f64"`.
         precision: &'static str,
     },
+    /// A density given in `f64` beyond the largest value of the run's float
+    /// type (see [`crate::check_representable`]).
+    #[error(
+        "density {index} ({value:.3e}) exceeds the largest {precision} number ({largest:.3e}): \
+         use f64 or scale the densities down (the result is linear in them)"
+    )]
+    DensityBeyondPrecision {
+        /// Index into the flat density array.
+        index: usize,
+        /// The value given.
+        value: f64,
+        /// The largest value of the float type.
+        largest: f64,
+        /// `"f32"` or `"f64"`.
+        precision: &'static str,
+    },
     /// The domain is so small or so large that squared distances between
     /// points and expansion surfaces underflow or overflow the float type
     /// (every pair would count as coincident, or every value as infinite).

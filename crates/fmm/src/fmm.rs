@@ -161,16 +161,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                         // order for a domain beyond the float type or a
                         // wavenumber beyond the low-frequency limit, and
                         // would only say "no order reaches eps".
-                        check_domain_width(width, T::PRECISION)?;
-                        let k = b.kernel.wavenumber();
-                        if k * width > crate::MAX_WAVENUMBER_WIDTH {
-                            return Err(FmmError::BeyondLowFrequency {
-                                kernel: b.kernel.name(),
-                                wavenumber: k,
-                                width,
-                                limit: crate::MAX_WAVENUMBER_WIDTH,
-                            });
-                        }
+                        check_domain_width(width, T::PRECISION, 0)?;
+                        check_wavenumber(&b.kernel, width)?;
                         tuning::default_model(&b.kernel, width)
                     }
                 };
@@ -597,15 +589,7 @@ pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
     usage: &ferrofmm_field::M2lUsage,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
-    let k = kernel.wavenumber();
-    if k * width > crate::MAX_WAVENUMBER_WIDTH {
-        return Err(FmmError::BeyondLowFrequency {
-            kernel: kernel.name(),
-            wavenumber: k,
-            width,
-            limit: crate::MAX_WAVENUMBER_WIDTH,
-        });
-    }
+    check_wavenumber(kernel, width)?;
     let t = Instant::now();
     crate::precompute::check_memory::<T, K, S>(kernel, params, config, depth, usage)?;
     let operators = Operators::<T>::from_level(kernel, params, width, depth, first_level)?;
@@ -756,17 +740,7 @@ fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     };
     let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
     setup.tree += t0.elapsed();
-    let (min, max) = width_range::<T>(tree.depth());
-    let width = tree.domain().width;
-    if !(min..=max).contains(&width) {
-        return Err(FmmError::DomainOutOfRange {
-            width,
-            min,
-            max,
-            depth: tree.depth(),
-            precision: T::PRECISION.name(),
-        });
-    }
+    check_domain_width(tree.domain().width, T::PRECISION, tree.depth())?;
     let mut timings = SetupTimings::default();
     let coupled = input.ids.is_some();
     let (operators, m2l) =
@@ -835,26 +809,27 @@ pub(crate) fn permute_points<T: Real>(points: &[f64], perm: &[usize], centre: [f
 /// and their check surfaces): with `W` the width and `h = W / 2^(depth+1)`,
 /// `(h / 2)^2` must not underflow (`>= MIN_POSITIVE`, else pairs silently
 /// count as coincident) and `64 W^2` must not overflow.
-pub(crate) fn width_range<T: Real>(depth: u32) -> (f64, f64) {
-    width_range_of(T::PRECISION, depth)
-}
-
-/// [`width_range`] for a float type given as a value.
-pub(crate) fn width_range_of(precision: Precision, depth: u32) -> (f64, f64) {
-    let (largest, smallest) = match precision {
-        Precision::F32 => (f32::MAX as f64, f32::MIN_POSITIVE as f64),
-        Precision::F64 => (f64::MAX, f64::MIN_POSITIVE),
+pub(crate) fn width_range(precision: Precision, depth: u32) -> (f64, f64) {
+    let largest = crate::overflow::largest(precision);
+    let smallest = match precision {
+        Precision::F32 => f32::MIN_POSITIVE as f64,
+        Precision::F64 => f64::MIN_POSITIVE,
     };
     let min = smallest.sqrt() * 2f64.powi(depth as i32 + 2);
     (min, largest.sqrt() / 8.0)
 }
 
-/// [`FmmError::DomainOutOfRange`] for a domain width no tree of any depth
-/// resolves in `precision` (outside [`width_range`] at depth 0): checked
-/// before parameters are chosen for a tolerance, whose error model would
-/// otherwise only find that no order reaches it.
-pub(crate) fn check_domain_width(width: f64, precision: Precision) -> Result<(), FmmError> {
-    let (min, max) = width_range_of(precision, 0);
+/// [`FmmError::DomainOutOfRange`] for a domain width a tree of depth
+/// `depth` does not resolve in `precision` (outside [`width_range`]).
+/// Depth 0 (no tree resolves it) is checked before parameters are chosen
+/// for a tolerance, whose error model would otherwise only find that no
+/// order reaches it; the built tree's depth before its operators.
+pub(crate) fn check_domain_width(
+    width: f64,
+    precision: Precision,
+    depth: u32,
+) -> Result<(), FmmError> {
+    let (min, max) = width_range(precision, depth);
     if (min..=max).contains(&width) {
         return Ok(());
     }
@@ -862,9 +837,25 @@ pub(crate) fn check_domain_width(width: f64, precision: Precision) -> Result<(),
         width,
         min,
         max,
-        depth: 0,
+        depth,
         precision: precision.name(),
     })
+}
+
+/// [`FmmError::BeyondLowFrequency`] when `k W` exceeds
+/// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH) for the kernel's
+/// wavenumber `k` and the domain width `W`.
+pub(crate) fn check_wavenumber<K: Kernel>(kernel: &K, width: f64) -> Result<(), FmmError> {
+    let k = kernel.wavenumber();
+    if k * width > crate::MAX_WAVENUMBER_WIDTH {
+        return Err(FmmError::BeyondLowFrequency {
+            kernel: kernel.name(),
+            wavenumber: k,
+            width,
+            limit: crate::MAX_WAVENUMBER_WIDTH,
+        });
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -56,7 +56,7 @@ pub use error::FmmError;
 pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::{MemoryReport, RunSize, check_memory};
-pub use overflow::check_finite_output;
+pub use overflow::{check_finite_output, check_representable};
 pub use precompute::{first_far_level, m2l_usage};
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};

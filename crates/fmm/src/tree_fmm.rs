@@ -33,7 +33,7 @@ use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use ferrofmm_tree::Octree;
 
 use crate::FmmError;
-use crate::fmm::{coordinate_origin, level_interactions, operators_for, width_range};
+use crate::fmm::{check_domain_width, coordinate_origin, level_interactions, operators_for};
 use crate::part::TreePart;
 use crate::passes::{self, Ctx};
 use crate::timings::{EvalTimings, SetupTimings};
@@ -115,16 +115,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             ));
         }
         let width = tree.domain().width;
-        let (min, max) = width_range::<T>(depth);
-        if !(min..=max).contains(&width) {
-            return Err(FmmError::DomainOutOfRange {
-                width,
-                min,
-                max,
-                depth,
-                precision: T::PRECISION.name(),
-            });
-        }
+        check_domain_width(width, T::PRECISION, depth)?;
         let mut setup = SetupTimings::default();
         let (operators, m2l) = operators_for::<T, K, S>(
             &kernel,

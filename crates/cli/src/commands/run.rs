@@ -304,24 +304,6 @@ impl<T: Real> BuildScheme<T> for FftM2l<T> {
     }
 }
 
-/// Densities beyond the largest value of `T` (e.g. `1e39` in `f32`) would
-/// become infinite when converted: refuse them, naming the value.
-fn check_representable<T: Real>(densities: &[f64]) -> Result<()> {
-    let largest = match T::PRECISION {
-        Precision::F32 => f64::from(f32::MAX),
-        Precision::F64 => f64::MAX,
-    };
-    match densities.iter().position(|x| x.abs() > largest) {
-        None => Ok(()),
-        Some(i) => Err(CliError::InvalidArgument(format!(
-            "density {i} ({:.3e}) exceeds the largest {} number ({largest:.3e}): use --precision \
-             f64 or scale the densities down (the result is linear in them)",
-            densities[i],
-            T::PRECISION.name()
-        ))),
-    }
-}
-
 /// A tolerance checked after evaluating and missed (even at the raised
 /// orders) fails the command before anything is written: exit status 1,
 /// never a result less accurate than asked with status 0.
@@ -389,7 +371,7 @@ where
             dipoles,
         } => {
             let (kind, d) = densities(charges, dipoles, settings.kernel.components());
-            check_representable::<T>(&d)?;
+            ferrofmm_fmm::check_representable::<T>(&d)?;
             (sources, targets, kind, convert(d))
         }
     };

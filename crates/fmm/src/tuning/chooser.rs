@@ -350,7 +350,7 @@ impl Tuner {
     ) -> Result<ChosenParameters, FmmError> {
         // A domain the float type cannot resolve has no order: say so
         // (the build's message), not "no order reaches eps".
-        crate::fmm::check_domain_width(occupancy.domain().width, self.error.precision)?;
+        crate::fmm::check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
         let candidates = self.candidates(eps, occupancy)?;
         let Some(p_min) = candidates.iter().map(|c| c.order).min() else {
             // No leaf size works: report the limit at the finest resolution

@@ -142,15 +142,20 @@ def _real(name: str, value: Any) -> Optional[float]:
 _COMPONENTS = {"laplace": 1, "yukawa": 1, "helmholtz": 2, "stokes": 3}
 
 
-def _as_complex_array(name: str, value: Any) -> np.ndarray:
-    """``value`` as a complex array (real input allowed), rejecting non-numbers and non-finite values."""
+def _as_number_array(name: str, value: Any) -> np.ndarray:
+    """``value`` as a NumPy array of numbers (no copy), else TypeError."""
     try:
         a = np.asarray(value)
     except Exception as e:  # noqa: BLE001 - anything numpy cannot take
         raise TypeError(f"{name} must be an array of numbers: {e}") from None
     if a.dtype.kind not in "biufc":
         raise TypeError(f"{name} must hold numbers, got dtype {a.dtype}")
-    a = a.astype(np.complex128)
+    return a
+
+
+def _as_complex_array(name: str, value: Any) -> np.ndarray:
+    """``value`` as a complex array (real input allowed), rejecting non-numbers and non-finite values."""
+    a = _as_number_array(name, value).astype(np.complex128)
     if not np.all(np.isfinite(a)):
         raise ValueError(f"{name} holds NaN or infinite values")
     return a
@@ -227,8 +232,8 @@ def _per_source(kernel: str, charges: bool, dipoles: bool) -> int:
 
 
 def _check_float32_range(name: str, a: np.ndarray) -> None:
-    """Densities beyond float32 would become infinite in a float32 run: refuse them, naming one
-    (the command line's message)."""
+    """Densities beyond float32 would become infinite in a float32 run: refuse them before any
+    setup, naming the caller's argument (the library's ``check_representable`` message)."""
     largest = float(np.finfo(np.float32).max)
     beyond = np.abs(a) > largest
     if np.any(beyond):
@@ -255,12 +260,7 @@ def _check_densities(
     shapes = set()
     for shown, key, value in given:
         if kernel == "helmholtz":
-            try:
-                a = np.asarray(value)
-            except Exception as e:  # noqa: BLE001 - anything numpy cannot take
-                raise TypeError(f"{shown} must be an array of numbers: {e}") from None
-            if a.dtype.kind not in "biufc":
-                raise TypeError(f"{shown} must hold numbers, got dtype {a.dtype}")
+            a = _as_number_array(shown, value)
         else:
             a = _as_float_array(shown, value)
         tail = () if key == "charges" and kernel != "stokes" else (3,)
