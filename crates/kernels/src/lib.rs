@@ -66,7 +66,6 @@
 
 #![warn(missing_docs)]
 
-mod choice;
 mod direct;
 mod error;
 mod helmholtz;
@@ -79,11 +78,11 @@ mod oscillatory_helmholtz;
 mod oscillatory_helmholtz_p2p;
 mod real;
 pub mod reference;
+mod registry;
 mod simd;
 mod stokes;
 mod stokes_p2p;
 
-pub use choice::{KernelChoice, KernelVisitor, ParseKernelError};
 pub use direct::{
     DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,
     direct_sum_checked, direct_sum_sources, direct_sum_sources_checked,
@@ -96,5 +95,9 @@ pub use laplace::{INV_4PI, Laplace3d};
 pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
 pub use oscillatory_helmholtz::Helmholtz3d;
 pub use real::{Precision, Real};
+pub use registry::{
+    AutoScheme, BuiltinKernel, KernelChoice, KernelDescription, KernelVisitor,
+    ParameterDescription, ParseKernelError, TuningFamily,
+};
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};
 pub use stokes::Stokes3d;

@@ -6,13 +6,10 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
 use ferrofmm_field::{CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
-use ferrofmm_fmm::tuning::{M2lCostShape, choose_scheme};
 use ferrofmm_fmm::{
-    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SetupTimings, Verification,
+    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SchemeChoice, SetupTimings, Verification,
 };
-use ferrofmm_kernels::{
-    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Real, SourceKind, Stokes3d,
-};
+use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, Real, SourceKind};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
 use pyo3::exceptions::{PyMemoryError, PyRuntimeWarning, PyTypeError, PyValueError};
 use pyo3::prelude::*;
@@ -216,38 +213,6 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
     }
 }
 
-/// The kernels the module offers.
-#[derive(Clone, Copy, Debug)]
-enum KernelChoice {
-    Laplace,
-    Yukawa(f64),
-    Helmholtz(f64),
-    Stokes,
-}
-
-impl KernelChoice {
-    /// Values per charge and per output quantity (2 for the complex
-    /// Helmholtz kernel, 3 for Stokes).
-    fn components(self) -> usize {
-        match self {
-            KernelChoice::Laplace | KernelChoice::Yukawa(_) => 1,
-            KernelChoice::Helmholtz(_) => 2,
-            KernelChoice::Stokes => 3,
-        }
-    }
-}
-
-/// The M2L schemes the module offers.
-#[derive(Clone, Copy, Debug)]
-enum SchemeChoice {
-    Svd,
-    Dense,
-    Fft,
-    /// With `eps`: svd or fft, whichever `tuning::choose_scheme` predicts
-    /// faster; without: svd.
-    Auto,
-}
-
 /// Everything a build needs besides the points.
 #[derive(Clone, Debug)]
 struct BuildOptions {
@@ -271,17 +236,29 @@ fn build<T: Float>(
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
-    match o.kernel {
-        KernelChoice::Laplace => build_with::<T, _>(Laplace3d, o, monitor, sources, targets),
-        KernelChoice::Yukawa(k) => {
-            build_with::<T, _>(ModifiedHelmholtz3d::new(k)?, o, monitor, sources, targets)
-        }
-        KernelChoice::Helmholtz(k) => {
-            build_with::<T, _>(Helmholtz3d::new(k)?, o, monitor, sources, targets)
-        }
-        KernelChoice::Stokes => {
-            build_with::<T, _>(Stokes3d::default(), o, monitor, sources, targets)
-        }
+    o.kernel.visit(BuildWith {
+        o,
+        monitor,
+        sources,
+        targets,
+        float: std::marker::PhantomData::<T>,
+    })
+}
+
+/// [`build`] with the kernel chosen.
+struct BuildWith<'a, T> {
+    o: &'a BuildOptions,
+    monitor: PrecomputeMonitor,
+    sources: &'a [f64],
+    targets: Option<&'a [f64]>,
+    float: std::marker::PhantomData<T>,
+}
+
+impl<T: Float> KernelVisitor for BuildWith<'_, T> {
+    type Output = Result<Box<dyn Engine>, FmmError>;
+
+    fn visit<K: Kernel>(self, kernel: K) -> Self::Output {
+        build_with::<T, K>(kernel, self.o, self.monitor, self.sources, self.targets)
     }
 }
 
@@ -313,20 +290,15 @@ fn build_with<T: Float, K: Kernel>(
     if let Some(dir) = &o.cache_dir {
         b = b.cache_dir(dir);
     }
-    let scheme = match (o.scheme, o.eps) {
-        // Kernels with several components: FFT (builds 7-40x faster
-        // than SVD at N = 2e4, equal accuracy; docs/kernels.md).
-        (SchemeChoice::Auto, _) if o.kernel.components() > 1 => SchemeChoice::Fft,
-        (SchemeChoice::Auto, Some(eps)) => {
-            let cached = o.cache_dir.is_some();
-            match choose_scheme(eps, o.mode, T::PRECISION, sources, targets, cached)?.0 {
-                M2lCostShape::Fft => SchemeChoice::Fft,
-                _ => SchemeChoice::Svd,
-            }
-        }
-        (SchemeChoice::Auto, None) => SchemeChoice::Svd,
-        (s, _) => s,
-    };
+    let cached = o.cache_dir.is_some();
+    let scheme = o.scheme.resolve(
+        o.kernel,
+        o.eps,
+        Some((sources, targets)),
+        o.mode,
+        T::PRECISION,
+        cached,
+    )?;
     Ok(match scheme {
         SchemeChoice::Svd | SchemeChoice::Auto => Box::new(b.build_svd()?),
         SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
@@ -384,43 +356,32 @@ impl NativeFmm {
                 )));
             }
         };
-        let kernel = match (kernel, k) {
-            ("laplace", None) => KernelChoice::Laplace,
-            ("stokes", None) => KernelChoice::Stokes,
-            (name @ ("laplace" | "stokes"), Some(_)) => {
-                return Err(PyValueError::new_err(format!(
-                    "k is a parameter of the yukawa and helmholtz kernels, not {name}"
-                )));
-            }
-            ("yukawa", Some(k)) => KernelChoice::Yukawa(k),
-            ("helmholtz", Some(k)) => KernelChoice::Helmholtz(k),
-            ("yukawa", None) => {
-                return Err(PyValueError::new_err(
-                    "the yukawa kernel exp(-k r) / (4 pi r) needs k (k >= 0)",
-                ));
-            }
-            ("helmholtz", None) => {
-                return Err(PyValueError::new_err(
-                    "the helmholtz kernel exp(i k r) / (4 pi r) needs k (k >= 0)",
-                ));
-            }
-            (other, _) => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown kernel {other:?}: use \"laplace\", \"yukawa\", \"helmholtz\" or \"stokes\""
-                )));
-            }
-        };
-        let scheme = match scheme {
-            "svd" => SchemeChoice::Svd,
-            "dense" => SchemeChoice::Dense,
-            "fft" => SchemeChoice::Fft,
-            "auto" => SchemeChoice::Auto,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown M2L scheme {other:?}: use \"auto\", \"svd\", \"dense\" or \"fft\""
-                )));
-            }
-        };
+        let kernel = KernelChoice::from_parts(kernel, k).map_err(|e| {
+            PyValueError::new_err(
+                match KernelChoice::registered().iter().find(|d| d.name == kernel) {
+                    Some(d) => match (d.parameter, k) {
+                        (Some(p), None) => format!(
+                            "the {kernel} kernel needs {} (its {}), e.g. {}={}",
+                            p.name, p.meaning, p.name, p.example
+                        ),
+                        (None, Some(_)) => {
+                            let with_k: Vec<&str> = KernelChoice::registered()
+                                .iter()
+                                .filter(|d| d.parameter.is_some_and(|p| p.name == "k"))
+                                .map(|d| d.name)
+                                .collect();
+                            format!(
+                                "k is a parameter of the {} kernels, not {kernel}",
+                                with_k.join(" and ")
+                            )
+                        }
+                        _ => e.why,
+                    },
+                    None => format!("unknown kernel {kernel:?}: {}", e.why),
+                },
+            )
+        })?;
+        let scheme = SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?;
         match (eps, order, leaf_size) {
             (Some(_), Some(_), _) => {
                 return Err(PyValueError::new_err(

@@ -34,10 +34,43 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<engine::NativeFmm>()?;
     m.add_class::<octree::NativeOctree>()?;
     m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
+    m.add("KERNELS", kernels(m.py())?)?;
+    m.add(
+        "SCHEMES",
+        ferrofmm_fmm::SchemeChoice::ALL
+            .map(ferrofmm_fmm::SchemeChoice::name)
+            .to_vec(),
+    )?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MIN_ORDER", ferrofmm_fmm::MIN_ORDER)?;
     m.add("MAX_ORDER", ferrofmm_fmm::MAX_ORDER)?;
     m.add("DEFAULT_LEAF_SIZE", ferrofmm_fmm::DEFAULT_LEAF_SIZE)?;
     m.add("DEEPEST_LEVEL", ferrofmm_tree::DEEPEST_LEVEL)?;
     Ok(())
+}
+
+/// The kernel registry as a dict for the Python package: name -> {
+/// "components", "component_names", "complex", "parameter" (its keyword,
+/// or None), "parameter_meaning", "density_name", "dipoles",
+/// "summary" }. The package reads its kernel rules from here only.
+fn kernels(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
+    use pyo3::types::PyDict;
+    let all = PyDict::new(py);
+    for d in ferrofmm_kernels::KernelChoice::registered() {
+        let e = PyDict::new(py);
+        e.set_item("components", d.component_names.len().max(1))?;
+        e.set_item("component_names", d.component_names.to_vec())?;
+        e.set_item("complex", d.complex)?;
+        e.set_item("parameter", d.parameter.map(|p| p.name))?;
+        e.set_item("parameter_meaning", d.parameter.map(|p| p.meaning))?;
+        e.set_item("density_name", d.density_name)?;
+        e.set_item(
+            "dipoles",
+            d.source_kinds
+                .contains(&ferrofmm_kernels::SourceKind::Dipole),
+        )?;
+        e.set_item("summary", d.summary)?;
+        all.set_item(d.name, e)?;
+    }
+    Ok(all)
 }

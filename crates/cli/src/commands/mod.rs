@@ -44,59 +44,41 @@ impl std::fmt::Display for PrecisionArg {
     }
 }
 
-/// M2L translation scheme (in reports: `"svd"`, `"dense"`, `"fft"`).
-#[derive(
-    Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord, ValueEnum, Serialize, Deserialize,
-)]
-#[serde(rename_all = "lowercase")]
-pub enum SchemeArg {
-    /// Truncated SVD of the stacked M2L operators (Fong-Darve): fast.
-    Svd,
-    /// One full matrix per transfer vector: the reference.
-    Dense,
-    /// Convolution on the surface lattice with FFTs: the dense operator
-    /// (no compression), precomputed in milliseconds.
-    Fft,
-    /// With --tolerance: svd or fft, whichever the cost model predicts
-    /// faster for these points (tree, one evaluation and the SVD
-    /// precomputation, which counts unless --cache-dir is given); without a
-    /// tolerance: svd. For helmholtz:K and stokes: fft.
-    Auto,
+/// M2L translation scheme (in reports: `"svd"`, `"dense"`, `"fft"`): the
+/// library's [`SchemeChoice`](ferrofmm_fmm::SchemeChoice), whose `auto`
+/// rule every front end shares.
+pub use ferrofmm_fmm::SchemeChoice as SchemeArg;
+
+/// The parser of `--scheme` and `--schemes`: the names clap lists in help
+/// and checks, mapped to [`SchemeArg`].
+pub fn scheme_parser() -> impl clap::builder::TypedValueParser<Value = SchemeArg> {
+    use clap::builder::TypedValueParser;
+    clap::builder::PossibleValuesParser::new(SchemeArg::ALL.map(SchemeArg::name)).map(|name| {
+        SchemeArg::parse(&name).unwrap_or_else(|e| unreachable!("clap checked the name: {e}"))
+    })
 }
 
-impl SchemeArg {
-    /// `"svd"`, `"dense"` or `"fft"`.
-    pub fn name(self) -> &'static str {
-        match self {
-            SchemeArg::Svd => "svd",
-            SchemeArg::Dense => "dense",
-            SchemeArg::Fft => "fft",
-            SchemeArg::Auto => "auto",
-        }
-    }
-}
-
-impl std::fmt::Display for SchemeArg {
-    /// The name (width and alignment flags apply).
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
-    }
-}
+/// Help text of `--scheme`.
+pub const SCHEME_HELP: &str = "M2L translation scheme: svd (truncated SVD of the stacked \
+operators, Fong-Darve), dense (one full matrix per transfer vector: the reference), fft \
+(convolution on the surface lattice, precomputed in milliseconds) or auto (fft for yukawa:K, \
+helmholtz:K and stokes; with --tolerance, svd or fft, whichever the cost model predicts faster \
+for these points, the SVD precomputation counted unless --cache-dir is given; else svd)";
 
 /// The kernel of `--kernel`: the kernels crate's [`KernelChoice`], whose
 /// parse errors are bad input here (exit status 1).
 pub use ferrofmm_kernels::KernelChoice as KernelArg;
 
-/// Parse `--kernel` (`laplace`, `yukawa:K`, `helmholtz:K`, `stokes`).
+/// Parse `--kernel` (a name of the kernel registry: `laplace`, `yukawa:K`,
+/// `helmholtz:K`, `stokes`).
 pub fn parse_kernel(value: &str) -> Result<KernelArg, CliError> {
     KernelArg::parse(value).map_err(|e| CliError::InvalidArgument(format!("--kernel {e}")))
 }
 
-/// Help text of `--kernel`.
-pub const KERNEL_HELP: &str = "Kernel: `laplace` (1/(4 pi r), the default), `yukawa:K` \
-(modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates), \
-`helmholtz:K` (exp(iKr)/(4 pi r): complex charges and outputs as re, im columns) or `stokes` \
-(the Stokeslet, viscosity 1: forces fx, fy, fz in, velocities out)";
+/// Help text of `--kernel`, from the kernel registry.
+pub fn kernel_help() -> String {
+    format!("Kernel: {}", KernelArg::help())
+}
 
 /// Built-in point distributions.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, ValueEnum)]
@@ -190,7 +172,7 @@ pub struct FmmArgs {
     #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
     pub leaf_size: usize,
     /// M2L translation scheme.
-    #[arg(long, value_enum, default_value_t = SchemeArg::Auto)]
+    #[arg(long, default_value_t = SchemeArg::Auto, value_parser = scheme_parser(), help = SCHEME_HELP)]
     pub scheme: SchemeArg,
     /// Float type of the whole computation.
     #[arg(long, value_enum, default_value_t = PrecisionArg::F64)]
@@ -198,7 +180,7 @@ pub struct FmmArgs {
     /// Directory of the on-disk operator cache (off by default).
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
-    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K|helmholtz:K|stokes", help = KERNEL_HELP)]
+    #[arg(long, default_value = "laplace", value_name = "NAME[:K]", help = kernel_help())]
     pub kernel: String,
     /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
     /// gradients) of the gradient: the order, leaf size and SVD rank are

@@ -8,16 +8,13 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
-use ferrofmm_fmm::tuning::{M2lCostShape, choose_precision, choose_scheme};
+use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors_sources,
     sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor, Verification};
-use ferrofmm_kernels::{
-    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, SourceKind,
-    Stokes3d,
-};
+use ferrofmm_kernels::{EvalMode, Kernel, KernelVisitor, Precision, Real, SourceKind};
 
 use super::{KernelArg, PrecisionArg, SchemeArg};
 use crate::error::{CliError, Result};
@@ -116,55 +113,55 @@ pub struct Settings {
 /// `output` when given (format by extension).
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
     use PrecisionArg::{Auto, F64};
-    use SchemeArg::Svd;
     let mode = settings.mode();
     // The points, made once, for the automatic choices (only with a
-    // tolerance and an `auto` setting).
-    let auto = settings.precision == Auto || settings.scheme == SchemeArg::Auto;
-    let points = settings
-        .tolerance
-        .filter(|_| auto)
-        .map(|_| points_of(&input));
+    // tolerance and an `auto` setting that needs them).
+    let needs_points = settings.tolerance.is_some() && settings.precision == Auto
+        || settings
+            .scheme
+            .needs_points(settings.kernel, settings.tolerance);
+    let points = needs_points.then(|| points_of(&input));
     let precision = match (settings.precision, settings.tolerance, &points) {
         (Auto, Some(eps), Some((s, t))) => auto_precision(s, *t, eps, mode)?,
         (Auto, _, _) => F64,
         (p, _, _) => p,
     };
-    let scheme = match (settings.scheme, settings.tolerance, &points) {
-        // Kernels with several components: FFT, which builds 7-40x faster
-        // than SVD (no factorisations of `c n` rows) to the same accuracy,
-        // and whose M2L is within 1.5x of SVD's either way (N = 2e4,
-        // docs/kernels.md).
-        (SchemeArg::Auto, _, _) if settings.kernel.components() > 1 => SchemeArg::Fft,
-        (SchemeArg::Auto, Some(eps), Some((s, t))) => {
-            auto_scheme(s, *t, eps, mode, precision, settings.cache_dir.is_some())?
-        }
-        (SchemeArg::Auto, _, _) => Svd,
-        (s, _, _) => s,
-    };
+    let scheme = settings.scheme.resolve(
+        settings.kernel,
+        settings.tolerance,
+        points.as_ref().map(|(s, t)| (s.as_ref(), *t)),
+        mode,
+        match precision {
+            PrecisionArg::F32 => Precision::F32,
+            _ => Precision::F64,
+        },
+        settings.cache_dir.is_some(),
+    )?;
     drop(points);
     let settings = &Settings {
         precision,
         scheme,
         ..settings.clone()
     };
-    match settings.kernel {
-        KernelArg::Laplace => run_kernel(Laplace3d, input, settings, output),
-        KernelArg::Yukawa(k) => run_kernel(
-            ModifiedHelmholtz3d::new(k)
-                .map_err(|e| crate::error::CliError::InvalidArgument(e.to_string()))?,
-            input,
-            settings,
-            output,
-        ),
-        KernelArg::Helmholtz(k) => run_kernel(
-            Helmholtz3d::new(k)
-                .map_err(|e| crate::error::CliError::InvalidArgument(e.to_string()))?,
-            input,
-            settings,
-            output,
-        ),
-        KernelArg::Stokes => run_kernel(Stokes3d::default(), input, settings, output),
+    settings.kernel.visit(WithKernel {
+        input,
+        settings,
+        output,
+    })
+}
+
+/// The rest of [`run`] for the kernel `--kernel` names.
+struct WithKernel<'a> {
+    input: Input,
+    settings: &'a Settings,
+    output: Option<&'a Path>,
+}
+
+impl KernelVisitor for WithKernel<'_> {
+    type Output = Result<RunReport>;
+
+    fn visit<K: Kernel>(self, kernel: K) -> Result<RunReport> {
+        run_kernel(kernel, self.input, self.settings, self.output)
     }
 }
 
@@ -213,28 +210,6 @@ fn points_of(input: &Input) -> (std::borrow::Cow<'_, [f64]>, Option<&[f64]>) {
             sources, targets, ..
         } => (sources.as_slice().into(), targets.as_deref()),
     }
-}
-
-/// svd or fft, whichever `choose_scheme` predicts faster for `eps` on
-/// these points in float type `precision` (the SVD precomputation counted
-/// unless `cached`).
-fn auto_scheme(
-    sources: &[f64],
-    targets: Option<&[f64]>,
-    eps: f64,
-    mode: EvalMode,
-    precision: PrecisionArg,
-    cached: bool,
-) -> Result<SchemeArg> {
-    let precision = match precision {
-        PrecisionArg::F32 => Precision::F32,
-        _ => Precision::F64,
-    };
-    let (shape, _) = choose_scheme(eps, mode, precision, sources, targets, cached)?;
-    Ok(match shape {
-        M2lCostShape::Fft => SchemeArg::Fft,
-        _ => SchemeArg::Svd,
-    })
 }
 
 /// f32 where it still reaches `eps` on these points, else f64.

@@ -53,7 +53,7 @@ pub struct SweepArgs {
     #[arg(long, default_value = "3..10", value_parser = parse_orders)]
     pub orders: Orders,
     /// M2L schemes, comma-separated.
-    #[arg(long, value_enum, value_delimiter = ',', default_values_t = [SchemeArg::Svd, SchemeArg::Dense])]
+    #[arg(long, value_delimiter = ',', default_values_t = [SchemeArg::Svd, SchemeArg::Dense], value_parser = super::scheme_parser())]
     pub schemes: Vec<SchemeArg>,
     /// Float types, comma-separated.
     #[arg(long, value_enum, value_delimiter = ',', default_values_t = [PrecisionArg::F64, PrecisionArg::F32])]
@@ -73,7 +73,7 @@ pub struct SweepArgs {
     /// Evaluate Hessians too (implies gradients).
     #[arg(long)]
     pub hessians: bool,
-    #[arg(long, default_value = "laplace", value_name = "laplace|yukawa:K|helmholtz:K|stokes", help = super::KERNEL_HELP)]
+    #[arg(long, default_value = "laplace", value_name = "NAME[:K]", help = super::kernel_help())]
     pub kernel: String,
     /// Random seed of the points and charges.
     #[arg(long, default_value_t = 1)]

@@ -5,6 +5,7 @@
 // split by job).
 #[allow(unused_imports)]
 use super::*;
+use ferrofmm_kernels::{KernelChoice, TuningFamily};
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work
@@ -339,7 +340,8 @@ impl TuningModel for BorrowedModel {
 /// times `domain_width`), [`HelmholtzModel`] for
 /// [`Helmholtz3d`](ferrofmm_kernels::Helmholtz3d), [`StokesModel`] for
 /// [`Stokes3d`](ferrofmm_kernels::Stokes3d), and the Laplace model
-/// [borrowed](BorrowedModel) for any other kernel.
+/// [borrowed](BorrowedModel) for any other kernel: the kernel registry's
+/// [`TuningFamily`] names the model of each built-in kernel.
 ///
 /// ```
 /// use ferrofmm_fmm::tuning::{TuningModel, default_model};
@@ -348,18 +350,19 @@ impl TuningModel for BorrowedModel {
 /// assert!(default_model(&ModifiedHelmholtz3d::new(2.0).unwrap(), 1.0).measured());
 /// ```
 pub fn default_model<K: Kernel>(kernel: &K, domain_width: f64) -> Arc<dyn TuningModel> {
-    match kernel.name().as_str() {
-        "laplace3d" => Arc::new(LaplaceModel),
-        "modified_helmholtz3d" => Arc::new(YukawaModel {
-            k_width: kernel.parameters().first().copied().unwrap_or(0.0) * domain_width,
-        }),
-        "helmholtz3d" => Arc::new(HelmholtzModel {
-            k_width: kernel.wavenumber() * domain_width,
-        }),
-        "stokes3d" => Arc::new(StokesModel),
-        other => Arc::new(BorrowedModel {
-            kernel: other.to_string(),
+    // The registry's description names the model; the parameter is the
+    // wavenumber of the screened and oscillatory kernels.
+    let Some(choice) = KernelChoice::of(kernel) else {
+        return Arc::new(BorrowedModel {
+            kernel: kernel.name(),
             from: Arc::new(LaplaceModel),
-        }),
+        });
+    };
+    let k_width = choice.parameter().unwrap_or(0.0) * domain_width;
+    match choice.description().tuning {
+        TuningFamily::Laplace => Arc::new(LaplaceModel),
+        TuningFamily::ModifiedHelmholtz => Arc::new(YukawaModel { k_width }),
+        TuningFamily::Helmholtz => Arc::new(HelmholtzModel { k_width }),
+        TuningFamily::Stokes => Arc::new(StokesModel),
     }
 }

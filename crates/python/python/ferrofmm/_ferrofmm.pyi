@@ -1,6 +1,6 @@
 """Type stubs of the native module (use the wrappers in ``ferrofmm``)."""
 
-from typing import Optional, Tuple
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -10,6 +10,10 @@ MIN_ORDER: int
 MAX_ORDER: int
 DEFAULT_LEAF_SIZE: int
 DEEPEST_LEVEL: int
+#: The kernel registry: name -> description.
+KERNELS: Dict[str, Dict[str, Any]]
+#: The M2L scheme names.
+SCHEMES: List[str]
 
 def check_run_memory(
     what: str,
