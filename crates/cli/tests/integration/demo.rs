@@ -221,3 +221,59 @@ fn demo_tolerance_chooses_parameters_that_meet_it() {
     assert_eq!(out.status.code(), Some(1));
     assert!(texts(&out).1.contains("tolerance"));
 }
+
+/// Every kernel of the registry by its name on the command line: parsed,
+/// run with the scheme its `auto` resolves to, checked against direct
+/// summation, and named back in the report; a kernel registered tomorrow
+/// is run here without a new line.
+#[test]
+fn every_registered_kernel_runs_by_name() {
+    for d in ferrofmm_kernels::KernelChoice::registered() {
+        let name = match d.parameter {
+            Some(p) => format!("{}:{}", d.name, p.example),
+            None => d.name.to_string(),
+        };
+        let out = ferrofmm(&[
+            "demo",
+            "--n",
+            "2000",
+            "--kernel",
+            &name,
+            "--tolerance",
+            "1e-4",
+            "--json",
+        ]);
+        let (stdout, stderr) = texts(&out);
+        assert!(out.status.success(), "{name}: {stderr}");
+        let v: serde_json::Value =
+            serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+        let achieved = v["errors"]["potential"].as_f64().expect("error");
+        assert!(achieved <= 1e-4, "{name}: asked 1e-4, got {achieved}");
+        let expected = ferrofmm_fmm::SchemeChoice::Auto
+            .resolve(
+                ferrofmm_kernels::KernelChoice::parse(&name).unwrap(),
+                None,
+                None,
+                ferrofmm_kernels::EvalMode::Potential,
+                ferrofmm_kernels::Precision::F64,
+                false,
+            )
+            .unwrap();
+        if expected == ferrofmm_fmm::SchemeChoice::Fft {
+            assert_eq!(v["scheme"], "fft", "{name}");
+        }
+        for alias in d.aliases {
+            let renamed = name.replacen(d.name, alias, 1);
+            assert!(
+                ferrofmm_kernels::KernelChoice::parse(&renamed).is_ok(),
+                "{renamed}"
+            );
+        }
+    }
+    let out = ferrofmm(&["demo", "--n", "100", "--kernel", "coulomb"]);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        texts(&out).1.contains("laplace"),
+        "the message lists the kernels"
+    );
+}

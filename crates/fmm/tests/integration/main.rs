@@ -12,6 +12,7 @@ mod hostile;
 mod memory;
 mod outliers;
 mod proptest_fmm;
+mod registry;
 mod sources;
 mod stability_cache;
 mod stability_common;
