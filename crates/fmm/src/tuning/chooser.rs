@@ -1,10 +1,22 @@
 //! The chooser: the cheapest (order, leaf size, SVD tolerance) the error
 //! model admits.
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use std::sync::Arc;
+
+use ferrofmm_field::M2lCostShape;
+use ferrofmm_kernels::{EvalMode, Precision, Real};
+use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
+
+use super::cost::{CostModel, CostPrediction};
+use super::error_model::{
+    CHOICE_BUDGET, ErrorModel, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MIN_CHOICE_SECONDS,
+    REFINE_SHARE, SECONDS_PER_SIMULATED_BOX, STOP_FACTOR, estimated_svd_rank,
+};
+use super::model::{LaplaceModel, TuningModel};
+use super::occupancy::Occupancy;
+use super::work::WorkCounts;
+use crate::FmmError;
+use crate::validate::{check_domain_width, check_sources_and_targets, validate_tolerance};
 
 /// The parameters chosen for a tolerance, and what the models predict for
 /// them. Reported by [`Fmm::chosen_parameters`](crate::Fmm::chosen_parameters)
@@ -350,7 +362,7 @@ impl Tuner {
     ) -> Result<ChosenParameters, FmmError> {
         // A domain the float type cannot resolve has no order: say so
         // (the build's message), not "no order reaches eps".
-        crate::fmm::check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
+        check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
         let candidates = self.candidates(eps, occupancy)?;
         let Some(p_min) = candidates.iter().map(|c| c.order).min() else {
             // No leaf size works: report the limit at the finest resolution
@@ -469,7 +481,7 @@ pub fn choose_parameters<T: Real>(
     targets: Option<&[T]>,
 ) -> Result<ChosenParameters, FmmError> {
     validate_tolerance(eps, T::PRECISION)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
+    check_sources_and_targets(sources, targets)?;
     let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
     let src = up(sources);
     let tgt = targets.map(up);
@@ -522,7 +534,7 @@ pub fn choose_scheme(
     svd_cached: bool,
 ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
     validate_tolerance(eps, precision)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
+    check_sources_and_targets(sources, targets)?;
     let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
     Tuner::new(precision)
         .for_mode(mode)

@@ -1,10 +1,14 @@
 //! The error model: measured errors per order, SVD and rounding terms, the
 //! f32/f64 limits.
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_field::{default_svd_tolerance, n_surface_points};
+use ferrofmm_kernels::{EvalMode, Precision};
+use ferrofmm_tree::DEEPEST_LEVEL;
+
+use super::chooser::Tuner;
+use super::occupancy::Occupancy;
+use crate::FmmError;
+use crate::validate::{check_sources_and_targets, validate_tolerance};
 
 /// Safety factor `S` between the measured worst error of an order and the
 /// tolerance it is used for. The table is already the worst of 42 settings
@@ -377,25 +381,6 @@ pub fn smallest_tolerance(precision: Precision) -> f64 {
     ErrorModel::laplace(precision).smallest_reachable(0.0)
 }
 
-/// Check a tolerance before looking at the points: `eps` in `(0, 1)`
-/// ([`FmmError::InvalidTolerance`]) and at least [`smallest_tolerance`]
-/// ([`FmmError::ToleranceBeyondPrecision`]). The chooser may still refuse
-/// it for points that need more digits than the float type has.
-pub fn validate_tolerance(eps: f64, precision: Precision) -> Result<(), FmmError> {
-    if !(eps.is_finite() && eps > 0.0 && eps < 1.0) {
-        return Err(FmmError::InvalidTolerance(eps));
-    }
-    let limit = smallest_tolerance(precision);
-    if eps < limit {
-        return Err(FmmError::ToleranceBeyondPrecision {
-            tolerance: eps,
-            precision: precision.name(),
-            limit,
-        });
-    }
-    Ok(())
-}
-
 /// The float type to use for `eps` on these points (`--precision auto`):
 /// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
 /// about twice as fast), else `f64` when that reaches it, else the `f64`
@@ -424,7 +409,7 @@ pub fn choose_precision(
     targets: Option<&[f64]>,
 ) -> Result<Precision, FmmError> {
     validate_tolerance(eps, Precision::F64)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
+    check_sources_and_targets(sources, targets)?;
     let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
     if f32_reaches(eps)
         && Tuner::new(Precision::F32)
@@ -456,4 +441,19 @@ pub fn estimated_svd_rank(order: usize, tau: f64) -> usize {
         k *= (0.5f64).powf(2.0 - x);
     }
     (k.round() as usize).clamp(1, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn svd_tolerance_inverse() {
+        let m = ErrorModel::laplace(Precision::F64);
+        for tau in [1e-9, 1e-6, 1e-4, 1e-3, 5e-3] {
+            let e = m.svd_error(tau);
+            let back = m.svd_tolerance_adding(e);
+            assert!((back / tau - 1.0).abs() < 1e-9, "{tau} -> {back}");
+        }
+    }
 }

@@ -1,10 +1,13 @@
 //! The models behind a choice, keyed on kernel and M2L scheme
 //! ([`TuningModel`]).
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use std::sync::Arc;
+
+use ferrofmm_field::M2lCostShape;
+use ferrofmm_kernels::{EvalMode, Kernel, Precision};
+
+use super::cost::CostModel;
+use super::error_model::ErrorModel;
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work

@@ -1,9 +1,9 @@
 //! Work counts of a built tree (the cost model's inputs).
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_tree::Octree;
+use rayon::prelude::*;
+
+use super::occupancy::center_ratio;
 
 /// The work of one evaluation, counted on a tree (exactly, with
 /// [`WorkCounts::of_tree`]) or estimated from the point distribution
