@@ -37,12 +37,18 @@ impl PrecisionArg {
     }
 }
 
-impl std::fmt::Display for PrecisionArg {
-    /// The name (width and alignment flags apply).
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
-    }
+/// `Display` as the argument's name (width and alignment flags apply).
+macro_rules! display_by_name {
+    ($($arg:ty),*) => {$(
+        impl std::fmt::Display for $arg {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.pad(self.name())
+            }
+        }
+    )*};
 }
+
+display_by_name!(PrecisionArg, SchemeArg);
 
 /// M2L translation scheme (in reports: `"svd"`, `"dense"`, `"fft"`).
 #[derive(
@@ -73,13 +79,6 @@ impl SchemeArg {
             SchemeArg::Fft => "fft",
             SchemeArg::Auto => "auto",
         }
-    }
-}
-
-impl std::fmt::Display for SchemeArg {
-    /// The name (width and alignment flags apply).
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
     }
 }
 
