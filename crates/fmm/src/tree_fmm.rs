@@ -37,7 +37,7 @@ use crate::part::TreePart;
 use crate::passes::{self, Ctx};
 use crate::precompute::operators_for;
 use crate::timings::{EvalTimings, SetupTimings};
-use crate::validate::{check_domain_width, check_order};
+use crate::validate::{check_domain_width, check_order, check_tree_points};
 
 /// A tree and its points for [`TreeFmm::new`].
 pub struct LocalTree<'a> {
@@ -98,17 +98,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         check_order(params.order)?;
         let tree = local.tree;
         let depth = local.depth.max(tree.depth());
-        let reach = |len: usize, r: &dyn Fn(usize) -> Range<usize>| {
-            (0..tree.n_boxes()).all(|b| r(b).end <= len / 3) && len.is_multiple_of(3)
-        };
         let targets_len = local.targets.map_or(local.sources.len(), <[f64]>::len);
-        if !reach(local.sources.len(), &|b| tree.source_range(b))
-            || !reach(targets_len, &|b| tree.target_range(b))
-        {
-            return Err(FmmError::InvalidParameter(
-                "TreeFmm: point arrays shorter than the tree's ranges".into(),
-            ));
-        }
+        check_tree_points(&tree, local.sources.len(), targets_len)?;
         let width = tree.domain().width;
         check_domain_width(width, T::PRECISION, depth)?;
         let mut setup = SetupTimings::default();

@@ -5,7 +5,8 @@
 //! [`crate::TreeFmm`] call the same functions, so one input gets one
 //! answer whichever path meets it first.
 //!
-//! * Points: non-empty, a multiple of 3, finite ([`check_points`]).
+//! * Points: non-empty, a multiple of 3, finite ([`check_points`]); for a
+//!   caller's tree, arrays that hold its ranges ([`check_tree_points`]).
 //! * Parameters: order in `MIN_ORDER..=MAX_ORDER` ([`check_order`]), a
 //!   positive leaf size, a level a Morton key holds, a kernel that supports
 //!   the source kind and the evaluation mode ([`check_parameters`]).
@@ -22,9 +23,11 @@
 //! The result of an evaluation is checked after it
 //! ([`crate::check_finite_output`], in `overflow`).
 
+use std::ops::Range;
+
 use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
 use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Precision, Real, SourceKind};
-use ferrofmm_tree::DEEPEST_LEVEL;
+use ferrofmm_tree::{DEEPEST_LEVEL, Octree};
 use rayon::prelude::*;
 
 use crate::FmmError;
@@ -39,6 +42,28 @@ pub(crate) fn check_order(order: usize) -> Result<(), FmmError> {
             min: MIN_ORDER,
             max: MAX_ORDER,
         });
+    }
+    Ok(())
+}
+
+/// Point arrays (`sources_len`, `targets_len` values, three per point)
+/// that hold every point the ranges of `tree` index
+/// ([`FmmError::InvalidParameter`] otherwise): what [`crate::TreeFmm`]
+/// needs of a caller's tree and points.
+pub(crate) fn check_tree_points(
+    tree: &Octree,
+    sources_len: usize,
+    targets_len: usize,
+) -> Result<(), FmmError> {
+    let reach = |len: usize, r: &dyn Fn(usize) -> Range<usize>| {
+        (0..tree.n_boxes()).all(|b| r(b).end <= len / 3) && len.is_multiple_of(3)
+    };
+    if !reach(sources_len, &|b| tree.source_range(b))
+        || !reach(targets_len, &|b| tree.target_range(b))
+    {
+        return Err(FmmError::InvalidParameter(
+            "TreeFmm: point arrays shorter than the tree's ranges".into(),
+        ));
     }
     Ok(())
 }

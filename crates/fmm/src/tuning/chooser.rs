@@ -10,7 +10,7 @@ use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 use super::cost::{CostModel, CostPrediction};
 use super::error_model::{
     CHOICE_BUDGET, ErrorModel, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MIN_CHOICE_SECONDS,
-    REFINE_SHARE, SECONDS_PER_SIMULATED_BOX, STOP_FACTOR, estimated_svd_rank,
+    REFINE_SHARE, SECONDS_PER_SIMULATED_BOX, STOP_FACTOR, estimated_svd_rank, f32_reaches,
 };
 use super::model::{LaplaceModel, TuningModel};
 use super::occupancy::Occupancy;
@@ -533,10 +533,64 @@ pub fn choose_scheme(
     targets: Option<&[f64]>,
     svd_cached: bool,
 ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
-    validate_tolerance(eps, precision)?;
-    check_sources_and_targets(sources, targets)?;
-    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
+    let occupancy = checked_occupancy(eps, precision, sources, targets)?;
     Tuner::new(precision)
         .for_mode(mode)
         .choose_scheme_with(eps, &occupancy, svd_cached)
+}
+
+/// The float type to use for `eps` on these points (`--precision auto`):
+/// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
+/// about twice as fast), else `f64` when that reaches it, else the `f64`
+/// error ([`FmmError::ToleranceBeyondPrecision`] or
+/// [`FmmError::InvalidTolerance`]).
+///
+/// ```
+/// use ferrofmm_fmm::Geometry;
+/// use ferrofmm_fmm::tuning::choose_precision;
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let pot = EvalMode::Potential;
+/// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
+/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
+/// // f32 gradients level off near 5e-6.
+/// let both = EvalMode::PotentialGradient;
+/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
+/// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
+/// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
+/// ```
+pub fn choose_precision(
+    eps: f64,
+    mode: EvalMode,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Precision, FmmError> {
+    let occupancy = checked_occupancy(eps, Precision::F64, sources, targets)?;
+    if f32_reaches(eps)
+        && Tuner::new(Precision::F32)
+            .for_mode(mode)
+            .choose_with(eps, &occupancy)
+            .is_ok()
+    {
+        return Ok(Precision::F32);
+    }
+    Tuner::new(Precision::F64)
+        .for_mode(mode)
+        .choose_with(eps, &occupancy)
+        .map(|_| Precision::F64)
+}
+
+/// The occupancy of checked inputs: `eps` for `precision`
+/// ([`validate_tolerance`]) and the points ([`check_sources_and_targets`]),
+/// in their bounding cube.
+fn checked_occupancy(
+    eps: f64,
+    precision: Precision,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Occupancy, FmmError> {
+    validate_tolerance(eps, precision)?;
+    check_sources_and_targets(sources, targets)?;
+    Occupancy::new(sources, targets, None, DEEPEST_LEVEL)
 }

@@ -134,10 +134,16 @@ impl CostModel {
             EvalMode::PotentialGradientHessian => HESSIAN_COST_FACTOR,
         };
         let half = 0.5 * (1.0 + factor);
+        self.kernel_work_scaled(factor, half)
+    }
+
+    /// The model with the P2P pairs `pair` times and the point-surface
+    /// work (surface and far points) `points` times as costly.
+    fn kernel_work_scaled(self, pair: f64, points: f64) -> Self {
         CostModel {
-            p2p_pair: self.p2p_pair * factor,
-            surface_point: self.surface_point * half,
-            far_point: self.far_point * half,
+            p2p_pair: self.p2p_pair * pair,
+            surface_point: self.surface_point * points,
+            far_point: self.far_point * points,
             ..self
         }
     }
@@ -155,12 +161,7 @@ impl CostModel {
     /// assert_eq!(m.m2l_flop, CostModel::default().m2l_flop);
     /// ```
     pub fn scaled_kernel(self, factor: f64) -> Self {
-        CostModel {
-            p2p_pair: self.p2p_pair * factor,
-            surface_point: self.surface_point * factor,
-            far_point: self.far_point * factor,
-            ..self
-        }
+        self.kernel_work_scaled(factor, factor)
     }
 }
 

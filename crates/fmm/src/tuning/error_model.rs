@@ -3,12 +3,6 @@
 
 use ferrofmm_field::{default_svd_tolerance, n_surface_points};
 use ferrofmm_kernels::{EvalMode, Precision};
-use ferrofmm_tree::DEEPEST_LEVEL;
-
-use super::chooser::Tuner;
-use super::occupancy::Occupancy;
-use crate::FmmError;
-use crate::validate::{check_sources_and_targets, validate_tolerance};
 
 /// Safety factor `S` between the measured worst error of an order and the
 /// tolerance it is used for. The table is already the worst of 42 settings
@@ -379,50 +373,6 @@ pub fn f32_reaches(eps: f64) -> bool {
 /// best case: well-centred points).
 pub fn smallest_tolerance(precision: Precision) -> f64 {
     ErrorModel::laplace(precision).smallest_reachable(0.0)
-}
-
-/// The float type to use for `eps` on these points (`--precision auto`):
-/// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
-/// about twice as fast), else `f64` when that reaches it, else the `f64`
-/// error ([`FmmError::ToleranceBeyondPrecision`] or
-/// [`FmmError::InvalidTolerance`]).
-///
-/// ```
-/// use ferrofmm_fmm::Geometry;
-/// use ferrofmm_fmm::tuning::choose_precision;
-/// use ferrofmm_kernels::{EvalMode, Precision};
-/// let pot = EvalMode::Potential;
-/// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
-/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
-/// // f32 gradients level off near 5e-6.
-/// let both = EvalMode::PotentialGradient;
-/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
-/// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
-/// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
-/// ```
-pub fn choose_precision(
-    eps: f64,
-    mode: EvalMode,
-    sources: &[f64],
-    targets: Option<&[f64]>,
-) -> Result<Precision, FmmError> {
-    validate_tolerance(eps, Precision::F64)?;
-    check_sources_and_targets(sources, targets)?;
-    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
-    if f32_reaches(eps)
-        && Tuner::new(Precision::F32)
-            .for_mode(mode)
-            .choose_with(eps, &occupancy)
-            .is_ok()
-    {
-        return Ok(Precision::F32);
-    }
-    Tuner::new(Precision::F64)
-        .for_mode(mode)
-        .choose_with(eps, &occupancy)
-        .map(|_| Precision::F64)
 }
 
 /// Estimated rank of the SVD-compressed M2L operators at `order` and

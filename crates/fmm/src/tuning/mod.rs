@@ -119,14 +119,15 @@ mod work;
 
 pub use crate::validate::validate_tolerance;
 pub use chooser::{
-    Candidate, ChosenParameters, Tuner, choose_parameters, choose_scheme, svd_precompute_seconds,
+    Candidate, ChosenParameters, Tuner, choose_parameters, choose_precision, choose_scheme,
+    svd_precompute_seconds,
 };
 pub use cost::{CostModel, CostPrediction, CostSample, GRADIENT_COST_FACTOR, HESSIAN_COST_FACTOR};
 pub use error_model::{
     CHOICE_BUDGET, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR, HESSIAN_ERROR_FACTOR,
     HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER, MAX_SVD_TOLERANCE, MAX_TUNED_ORDER,
     MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR, SAFETY_FACTOR, SECONDS_PER_SIMULATED_BOX,
-    choose_precision, estimated_svd_rank, f32_reaches, smallest_tolerance,
+    estimated_svd_rank, f32_reaches, smallest_tolerance,
 };
 pub use model::{
     BorrowedModel, HELMHOLTZ_P2P_FACTOR, HelmholtzModel, LaplaceModel, STOKES_ERROR_FACTOR,
