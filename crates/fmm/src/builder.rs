@@ -164,7 +164,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     ///
     /// `eps` must lie in `(0, 1)` ([`FmmError::InvalidTolerance`]) and be
     /// reachable in the float type ([`FmmError::ToleranceBeyondPrecision`]:
-    /// `f32` reaches about `4e-6`, see [`tuning::f32_reaches`]; `f64` about
+    /// `f32` reaches about `4e-6`, see [`tuning::f32_reaches`](crate::tuning::f32_reaches); `f64` about
     /// `1.2e-10`, with gradients about `1e-5` and `8e-10`). The model is
     /// measured for the Laplace kernel on seven geometries and zero-mean and
     /// positive charges; [`Fmm::evaluate_verified`] checks the result and
@@ -184,7 +184,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// The models a [`FmmBuilder::tolerance`] is chosen with: your own
     /// [`TuningModel`] for a kernel or scheme the defaults do not know
-    /// ([`tuning::default_model`]: measured for Laplace and modified
+    /// ([`tuning::default_model`](crate::tuning::default_model): measured for Laplace and modified
     /// Helmholtz, Laplace's tables borrowed for other kernels). Changing
     /// the kernel with [`FmmBuilder::kernel`] resets it.
     ///
@@ -258,7 +258,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// The kernel must [support](Kernel::supports) the kind with the
     /// [mode](FmmBuilder::mode) (Laplace and modified Helmholtz support
     /// every pair), else building fails with
-    /// [`KernelError::Unsupported`].
+    /// [`KernelError::Unsupported`](ferrofmm_kernels::KernelError::Unsupported).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Geometry};

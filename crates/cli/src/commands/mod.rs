@@ -82,7 +82,7 @@ impl SchemeArg {
     }
 }
 
-/// The kernel of `--kernel`: the kernels crate's [`KernelChoice`], whose
+/// The kernel of `--kernel`: the kernels crate's [`KernelChoice`](ferrofmm_kernels::KernelChoice), whose
 /// parse errors are bad input here (exit status 1).
 pub use ferrofmm_kernels::KernelChoice as KernelArg;
 

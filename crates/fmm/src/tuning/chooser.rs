@@ -410,7 +410,7 @@ impl Tuner {
     /// the FFT scheme, and the smaller predicted time of the tree, one
     /// evaluation and the M2L precomputation wins. The SVD scheme's
     /// precomputation (its truncated SVDs: 0.3 s at `p = 6`, 1.4 s at `p =
-    /// 8`, 5 s at `p = 10` on 2 cores, from [`SvdM2l`]'s
+    /// 8`, 5 s at `p = 10` on 2 cores, from [`SvdM2l`](ferrofmm_field::SvdM2l)'s
     /// [`estimate`](ferrofmm_field::M2lScheme::estimate)) counts unless
     /// `svd_cached` (its operators come from the cache); the FFT scheme's
     /// (316 kernel FFTs, milliseconds) is left out.

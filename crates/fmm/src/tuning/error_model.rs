@@ -21,7 +21,7 @@ pub const F32_ERROR_FLOOR: f64 = 2.5e-6;
 /// positive charges, orders 7 to 10: 2.9e-6 to 5.4e-6).
 pub const F32_GRADIENT_FLOOR: f64 = 6e-6;
 
-/// Rounding error per unit roundoff and unit of [`WorkCounts::rounding_ratio`]
+/// Rounding error per unit roundoff and unit of [`WorkCounts::rounding_ratio`](super::WorkCounts::rounding_ratio)
 /// (measured: `f32` on two clusters, ratios 0.7e5 to 4.5e5, errors 1.3e-4 to
 /// 9e-4, i.e. 0.02 to 0.06 `u ratio`).
 pub const ROUNDING_FACTOR: f64 = 0.1;
@@ -123,7 +123,7 @@ pub(super) const F64_GRADIENT_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 
 /// 2.14 measured (Laplace and modified Helmholtz, f64, SVD M2L, cube and
 /// Plummer, zero-mean and positive charges, orders 4..10, N = 2e4,
 /// `examples/sources_sweep.rs`; zero-mean charges 0.1..0.7). The table of
-/// [`F64_GRADIENT_ERRORS`] is scaled by it for
+/// `F64_GRADIENT_ERRORS` is scaled by it for
 /// `EvalMode::PotentialGradientHessian`.
 pub const HESSIAN_ERROR_FACTOR: f64 = 2.5;
 
@@ -137,7 +137,7 @@ pub(super) const SVD_RANKS: [f64; 10] = [
 /// The error model: predicted relative L2 error from the order, the SVD
 /// tolerance, the float type and how finely the tree resolves the
 /// coordinates (see the [module docs](crate::tuning)), for the potential or, with
-/// [`ErrorModel::for_mode`], for everything an evaluation mode computes.
+/// [`ErrorModel::laplace_for`], for everything an evaluation mode computes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ErrorModel {
     /// Float type the model is for.
@@ -250,7 +250,7 @@ impl ErrorModel {
 
     /// Error from rounding, for a tree whose leaves have
     /// `max |center| / half-width = ratio`
-    /// ([`WorkCounts::rounding_ratio`]): the larger of the float type's
+    /// ([`WorkCounts::rounding_ratio`](super::WorkCounts::rounding_ratio)): the larger of the float type's
     /// floor (measured on well-centred points, ratios up to a few hundred)
     /// and `rounding_factor u ratio`. Equivalent and check surfaces are points
     /// of the float type: around a box of half-width `h` centred at `c`
@@ -357,7 +357,7 @@ impl ErrorModel {
 /// stays below about 400 (true of uniform, sphere-surface and Plummer
 /// points centred near the origin up to millions of points; not of a tiny
 /// cluster far from the origin). For a decision about given points use
-/// [`choose_precision`].
+/// [`choose_precision`](super::choose_precision).
 ///
 /// ```
 /// use ferrofmm_fmm::tuning::f32_reaches;

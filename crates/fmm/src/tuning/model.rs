@@ -11,7 +11,7 @@ use super::error_model::ErrorModel;
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work
-/// costs. [`Tuner`] asks it for an [`ErrorModel`] and a [`CostModel`] for
+/// costs. [`Tuner`](super::Tuner) asks it for an [`ErrorModel`] and a [`CostModel`] for
 /// the float type, the evaluation mode and the scheme being built;
 /// [`FmmBuilder::tuning_model`](crate::FmmBuilder::tuning_model) replaces
 /// the default ([`default_model`]) with one of your own.
@@ -50,7 +50,7 @@ use super::error_model::ErrorModel;
 /// assert!(p(&smooth) < p(&laplace));
 /// ```
 pub trait TuningModel: Send + Sync + std::fmt::Debug {
-    /// A short name for reports ([`ChosenParameters::model`]).
+    /// A short name for reports ([`ChosenParameters::model`](super::ChosenParameters::model)).
     fn name(&self) -> String;
 
     /// Whether the error table was measured for the kernel it is used for.
