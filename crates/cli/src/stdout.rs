@@ -1,7 +1,7 @@
 //! Printing reports on stdout without panicking when nobody reads them.
 //!
 //! `println!` panics when stdout is a closed pipe (`ferrofmm demo | head
-//! -0`, `... | true`). [`print`] writes and flushes instead and turns a
+//! -0`, `... | true`). [`print()`] writes and flushes instead and turns a
 //! broken pipe into [`CliError::StdoutClosed`], which `main` ends as a
 //! quiet success: the work is done (and any output file written); only the
 //! report had no reader.
@@ -28,7 +28,7 @@ pub fn print(text: &str) -> Result<()> {
         })
 }
 
-/// [`print`] `text` followed by a newline.
+/// [`print()`] `text` followed by a newline.
 pub fn println(text: &str) -> Result<()> {
     print(&format!("{text}\n"))
 }

@@ -392,32 +392,24 @@ mod tests {
         let mut exact = vec![0.0; 5000];
         direct_sum(&Laplace3d, mode, &points, &q, &points, &mut exact);
         let noisy: Vec<f64> = exact.iter().map(|v| v * (1.0 + 1e-4)).collect();
-        let e = estimate_errors(
-            &Laplace3d,
-            SourceKind::Charge,
-            mode,
-            &points,
-            &q,
-            &points,
-            &noisy,
-            Duration::ZERO,
-            40,
-            200,
-        );
+        let estimate = |budget| {
+            estimate_errors(
+                &Laplace3d,
+                SourceKind::Charge,
+                mode,
+                &points,
+                &q,
+                &points,
+                &noisy,
+                budget,
+                40,
+                200,
+            )
+        };
+        let e = estimate(Duration::ZERO);
         assert_eq!(e.n_sampled, 40);
         assert!((e.potential / 1e-4 - 1.0).abs() < 1e-6, "{e:?}");
-        let e = estimate_errors(
-            &Laplace3d,
-            SourceKind::Charge,
-            mode,
-            &points,
-            &q,
-            &points,
-            &noisy,
-            Duration::from_secs(60),
-            40,
-            200,
-        );
+        let e = estimate(Duration::from_secs(60));
         assert_eq!(e.n_sampled, 200);
     }
 

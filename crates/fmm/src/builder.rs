@@ -8,13 +8,13 @@ use ferrofmm_field::{
     DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
     SvdM2l,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Laplace3d, Real, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real, SourceKind};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
 use crate::coordinates::Coordinates;
 use crate::fmm::ChosenScheme;
 use crate::tuning::{ChosenParameters, TuningModel};
-use crate::{Fmm, FmmError, tuning};
+use crate::{Fmm, FmmError, validate};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
 /// Default points per leaf: measured best for Laplace in f64 around p = 6 on
@@ -164,7 +164,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     ///
     /// `eps` must lie in `(0, 1)` ([`FmmError::InvalidTolerance`]) and be
     /// reachable in the float type ([`FmmError::ToleranceBeyondPrecision`]:
-    /// `f32` reaches about `4e-6`, see [`tuning::f32_reaches`]; `f64` about
+    /// `f32` reaches about `4e-6`, see [`tuning::f32_reaches`](crate::tuning::f32_reaches); `f64` about
     /// `1.2e-10`, with gradients about `1e-5` and `8e-10`). The model is
     /// measured for the Laplace kernel on seven geometries and zero-mean and
     /// positive charges; [`Fmm::evaluate_verified`] checks the result and
@@ -184,7 +184,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// The models a [`FmmBuilder::tolerance`] is chosen with: your own
     /// [`TuningModel`] for a kernel or scheme the defaults do not know
-    /// ([`tuning::default_model`]: measured for Laplace and modified
+    /// ([`tuning::default_model`](crate::tuning::default_model): measured for Laplace and modified
     /// Helmholtz, Laplace's tables borrowed for other kernels). Changing
     /// the kernel with [`FmmBuilder::kernel`] resets it.
     ///
@@ -258,7 +258,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// The kernel must [support](Kernel::supports) the kind with the
     /// [mode](FmmBuilder::mode) (Laplace and modified Helmholtz support
     /// every pair), else building fails with
-    /// [`KernelError::Unsupported`].
+    /// [`KernelError::Unsupported`](ferrofmm_kernels::KernelError::Unsupported).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Geometry};
@@ -359,34 +359,18 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         params
     }
 
-    /// Check every parameter and every coordinate before any work.
+    /// Check every parameter and every coordinate before any work
+    /// ([`crate::validate`]).
     pub(crate) fn validate(&self) -> Result<(), FmmError> {
-        if !self.kernel.supports(self.source_kind, self.mode) {
-            return Err(FmmError::Kernel(KernelError::Unsupported {
-                kernel: self.kernel.name(),
-                kind: self.source_kind.name(),
-                mode: self.mode.name(),
-            }));
-        }
-        if let Some(eps) = self.tolerance {
-            tuning::validate_tolerance(eps, T::PRECISION)?;
-        }
-        if !(MIN_ORDER..=MAX_ORDER).contains(&self.order) {
-            return Err(FmmError::InvalidOrder {
-                order: self.order,
-                min: MIN_ORDER,
-                max: MAX_ORDER,
-            });
-        }
-        if self.leaf_size == 0 {
-            return Err(FmmError::InvalidLeafSize(0));
-        }
-        if self.max_level > DEEPEST_LEVEL {
-            return Err(FmmError::InvalidParameter(format!(
-                "max_level {} exceeds the deepest level {DEEPEST_LEVEL} a Morton key can hold",
-                self.max_level
-            )));
-        }
+        validate::check_parameters(
+            &self.kernel,
+            self.source_kind,
+            self.mode,
+            self.tolerance.map(|eps| (eps, T::PRECISION)),
+            self.order,
+            self.leaf_size,
+            self.max_level,
+        )?;
         self.sources.check("sources")?;
         if let Some(t) = &self.targets {
             t.check("targets")?;
@@ -419,37 +403,4 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     pub fn build_dense(self) -> Result<Fmm<T, K, DenseM2l<T>>, FmmError> {
         self.build_with(Default::default())
     }
-}
-
-/// [`check_points`] on the sources and, when given, the targets.
-pub(crate) fn check_sources_and_targets<T: Real>(
-    sources: &[T],
-    targets: Option<&[T]>,
-) -> Result<(), FmmError> {
-    check_points("sources", sources)?;
-    if let Some(t) = targets {
-        check_points("targets", t)?;
-    }
-    Ok(())
-}
-
-/// Non-empty, a multiple of 3, all finite.
-pub(crate) fn check_points<T: Real>(what: &'static str, points: &[T]) -> Result<(), FmmError> {
-    if points.is_empty() {
-        return Err(FmmError::Empty(what));
-    }
-    if !points.len().is_multiple_of(3) {
-        return Err(FmmError::RaggedPoints {
-            what,
-            len: points.len(),
-        });
-    }
-    if let Some(index) = points.iter().position(|x| !x.is_finite()) {
-        return Err(FmmError::NonFiniteCoordinate {
-            what,
-            index,
-            value: points[index].to_f64(),
-        });
-    }
-    Ok(())
 }

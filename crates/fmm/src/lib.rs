@@ -43,6 +43,7 @@ mod scheme_choice;
 mod timings;
 mod tree_fmm;
 pub mod tuning;
+mod validate;
 pub mod verify;
 
 pub use accuracy::{
@@ -57,10 +58,11 @@ pub use error::FmmError;
 pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::{MemoryReport, RunSize, check_memory};
-pub use overflow::{check_finite_output, check_representable};
+pub use overflow::check_finite_output;
 pub use precompute::{first_far_level, m2l_usage};
 pub use scheme_choice::SchemeChoice;
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};
 pub use tuning::{ChosenParameters, f32_reaches};
+pub use validate::check_representable;
 pub use verify::{Evaluation, Verification, VerificationAttempt};

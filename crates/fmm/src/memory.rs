@@ -154,7 +154,7 @@ impl MemoryReport {
     /// Bytes that building an [`Fmm`] in `T` for `size` and evaluating
     /// `size.n_vectors` density vectors need at least: the buffers whose
     /// length follows from the point counts alone, with the same per-point
-    /// figures as [`MemoryReport::of`] (`points`, and of
+    /// figures as `MemoryReport::of` (`points`, and of
     /// `evaluation_scratch` the densities in tree order and the sorted and
     /// returned outputs), plus the `f64` copy of the points the build
     /// sorts them from and the results of every vector. Boxes, expansions
@@ -194,7 +194,7 @@ impl MemoryReport {
     }
 }
 
-/// [`FmmError::RunMemory`] when `needed` bytes exceed `limit` (resolved as
+/// [`FmmError::RunMemory`](crate::FmmError::RunMemory) when `needed` bytes exceed `limit` (resolved as
 /// for the operator precomputation: [`MemoryLimit::Auto`] is
 /// `FERROFMM_MEMORY_LIMIT`, else the memory available, which honours
 /// `RLIMIT_AS`; see [`ferrofmm_field::available_memory`]). `what` names

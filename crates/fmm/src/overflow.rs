@@ -9,7 +9,7 @@
 //! the first bad value and the largest density, so the caller can rescale
 //! (the potential is linear in the densities).
 
-use ferrofmm_kernels::{Precision, Real};
+use ferrofmm_kernels::Real;
 use rayon::prelude::*;
 
 use crate::FmmError;
@@ -48,36 +48,4 @@ pub fn check_finite_output<T: Real>(
         largest_density: largest,
         precision: T::PRECISION.name(),
     })
-}
-
-/// The largest finite value of `precision`, as `f64`.
-pub(crate) fn largest(precision: Precision) -> f64 {
-    match precision {
-        Precision::F32 => f64::from(f32::MAX),
-        Precision::F64 => f64::MAX,
-    }
-}
-
-/// `Ok` when every density given in `f64` is representable in the run's
-/// float type `T`, else [`FmmError::DensityBeyondPrecision`] for the first
-/// that is not: converted, it would become infinite (`1e39` in `f32`), and
-/// the evaluation would report a non-finite charge the caller never gave.
-///
-/// ```
-/// use ferrofmm_fmm::{FmmError, check_representable};
-/// assert!(check_representable::<f32>(&[1e38, -2.0]).is_ok());
-/// let err = check_representable::<f32>(&[1.0, -1e39]).unwrap_err();
-/// assert!(matches!(err, FmmError::DensityBeyondPrecision { index: 1, .. }));
-/// ```
-pub fn check_representable<T: Real>(densities: &[f64]) -> Result<(), FmmError> {
-    let limit = largest(T::PRECISION);
-    match densities.par_iter().position_first(|x| x.abs() > limit) {
-        None => Ok(()),
-        Some(index) => Err(FmmError::DensityBeyondPrecision {
-            index,
-            value: densities[index],
-            largest: limit,
-            precision: T::PRECISION.name(),
-        }),
-    }
 }

@@ -14,11 +14,22 @@
 //! * a smaller cluster keeps its points only ([`PointsPart`]); its own pairs
 //!   are summed directly (at most `leaf_size^2` of them).
 //!
-//! How clusters interact is in [`crate::coupling`].
+//! How clusters interact is in [`crate::coupling`]. This module also
+//! builds the parts ([`clusters_of`], [`build_tree_part`], [`points_part`]).
 
-use ferrofmm_field::{M2lInteractions, M2lScheme, Operators};
-use ferrofmm_kernels::Real;
-use ferrofmm_tree::Octree;
+use std::borrow::Cow;
+use std::time::Instant;
+
+use ferrofmm_field::{M2lInteractions, M2lScheme, OperatorParams, Operators};
+use ferrofmm_kernels::{Kernel, Real};
+use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
+
+use crate::FmmError;
+use crate::builder::FmmBuilder;
+use crate::coordinates::{coordinate_origin, permute_points};
+use crate::precompute::{build_operators, level_interactions};
+use crate::timings::SetupTimings;
+use crate::validate::check_domain_width;
 
 /// The state of a cluster with a tree: what a single-tree FMM keeps.
 pub(crate) struct TreePart<T: Real, S> {
@@ -33,7 +44,7 @@ pub(crate) struct TreePart<T: Real, S> {
     /// `None` when the tree's targets are its sources (not stored twice).
     pub(crate) targets: Option<Vec<T>>,
     /// Near the centre of the tree's domain
-    /// ([`coordinate_origin`](crate::fmm::coordinate_origin)): all
+    /// ([`coordinate_origin`]): all
     /// coordinates the passes see (points and surfaces) are relative to
     /// it, so that far from the origin (say at 1e8 + [0, 1)^3, or
     /// 1e4 + [0, 1)^3 in f32) they keep the digits that resolve the
@@ -55,6 +66,46 @@ pub(crate) struct TreePart<T: Real, S> {
 }
 
 impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
+    /// The part of `tree` with its operators and M2L scheme: each level's
+    /// V-list pairs grouped for M2L, and the points (`f64`, interleaved;
+    /// `targets` `None` when they are the sources) relative to the tree's
+    /// [`coordinate_origin`], in the tree's sorted order: `permute` when
+    /// they are in the caller's order (put through the tree's
+    /// permutations), not when they already are in the tree's order.
+    pub(crate) fn assemble(
+        tree: Octree,
+        (operators, m2l): (Operators<T>, S),
+        sources: &[f64],
+        targets: Option<&[f64]>,
+        permute: bool,
+        (has_sources, has_targets): (bool, bool),
+    ) -> Result<Self, FmmError> {
+        let m2l_interactions = (0..=tree.depth())
+            .map(|level| level_interactions(&tree, level))
+            .collect::<Result<_, _>>()?;
+        let centre = coordinate_origin(tree.domain());
+        let (src_order, tgt_order) = match permute {
+            true => (
+                Some(tree.source_permutation()),
+                Some(tree.target_permutation()),
+            ),
+            false => (None, None),
+        };
+        let sources = permute_points(sources, src_order, centre);
+        let targets = targets.map(|t| permute_points(t, tgt_order, centre));
+        Ok(TreePart {
+            tree,
+            operators,
+            m2l,
+            m2l_interactions,
+            sources,
+            targets,
+            centre,
+            has_sources,
+            has_targets,
+            active: None,
+        })
+    }
     /// Whether box `b` is [active](TreePart::active).
     pub(crate) fn is_active(&self, b: usize) -> bool {
         self.active.as_ref().is_none_or(|a| a[b])
@@ -207,5 +258,126 @@ impl<T: Real, S: M2lScheme<T>> Part<T, S> {
                 put(targets, p.target_points(), p.centre, &|k| self.target_id(k));
             }
         }
+    }
+}
+
+/// The far-separated clusters of the problem, largest first (by
+/// `max(#sources, #targets)`; ties keep the order of
+/// [`separated_clusters`]). One cluster (with empty index lists, meaning
+/// everything) when `fixed_domain` is set or there are no far groups.
+pub(crate) fn clusters_of(
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    fixed_domain: bool,
+) -> Vec<Cluster> {
+    if fixed_domain {
+        return vec![Cluster::default()];
+    }
+    let mut clusters = separated_clusters(sources, targets, DEFAULT_SEPARATION);
+    if clusters.len() <= 1 {
+        return vec![Cluster::default()];
+    }
+    let main = (0..clusters.len())
+        .max_by_key(|&k| (clusters[k].size(), std::cmp::Reverse(k)))
+        .unwrap_or(0);
+    clusters[..=main].rotate_right(1);
+    clusters
+}
+
+/// The points of `points` at `ids`, interleaved.
+pub(crate) fn gather<T: Copy>(points: &[T], ids: &[usize]) -> Vec<T> {
+    ids.iter()
+        .flat_map(|&i| [points[3 * i], points[3 * i + 1], points[3 * i + 2]])
+        .collect()
+}
+
+/// The caller's points and the cluster a part is built from (`ids: None`:
+/// everything, in the caller's order).
+pub(crate) struct PartInput<'a> {
+    pub(crate) src64: &'a [f64],
+    pub(crate) tgt64: Option<&'a [f64]>,
+    pub(crate) ids: Option<&'a Cluster>,
+}
+
+impl PartInput<'_> {
+    /// The part's sources and targets (`None`: the targets are the sources,
+    /// or the part has no targets of its own set).
+    fn points<'b, U: Copy>(
+        &self,
+        src: &'b [U],
+        tgt: Option<&'b [U]>,
+    ) -> (Cow<'b, [U]>, Option<Cow<'b, [U]>>) {
+        match self.ids {
+            None => (Cow::Borrowed(src), tgt.map(Cow::Borrowed)),
+            Some(c) => (
+                Cow::Owned(gather(src, &c.sources)),
+                tgt.map(|t| Cow::Owned(gather(t, &c.targets))),
+            ),
+        }
+    }
+}
+
+/// A cluster with a tree: the tree on its points, the operators for it, the
+/// points in tree order relative to the tree's coordinate origin.
+pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
+    b: &FmmBuilder<'_, T, K>,
+    params: &OperatorParams,
+    config: &S::Config,
+    input: &PartInput<'_>,
+    setup: &mut SetupTimings,
+) -> Result<TreePart<T, S>, FmmError> {
+    let t0 = Instant::now();
+    let (src64, tgt64) = input.points(input.src64, input.tgt64);
+    let has_sources = !src64.is_empty();
+    let has_targets = tgt64.as_ref().is_none_or(|t| !t.is_empty());
+    // A one-sided cluster builds its tree on the side it has.
+    let (tree_src64, tree_tgt64) = match (has_sources, has_targets) {
+        (true, true) => (&src64, tgt64.as_ref()),
+        (true, false) => (&src64, None),
+        _ => (tgt64.as_ref().expect("targets"), None),
+    };
+    let options = TreeOptions {
+        leaf_size: b.leaf_size,
+        max_level: b.max_level,
+        domain: b.domain,
+        uniform_depth: None,
+        balance: true,
+    };
+    let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
+    setup.tree += t0.elapsed();
+    check_domain_width(tree.domain().width, T::PRECISION, tree.depth())?;
+    let mut timings = SetupTimings::default();
+    let coupled = input.ids.is_some();
+    let (operators, m2l) =
+        build_operators(&b.kernel, params, config, &tree, coupled, &mut timings)?;
+    setup.operators += timings.operators;
+    setup.m2l_precompute += timings.m2l_precompute;
+
+    let t = Instant::now();
+    let part = TreePart::assemble(
+        tree,
+        (operators, m2l),
+        tree_src64,
+        tree_tgt64.map(|t| &t[..]),
+        true,
+        (has_sources, has_targets),
+    )?;
+    setup.layout += t.elapsed();
+    Ok(part)
+}
+
+/// A small cluster: its points relative to the origin of its bounding cube.
+pub(crate) fn points_part<T: Real>(input: &PartInput<'_>) -> PointsPart<T> {
+    let (src64, tgt64) = input.points(input.src64, input.tgt64);
+    let sets: Vec<&[f64]> = [Some(&src64[..]), tgt64.as_deref()]
+        .into_iter()
+        .flatten()
+        .collect();
+    let centre = Domain::from_points(&sets).map_or([0.0; 3], |d| coordinate_origin(&d));
+    let targets = tgt64.map(|t| permute_points(&t, None, centre));
+    PointsPart {
+        sources: permute_points(&src64, None, centre),
+        targets,
+        centre,
     }
 }

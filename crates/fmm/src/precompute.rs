@@ -1,14 +1,23 @@
-//! Before the M2L precomputation: which operators the tree needs
-//! ([`m2l_usage`]) and whether their predicted memory fits
-//! ([`check_memory`]).
+//! The operators of a tree, before the passes run: which M2L operators
+//! the tree needs ([`m2l_usage`], from [`first_far_level`] down), whether
+//! their predicted memory fits ([`check_memory`]), their precomputation
+//! (`build_operators`, `operators_for`: the check-to-equivalent and
+//! parent/child operators and the M2L scheme) and each level's V-list
+//! pairs grouped for M2L (`level_interactions`). [`crate::Fmm`] and
+//! [`crate::TreeFmm`] both build their trees' operators here.
+
+use std::time::Instant;
 
 use ferrofmm_field::{
-    M2lScheme, M2lUsage, OperatorParams, PrecomputeEstimate, transfer_vector_index,
+    AMPLIFICATION_WARNING, FieldError, M2lInteractions, M2lScheme, M2lUsage, OperatorParams,
+    Operators, PrecomputeEstimate, transfer_vector_index,
 };
 use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::Octree;
 
 use crate::FmmError;
+use crate::timings::SetupTimings;
+use crate::validate::check_wavenumber;
 
 /// The transfer vectors each level's V lists use (none when the tree has
 /// no V list, e.g. a single leaf level at depth 0 or 1): what the M2L
@@ -87,4 +96,101 @@ pub(crate) fn human_bytes(bytes: &u64) -> String {
     } else {
         format!("{:.1} MiB", b / (1u64 << 20) as f64)
     }
+}
+
+/// The check-to-equivalent and parent/child operators and the M2L scheme
+/// for `params` on `tree` (their times written into `setup`). `coupled`:
+/// the tree's root expansions couple it to other parts (far clusters), so
+/// every level needs its operators; otherwise only the levels from the
+/// first with far-field work down ([`first_far_level`]).
+pub(crate) fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
+    kernel: &K,
+    params: &OperatorParams,
+    config: &S::Config,
+    tree: &Octree,
+    coupled: bool,
+    setup: &mut SetupTimings,
+) -> Result<(Operators<T>, S), FmmError> {
+    // Only what the tree needs, and only when it fits (issue 18).
+    let t = Instant::now();
+    let usage = m2l_usage(tree);
+    let first_level = if coupled { 0 } else { first_far_level(tree) };
+    let usage_time = t.elapsed();
+    let built = operators_for(
+        kernel,
+        params,
+        config,
+        tree.domain().width,
+        tree.depth(),
+        first_level,
+        &usage,
+        setup,
+    );
+    // Finding the used transfer vectors counts as operator setup, as it did
+    // before `operators_for` was split out.
+    setup.operators += usage_time;
+    built
+}
+
+/// [`build_operators`] for a domain `width`, levels `first_level..=depth`
+/// (see [`Operators::from_level`]) and the transfer vectors `usage` (which
+/// may come from more than one tree).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn operators_for<T: Real, K: Kernel, S: M2lScheme<T>>(
+    kernel: &K,
+    params: &OperatorParams,
+    config: &S::Config,
+    width: f64,
+    depth: u32,
+    first_level: u32,
+    usage: &M2lUsage,
+    setup: &mut SetupTimings,
+) -> Result<(Operators<T>, S), FmmError> {
+    check_wavenumber(kernel, width)?;
+    let t = Instant::now();
+    check_memory::<T, K, S>(kernel, params, config, depth, usage)?;
+    let operators = Operators::<T>::from_level(kernel, params, width, depth, first_level)?;
+    let diagnostics = operators.diagnostics();
+    if diagnostics.rounding_amplification > AMPLIFICATION_WARNING {
+        return Err(FmmError::IllConditioned {
+            order: params.order,
+            rcond: diagnostics.rcond,
+            amplification: diagnostics.rounding_amplification,
+            limit: AMPLIFICATION_WARNING,
+            precision: T::PRECISION.name(),
+        });
+    }
+    setup.operators = t.elapsed();
+    let t = Instant::now();
+    let m2l = S::precompute_for(kernel, params, config, width, depth, usage)?;
+    setup.m2l_precompute = t.elapsed();
+    Ok((operators, m2l))
+}
+
+/// The V-list pairs of a level (`(target column, source column, transfer
+/// vector)`, columns counted from the level's first box), grouped for M2L.
+pub(crate) fn level_interactions(tree: &Octree, level: u32) -> Result<M2lInteractions, FieldError> {
+    let range = tree.level_range(level);
+    let start = range.start;
+    let chunk = M2lInteractions::default_chunk_size(range.len());
+    let inter = M2lInteractions::from_targets(range.len(), range.len(), chunk, |t| {
+        let key = tree.key(start + t);
+        tree.v_list(start + t)
+            .iter()
+            .map(move |&a| (a - start, key.transfer_vector(tree.key(a))))
+    })?;
+    if level == 0 {
+        return Ok(inter);
+    }
+    // Sibling slot of each box: 8 (parent's index on its level) + octant
+    // (increasing with the Morton order), so that schemes that treat
+    // siblings together find them although empty boxes are left out.
+    let parents = tree.level_range(level - 1).start;
+    let slots: Vec<u32> = range
+        .map(|b| {
+            let parent = tree.parent(b).expect("a box below the root has a parent");
+            (8 * (parent - parents) + tree.key(b).octant()) as u32
+        })
+        .collect();
+    inter.with_sibling_slots(slots.clone(), slots)
 }

@@ -28,15 +28,16 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use ferrofmm_field::{M2lScheme, M2lUsage, MAX_ORDER, MIN_ORDER, OperatorParams};
+use ferrofmm_field::{M2lScheme, M2lUsage, OperatorParams};
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use ferrofmm_tree::Octree;
 
 use crate::FmmError;
-use crate::fmm::{check_domain_width, coordinate_origin, level_interactions, operators_for};
 use crate::part::TreePart;
 use crate::passes::{self, Ctx};
+use crate::precompute::operators_for;
 use crate::timings::{EvalTimings, SetupTimings};
+use crate::validate::{check_domain_width, check_order, check_tree_points};
 
 /// A tree and its points for [`TreeFmm::new`].
 pub struct LocalTree<'a> {
@@ -94,26 +95,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
         local: LocalTree<'_>,
     ) -> Result<Self, FmmError> {
         let t0 = Instant::now();
-        if !(MIN_ORDER..=MAX_ORDER).contains(&params.order) {
-            return Err(FmmError::InvalidOrder {
-                order: params.order,
-                min: MIN_ORDER,
-                max: MAX_ORDER,
-            });
-        }
+        check_order(params.order)?;
         let tree = local.tree;
         let depth = local.depth.max(tree.depth());
-        let reach = |len: usize, r: &dyn Fn(usize) -> Range<usize>| {
-            (0..tree.n_boxes()).all(|b| r(b).end <= len / 3) && len.is_multiple_of(3)
-        };
         let targets_len = local.targets.map_or(local.sources.len(), <[f64]>::len);
-        if !reach(local.sources.len(), &|b| tree.source_range(b))
-            || !reach(targets_len, &|b| tree.target_range(b))
-        {
-            return Err(FmmError::InvalidParameter(
-                "TreeFmm: point arrays shorter than the tree's ranges".into(),
-            ));
-        }
+        check_tree_points(&tree, local.sources.len(), targets_len)?;
         let width = tree.domain().width;
         check_domain_width(width, T::PRECISION, depth)?;
         let mut setup = SetupTimings::default();
@@ -130,17 +116,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             &mut setup,
         )?;
         let t = Instant::now();
-        let m2l_interactions = (0..=tree.depth())
-            .map(|level| level_interactions(&tree, level))
-            .collect::<Result<_, _>>()?;
-        let centre = coordinate_origin(tree.domain());
-        let relative = |p: &[f64]| -> Vec<T> {
-            p.chunks_exact(3)
-                .flat_map(|x| std::array::from_fn::<T, 3, _>(|c| T::from_f64(x[c] - centre[c])))
-                .collect()
-        };
-        let sources = relative(local.sources);
-        let targets = local.targets.map(relative);
+        let part = TreePart::assemble(
+            tree,
+            (operators, m2l),
+            local.sources,
+            local.targets,
+            false,
+            (true, true),
+        )?;
         let unit_surface = ferrofmm_field::surface_points::<f64>(params.order, [0.0; 3], 1.0, 1.0);
         setup.layout = t.elapsed();
         setup.total = t0.elapsed();
@@ -149,18 +132,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             mode,
             kind: SourceKind::Charge,
             unit_surface,
-            part: TreePart {
-                tree,
-                operators,
-                m2l,
-                m2l_interactions,
-                sources,
-                targets,
-                centre,
-                has_sources: true,
-                has_targets: true,
-                active: None,
-            },
+            part,
             setup,
         })
     }

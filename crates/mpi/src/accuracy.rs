@@ -90,6 +90,28 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
     shape: Option<M2lCostShape>,
     svd_cached: bool,
 ) -> Result<DistChoice, DistError> {
+    // The single-machine chooser on the gathered sample (rank 0).
+    let choose_on = |sample: &[f64]| -> Result<(M2lCostShape, ChosenParameters), String> {
+        ferrofmm_fmm::tuning::validate_tolerance(eps, precision).map_err(|e| e.to_string())?;
+        let occupancy =
+            Occupancy::new(sample, None, None, DEEPEST_LEVEL).map_err(|e| e.to_string())?;
+        let width = occupancy_width(sample);
+        let shape = match shape {
+            None if kernel.components() > 1 => Some(M2lCostShape::Fft),
+            s => s,
+        };
+        let tuner = Tuner::from_model(
+            default_model(kernel, width),
+            precision,
+            mode,
+            shape.unwrap_or(M2lCostShape::Compressed),
+        );
+        match shape {
+            Some(s) => tuner.choose_with(eps, &occupancy).map(|c| (s, c)),
+            None => tuner.choose_scheme_with(eps, &occupancy, svd_cached),
+        }
+        .map_err(|e| e.to_string())
+    };
     let n_local = (points.len() / 3) as u64;
     let mut n_total = 0u64;
     comm.all_reduce_into(&n_local, &mut n_total, SystemOperation::sum());
@@ -111,9 +133,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
         let mut sample = vec![0.0f64; sizes.iter().sum()];
         let mut part = PartitionMut::new(&mut sample[..], c, displs);
         root.gather_varcount_into_root(&mine[..], &mut part);
-        Some(choose_on(
-            &sample, kernel, eps, precision, mode, shape, svd_cached,
-        ))
+        Some(choose_on(&sample))
     } else {
         root.gather_varcount_into(&mine[..]);
         None
@@ -148,36 +168,6 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
         sample,
         chosen: chosen.map(|(_, c)| c),
     })
-}
-
-/// The single-machine chooser on the gathered sample (rank 0).
-fn choose_on<K: Kernel>(
-    sample: &[f64],
-    kernel: &K,
-    eps: f64,
-    precision: Precision,
-    mode: EvalMode,
-    shape: Option<M2lCostShape>,
-    svd_cached: bool,
-) -> Result<(M2lCostShape, ChosenParameters), String> {
-    ferrofmm_fmm::tuning::validate_tolerance(eps, precision).map_err(|e| e.to_string())?;
-    let occupancy = Occupancy::new(sample, None, None, DEEPEST_LEVEL).map_err(|e| e.to_string())?;
-    let width = occupancy_width(sample);
-    let shape = match shape {
-        None if kernel.components() > 1 => Some(M2lCostShape::Fft),
-        s => s,
-    };
-    let tuner = Tuner::from_model(
-        default_model(kernel, width),
-        precision,
-        mode,
-        shape.unwrap_or(M2lCostShape::Compressed),
-    );
-    match shape {
-        Some(s) => tuner.choose_with(eps, &occupancy).map(|c| (s, c)),
-        None => tuner.choose_scheme_with(eps, &occupancy, svd_cached),
-    }
-    .map_err(|e| e.to_string())
 }
 
 /// Width of the bounding cube of `points` (the wavenumber models use

@@ -329,33 +329,27 @@ pub fn run_bad(world: &SimpleCommunicator, a: &BadArgs) -> i32 {
     let last = me + 1 == size;
     let mut points = Geometry::Cube.points::<f64>(1000, 3 + me as u64);
     let mut leaf = 16;
+    // Every case but `empty` is the last rank's input, reported by all.
+    let last_rank = |problem| DistError::BadInput {
+        rank: size as i32 - 1,
+        problem,
+    };
     let expected = match a.case.as_str() {
-        "nan" => {
+        "nan" | "infinite" => {
             if last {
-                points[7] = f64::NAN;
+                let (i, x) = match a.case.as_str() {
+                    "nan" => (7, f64::NAN),
+                    _ => (5, f64::INFINITY),
+                };
+                points[i] = x;
             }
-            DistError::BadInput {
-                rank: size as i32 - 1,
-                problem: InputProblem::NonFinite,
-            }
-        }
-        "infinite" => {
-            if last {
-                points[5] = f64::INFINITY;
-            }
-            DistError::BadInput {
-                rank: size as i32 - 1,
-                problem: InputProblem::NonFinite,
-            }
+            last_rank(InputProblem::NonFinite)
         }
         "length" => {
             if last {
                 points.pop();
             }
-            DistError::BadInput {
-                rank: size as i32 - 1,
-                problem: InputProblem::BadLength,
-            }
+            last_rank(InputProblem::BadLength)
         }
         "empty" => {
             points.clear();
@@ -365,29 +359,20 @@ pub fn run_bad(world: &SimpleCommunicator, a: &BadArgs) -> i32 {
             if last {
                 leaf = 0;
             }
-            DistError::BadInput {
-                rank: size as i32 - 1,
-                problem: InputProblem::ZeroLeafSize,
-            }
+            last_rank(InputProblem::ZeroLeafSize)
         }
         "options" => {
             if last && size > 1 {
                 leaf = 17;
             }
             if size > 1 {
-                DistError::BadInput {
-                    rank: size as i32 - 1,
-                    problem: InputProblem::MismatchedOptions,
-                }
+                last_rank(InputProblem::MismatchedOptions)
             } else {
                 println!("ERROR AGREED (nothing to mismatch on one rank)");
                 return 0;
             }
         }
-        "weights" => DistError::BadInput {
-            rank: size as i32 - 1,
-            problem: InputProblem::BadWeights,
-        },
+        "weights" => last_rank(InputProblem::BadWeights),
         other => {
             eprintln!("unknown case {other}");
             return 2;

@@ -300,7 +300,7 @@ struct WithKernel<'a> {
 
 /// What the parameters were: given, or chosen for a tolerance.
 #[derive(Clone)]
-pub(crate) struct Plan {
+struct Plan {
     pub(crate) order: usize,
     pub(crate) leaf_size: usize,
     pub(crate) scheme: &'static str,
@@ -603,14 +603,23 @@ impl<K: Kernel> Run<'_, K> {
             world.all_gather_into(&mine[..], &mut all[..]);
             if me == 0 {
                 let info = RunInfo {
+                    json: a.json,
                     kernel: a.kernel.clone(),
-                    plan: &plan,
+                    precision: &a.precision,
+                    gradients: a.gradients,
+                    input: a.generate.as_deref(),
+                    tolerance: a.tolerance,
+                    order: plan.order,
+                    leaf_size: plan.leaf_size,
+                    scheme: plan.scheme,
+                    svd_tolerance: plan.svd_tolerance,
+                    choice: plan.choice.as_ref(),
                     attempts: &attempts,
                     samples,
                     read_s,
                     threads,
                 };
-                report(a, &info, &all, size);
+                report(&info, &all, size);
             }
             return Ok(());
         }

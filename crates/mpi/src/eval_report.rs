@@ -3,9 +3,7 @@
 
 use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
-use ferrofmm_mpi::{DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, PHASES};
-
-use crate::eval::{EvalArgs, Plan};
+use ferrofmm_mpi::{DistChoice, DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, PHASES};
 
 /// One evaluation of a run: its order and, when checked, the relative L2
 /// errors `[potential, gradient]` against direct summation.
@@ -14,10 +12,26 @@ pub(crate) struct Attempt {
     pub(crate) errors: Option<[f64; 2]>,
 }
 
-/// What rank 0 reports besides the per-rank figures.
+/// What rank 0 reports besides the per-rank figures: the run's settings
+/// and parameters (given or chosen for a tolerance) and its outcome. The
+/// `eval` command fills it in; the report reads nothing else.
 pub(crate) struct RunInfo<'a> {
+    /// One JSON object instead of the table.
+    pub(crate) json: bool,
     pub(crate) kernel: String,
-    pub(crate) plan: &'a Plan,
+    /// Float type (`f32` or `f64`).
+    pub(crate) precision: &'a str,
+    pub(crate) gradients: bool,
+    /// The generated geometry, or `None` for points from files.
+    pub(crate) input: Option<&'a str>,
+    /// The tolerance asked for, if any.
+    pub(crate) tolerance: Option<f64>,
+    pub(crate) order: usize,
+    pub(crate) leaf_size: usize,
+    pub(crate) scheme: &'static str,
+    pub(crate) svd_tolerance: Option<f64>,
+    /// The parameters chosen for the tolerance.
+    pub(crate) choice: Option<&'a DistChoice>,
     pub(crate) attempts: &'a [Attempt],
     pub(crate) samples: usize,
     pub(crate) read_s: f64,
@@ -67,10 +81,10 @@ fn imbalance(rows: &[&[f64]], f: impl Fn(&[f64]) -> f64) -> f64 {
     if mean > 0.0 { max / mean } else { 1.0 }
 }
 
-pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize) {
-    let plan = info.plan;
+/// Prints the report of a run on rank 0: the table, or one JSON object.
+pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
     let errors = info.attempts.last().and_then(|t| t.errors);
-    let tolerance_met = a
+    let tolerance_met = info
         .tolerance
         .zip(errors)
         .map(|(eps, e)| e[0].max(e[1]) <= eps);
@@ -112,22 +126,22 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
             })
         })
         .collect();
-    if a.json {
+    if info.json {
         let j = serde_json::json!({
             "command": "eval",
             "ranks": size,
             "n": rows.iter().map(|r| r[0]).sum::<f64>(),
             "kernel": info.kernel,
-            "order": plan.order,
-            "leaf_size": plan.leaf_size,
-            "scheme": plan.scheme,
-            "svd_tolerance": plan.svd_tolerance,
-            "precision": a.precision,
-            "gradients": a.gradients,
-            "input": a.generate.clone().unwrap_or_else(|| "files".into()),
+            "order": info.order,
+            "leaf_size": info.leaf_size,
+            "scheme": info.scheme,
+            "svd_tolerance": info.svd_tolerance,
+            "precision": info.precision,
+            "gradients": info.gradients,
+            "input": info.input.unwrap_or("files"),
             "threads_per_rank": info.threads,
-            "tolerance": a.tolerance,
-            "chosen": plan.choice.as_ref().map(|c| serde_json::json!({
+            "tolerance": info.tolerance,
+            "chosen": info.choice.map(|c| serde_json::json!({
                 "order": c.order,
                 "leaf_size": c.leaf_size,
                 "svd_tolerance": c.svd_tolerance,
@@ -138,7 +152,7 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
             "attempts": info.attempts.iter().map(|t| serde_json::json!({
                 "order": t.order,
                 "potential_error": t.errors.map(|e| e[0]),
-                "gradient_error": t.errors.filter(|_| a.gradients).map(|e| e[1]),
+                "gradient_error": t.errors.filter(|_| info.gradients).map(|e| e[1]),
             })).collect::<Vec<_>>(),
             "tolerance_met": tolerance_met,
             "read_seconds": info.read_s,
@@ -150,7 +164,7 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
             "check": errors.map(|e| serde_json::json!({
                 "samples": info.samples,
                 "potential_error": e[0],
-                "gradient_error": if a.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
+                "gradient_error": if info.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
             })),
             "per_rank": per_rank,
         });
@@ -159,9 +173,9 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
     }
     println!(
         "{size} ranks x {} threads, {}, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
-        info.threads, info.kernel, plan.order, plan.leaf_size, plan.scheme
+        info.threads, info.kernel, info.order, info.leaf_size, info.scheme
     );
-    if let (Some(eps), Some(c)) = (a.tolerance, &plan.choice) {
+    if let (Some(eps), Some(c)) = (info.tolerance, info.choice) {
         println!(
             "tolerance {eps:e}: chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",
             c.order,
@@ -180,7 +194,7 @@ pub(crate) fn report(a: &EvalArgs, info: &RunInfo<'_>, all: &[f64], size: usize)
             "check against direct summation at {} points: potential error {:.3e}{}",
             info.samples,
             e[0],
-            if a.gradients {
+            if info.gradients {
                 format!(", gradient error {:.3e}", e[1])
             } else {
                 String::new()

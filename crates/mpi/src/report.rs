@@ -143,15 +143,19 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
     let imbalance = *counts.iter().max().unwrap() as f64 / (sum as f64 / size as f64);
     let s = &tree.stats;
     let leaves = tree.leaves().count();
+    let (boxes, coarse, ghosts) = (
+        tree.boxes.len(),
+        tree.coarse.len(),
+        tree.ghosts.ghosts.len(),
+    );
+    let (received, partners, rounds) = (
+        tree.ghosts.received,
+        tree.ghosts.partners.len(),
+        s.balance_rounds,
+    );
     let line = if a.json {
         format!(
-            "{{\"rank\":{me},\"ranks\":{size},\"n_total\":{sum},\"points\":{n},\"boxes\":{},\"leaves\":{leaves},\"coarse\":{},\"ghosts\":{},\"ghost_candidates\":{},\"partners\":{},\"balance_rounds\":{},\"imbalance\":{imbalance:.4},\"seconds\":{:?},\"bytes_sent\":{:?},\"total_seconds\":{total:.4}}}",
-            tree.boxes.len(),
-            tree.coarse.len(),
-            tree.ghosts.ghosts.len(),
-            tree.ghosts.received,
-            tree.ghosts.partners.len(),
-            s.balance_rounds,
+            "{{\"rank\":{me},\"ranks\":{size},\"n_total\":{sum},\"points\":{n},\"boxes\":{boxes},\"leaves\":{leaves},\"coarse\":{coarse},\"ghosts\":{ghosts},\"ghost_candidates\":{received},\"partners\":{partners},\"balance_rounds\":{rounds},\"imbalance\":{imbalance:.4},\"seconds\":{:?},\"bytes_sent\":{:?},\"total_seconds\":{total:.4}}}",
             s.seconds.map(|x| (x * 1e4).round() / 1e4),
             s.bytes_sent
         )
@@ -162,14 +166,8 @@ pub fn run(world: &SimpleCommunicator, a: &TreeArgs) -> i32 {
             .map(|(p, (t, b))| format!("{p} {t:.3}s {b}B"))
             .collect();
         format!(
-            "rank {me}/{size}: points {n} ({:.3} of mean), boxes {}, leaves {leaves}, coarse {}, ghosts {} (received {}, from {} ranks), balance rounds {}, bytes sent {}; {}",
+            "rank {me}/{size}: points {n} ({:.3} of mean), boxes {boxes}, leaves {leaves}, coarse {coarse}, ghosts {ghosts} (received {received}, from {partners} ranks), balance rounds {rounds}, bytes sent {}; {}",
             n as f64 / (sum as f64 / size as f64),
-            tree.boxes.len(),
-            tree.coarse.len(),
-            tree.ghosts.ghosts.len(),
-            tree.ghosts.received,
-            tree.ghosts.partners.len(),
-            s.balance_rounds,
             s.bytes_sent.iter().sum::<u64>(),
             phases.join(", ")
         )

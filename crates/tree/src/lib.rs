@@ -15,7 +15,10 @@
 //!   `leaf_size` points ([`TreeOptions`], [`options`]) or uniformly, then
 //!   2:1 balanced ([`balance`]). Only boxes holding points exist.
 //! * Interaction lists U, V, W, X ([`lists`]) in CSR form, each pruned to
-//!   boxes that actually exchange something.
+//!   boxes that actually exchange something; their rules over a box's
+//!   neighbourhood (offsets, which children of a neighbour are V-list
+//!   candidates or touch the box) in [`list_rules`], for code that counts
+//!   the lists without building them.
 //! * [`MortonCodes`] and [`TreeShape`] ([`shape`]): the boxes and point
 //!   counts of the adaptive, balanced tree for any leaf size, from sorted
 //!   Morton codes alone, with the builder's own refinement and balance
@@ -48,6 +51,7 @@ pub mod clusters;
 pub mod csr;
 pub mod domain;
 pub mod error;
+pub mod list_rules;
 pub mod lists;
 pub mod morton;
 mod neighbours;

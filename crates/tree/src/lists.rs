@@ -79,7 +79,8 @@
 
 use crate::MortonKey;
 use crate::csr::Csr;
-use crate::neighbours::{index_offset, level_coords};
+use crate::list_rules::{colleague_indices, index_offset, touching_children, v_children};
+use crate::neighbours::level_coords;
 use crate::octree::Octree;
 
 /// The U, V, W and X lists of a tree (see the [module documentation](self)).
@@ -201,7 +202,7 @@ fn cover(tree: &Octree, b: usize, i: usize) -> Cover {
 pub(crate) fn adjacent_leaves(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     let key = tree.key(b);
     let mut stack = Vec::new();
-    for i in (0..27).filter(|&i| i != 13) {
+    for i in colleague_indices() {
         match cover(tree, b, i) {
             Cover::Same(n) => stack.push(n),
             Cover::CoarseLeaf(m) => out.push(m),
@@ -241,50 +242,11 @@ fn u_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     sort_dedup_tail(out, start);
 }
 
-/// `V_MASK[o][ob]`: bit `oa` is set when child `oa` of the parent's
-/// colleague at table index `o` is *not* adjacent to child `ob` of the
-/// parent. Child coordinates differ by `2 * offset + bits(oa) - bits(ob)`
-/// per axis, and same-level boxes are adjacent when every difference is at
-/// most 1 in magnitude.
-static V_MASK: [[u8; 8]; 27] = v_mask();
-
-const fn v_mask() -> [[u8; 8]; 27] {
-    let mut table = [[0u8; 8]; 27];
-    let mut o = 0;
-    while o < 27 {
-        let off = [
-            (o % 3) as i32 - 1,
-            ((o / 3) % 3) as i32 - 1,
-            (o / 9) as i32 - 1,
-        ];
-        let mut ob: usize = 0;
-        while ob < 8 {
-            let mut oa: u32 = 0;
-            while oa < 8 {
-                let mut far = false;
-                let mut axis = 0;
-                while axis < 3 {
-                    let d = 2 * off[axis] + ((oa >> axis) & 1) as i32 - ((ob >> axis) & 1) as i32;
-                    far |= d > 1 || d < -1;
-                    axis += 1;
-                }
-                if far {
-                    table[o][ob] |= 1 << oa;
-                }
-                oa += 1;
-            }
-            ob += 1;
-        }
-        o += 1;
-    }
-    table
-}
-
 /// The existing colleagues of `parent` as (box, table index).
 fn parent_colleagues(tree: &Octree, parent: usize) -> ([(usize, usize); 26], usize) {
     let mut colleagues = [(usize::MAX, 0usize); 26];
     let mut n = 0;
-    for i in (0..27).filter(|&i| i != 13) {
+    for i in colleague_indices() {
         if let Some(c) = tree.colleague_at(parent, i) {
             colleagues[n] = (c, i);
             n += 1;
@@ -304,7 +266,7 @@ fn v_count(tree: &Octree, b: usize) -> usize {
     let (colleagues, n) = parent_colleagues(tree, parent);
     colleagues[..n]
         .iter()
-        .map(|&(c, i)| (V_MASK[i][ob] & tree.source_child_mask(c)).count_ones() as usize)
+        .map(|&(c, i)| (v_children(i, ob) & tree.source_child_mask(c)).count_ones() as usize)
         .sum()
 }
 
@@ -343,7 +305,7 @@ fn v_fill(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [usize]) {
     let ob = tree.key(b).octant();
     let mut k = 0;
     for &(c, i) in &scratch.colleagues[..scratch.n] {
-        let mut bits = V_MASK[i][ob] & tree.source_child_mask(c);
+        let mut bits = v_children(i, ob) & tree.source_child_mask(c);
         if bits == 0 {
             continue;
         }
@@ -366,9 +328,18 @@ fn w_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     let start = out.len();
     let key = tree.key(b);
     let mut stack = Vec::new();
-    for i in (0..27).filter(|&i| i != 13) {
+    for i in colleague_indices() {
         if let Some(c) = tree.colleague(b, index_offset(i)) {
-            stack.extend(tree.children(c));
+            // The children that touch `b` are walked further, the others
+            // are W entries.
+            let touching = touching_children(i);
+            for a in tree.children(c) {
+                if touching & (1 << tree.key(a).octant()) != 0 {
+                    stack.push(a);
+                } else if tree.has_sources(a) {
+                    out.push(a);
+                }
+            }
         }
         while let Some(a) = stack.pop() {
             if tree.key(a).is_adjacent(key) {
@@ -390,7 +361,7 @@ fn x_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     }
     let start = out.len();
     let key: MortonKey = tree.key(b);
-    for i in (0..27).filter(|&i| i != 13) {
+    for i in colleague_indices() {
         let a = match cover(tree, parent, i) {
             Cover::Same(n) if tree.is_leaf(n) => n,
             Cover::CoarseLeaf(m) => m,

@@ -1,7 +1,8 @@
 //! The colleague table: for every box, its existing same-level neighbours.
 //!
 //! Row `b` holds 27 entries, one per offset `o` in `{-1, 0, 1}^3`, at index
-//! `(o_x + 1) + 3 (o_y + 1) + 9 (o_z + 1)` (entry 13 is `b` itself): the index
+//! `(o_x + 1) + 3 (o_y + 1) + 9 (o_z + 1)` ([`offset_index`]; entry 13 is `b`
+//! itself): the index
 //! of the box of `b`'s level at that offset, or none if it is outside the
 //! domain or does not exist (holds no point).
 //!
@@ -14,28 +15,11 @@
 
 use rayon::prelude::*;
 
+use crate::list_rules::{NEIGHBOURHOOD, SELF_INDEX, index_offset, offset_index};
 use crate::morton::DEEPEST_LEVEL;
 use crate::octree::Octree;
 
 const NONE: u32 = u32::MAX;
-
-/// Index of `offset` (components in `-1..=1`) in a table row.
-///
-/// # Panics
-/// If a component is outside `-1..=1`.
-pub(crate) fn offset_index(offset: [i32; 3]) -> usize {
-    assert!(
-        offset.iter().all(|o| (-1..=1).contains(o)),
-        "colleague offset {offset:?} outside -1..=1"
-    );
-    ((offset[0] + 1) + 3 * (offset[1] + 1) + 9 * (offset[2] + 1)) as usize
-}
-
-/// Offset of table index `i` (inverse of [`offset_index`]).
-pub(crate) fn index_offset(i: usize) -> [i32; 3] {
-    let i = i as i32;
-    [i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1]
-}
 
 /// Integer coordinates of a box in units of its own width.
 pub(crate) fn level_coords(tree: &Octree, b: usize) -> [i64; 3] {
@@ -47,7 +31,7 @@ pub(crate) fn level_coords(tree: &Octree, b: usize) -> [i64; 3] {
 /// Existing same-level neighbours of every box.
 #[derive(Clone, Debug, Default)]
 pub(crate) struct ColleagueTable {
-    rows: Vec<[u32; 27]>,
+    rows: Vec<[u32; NEIGHBOURHOOD]>,
 }
 
 impl ColleagueTable {
@@ -55,12 +39,12 @@ impl ColleagueTable {
     pub(crate) fn build(tree: &Octree) -> Self {
         let n = tree.n_boxes();
         assert!(n < NONE as usize, "too many boxes for the colleague table");
-        let mut rows = vec![[NONE; 27]; n];
-        rows[0][13] = 0;
+        let mut rows = vec![[NONE; NEIGHBOURHOOD]; n];
+        rows[0][SELF_INDEX] = 0;
         for level in 1..=tree.depth() {
             let range = tree.level_range(level);
             let (done, rest) = rows.split_at_mut(range.start);
-            let done: &[[u32; 27]] = done;
+            let done: &[[u32; NEIGHBOURHOOD]] = done;
             let size = 1i64 << level;
             rest[..range.len()]
                 .par_iter_mut()

@@ -25,9 +25,10 @@ use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
 use crate::domain::{Domain, check_inside, validate_sets};
 use crate::error::TreeError;
+use crate::list_rules::offset_index;
 use crate::lists::InteractionLists;
 use crate::morton::MortonKey;
-use crate::neighbours::{ColleagueTable, offset_index};
+use crate::neighbours::ColleagueTable;
 use crate::options::TreeOptions;
 
 /// One point set in sorted order.

@@ -37,12 +37,18 @@ impl PrecisionArg {
     }
 }
 
-impl std::fmt::Display for PrecisionArg {
-    /// The name (width and alignment flags apply).
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.pad(self.name())
-    }
+/// `Display` as the argument's name (width and alignment flags apply).
+macro_rules! display_by_name {
+    ($($arg:ty),*) => {$(
+        impl std::fmt::Display for $arg {
+            fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+                f.pad(self.name())
+            }
+        }
+    )*};
 }
+
+display_by_name!(PrecisionArg);
 
 /// M2L translation scheme (in reports: `"svd"`, `"dense"`, `"fft"`): the
 /// library's [`SchemeChoice`](ferrofmm_fmm::SchemeChoice), whose `auto`
@@ -79,7 +85,7 @@ pub fn scheme_help() -> String {
     )
 }
 
-/// The kernel of `--kernel`: the kernels crate's [`KernelChoice`], whose
+/// The kernel of `--kernel`: the kernels crate's [`KernelChoice`](ferrofmm_kernels::KernelChoice), whose
 /// parse errors are bad input here (exit status 1).
 pub use ferrofmm_kernels::KernelChoice as KernelArg;
 

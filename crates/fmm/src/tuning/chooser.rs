@@ -1,10 +1,22 @@
 //! The chooser: the cheapest (order, leaf size, SVD tolerance) the error
 //! model admits.
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use std::sync::Arc;
+
+use ferrofmm_field::M2lCostShape;
+use ferrofmm_kernels::{EvalMode, Precision, Real};
+use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
+
+use super::cost::{CostModel, CostPrediction};
+use super::error_model::{
+    CHOICE_BUDGET, ErrorModel, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MIN_CHOICE_SECONDS,
+    REFINE_SHARE, SECONDS_PER_SIMULATED_BOX, STOP_FACTOR, estimated_svd_rank, f32_reaches,
+};
+use super::model::{LaplaceModel, TuningModel};
+use super::occupancy::Occupancy;
+use super::work::WorkCounts;
+use crate::FmmError;
+use crate::validate::{check_domain_width, check_sources_and_targets, validate_tolerance};
 
 /// The parameters chosen for a tolerance, and what the models predict for
 /// them. Reported by [`Fmm::chosen_parameters`](crate::Fmm::chosen_parameters)
@@ -350,7 +362,7 @@ impl Tuner {
     ) -> Result<ChosenParameters, FmmError> {
         // A domain the float type cannot resolve has no order: say so
         // (the build's message), not "no order reaches eps".
-        crate::fmm::check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
+        check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
         let candidates = self.candidates(eps, occupancy)?;
         let Some(p_min) = candidates.iter().map(|c| c.order).min() else {
             // No leaf size works: report the limit at the finest resolution
@@ -398,7 +410,7 @@ impl Tuner {
     /// the FFT scheme, and the smaller predicted time of the tree, one
     /// evaluation and the M2L precomputation wins. The SVD scheme's
     /// precomputation (its truncated SVDs: 0.3 s at `p = 6`, 1.4 s at `p =
-    /// 8`, 5 s at `p = 10` on 2 cores, from [`SvdM2l`]'s
+    /// 8`, 5 s at `p = 10` on 2 cores, from [`SvdM2l`](ferrofmm_field::SvdM2l)'s
     /// [`estimate`](ferrofmm_field::M2lScheme::estimate)) counts unless
     /// `svd_cached` (its operators come from the cache); the FFT scheme's
     /// (316 kernel FFTs, milliseconds) is left out.
@@ -469,7 +481,7 @@ pub fn choose_parameters<T: Real>(
     targets: Option<&[T]>,
 ) -> Result<ChosenParameters, FmmError> {
     validate_tolerance(eps, T::PRECISION)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
+    check_sources_and_targets(sources, targets)?;
     let up = |p: &[T]| p.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
     let src = up(sources);
     let tgt = targets.map(up);
@@ -521,10 +533,64 @@ pub fn choose_scheme(
     targets: Option<&[f64]>,
     svd_cached: bool,
 ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
-    validate_tolerance(eps, precision)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
-    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
+    let occupancy = checked_occupancy(eps, precision, sources, targets)?;
     Tuner::new(precision)
         .for_mode(mode)
         .choose_scheme_with(eps, &occupancy, svd_cached)
+}
+
+/// The float type to use for `eps` on these points (`--precision auto`):
+/// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
+/// about twice as fast), else `f64` when that reaches it, else the `f64`
+/// error ([`FmmError::ToleranceBeyondPrecision`] or
+/// [`FmmError::InvalidTolerance`]).
+///
+/// ```
+/// use ferrofmm_fmm::Geometry;
+/// use ferrofmm_fmm::tuning::choose_precision;
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let pot = EvalMode::Potential;
+/// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
+/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
+/// // f32 gradients level off near 5e-6.
+/// let both = EvalMode::PotentialGradient;
+/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
+/// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
+/// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
+/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
+/// ```
+pub fn choose_precision(
+    eps: f64,
+    mode: EvalMode,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Precision, FmmError> {
+    let occupancy = checked_occupancy(eps, Precision::F64, sources, targets)?;
+    if f32_reaches(eps)
+        && Tuner::new(Precision::F32)
+            .for_mode(mode)
+            .choose_with(eps, &occupancy)
+            .is_ok()
+    {
+        return Ok(Precision::F32);
+    }
+    Tuner::new(Precision::F64)
+        .for_mode(mode)
+        .choose_with(eps, &occupancy)
+        .map(|_| Precision::F64)
+}
+
+/// The occupancy of checked inputs: `eps` for `precision`
+/// ([`validate_tolerance`]) and the points ([`check_sources_and_targets`]),
+/// in their bounding cube.
+fn checked_occupancy(
+    eps: f64,
+    precision: Precision,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Occupancy, FmmError> {
+    validate_tolerance(eps, precision)?;
+    check_sources_and_targets(sources, targets)?;
+    Occupancy::new(sources, targets, None, DEEPEST_LEVEL)
 }

@@ -1,10 +1,11 @@
 //! The cost model: predicted seconds from work counts, and its least-
 //! squares fit.
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_field::{M2lCostShape, fft_frequencies, n_surface_points};
+use ferrofmm_kernels::EvalMode;
+
+use super::work::WorkCounts;
+use crate::EvalTimings;
 
 /// Seconds per unit of work, one coefficient per kind of work, fitted on a
 /// 2-core AMD EPYC Zen 4 with AVX-512 and 2 rayon threads
@@ -133,10 +134,16 @@ impl CostModel {
             EvalMode::PotentialGradientHessian => HESSIAN_COST_FACTOR,
         };
         let half = 0.5 * (1.0 + factor);
+        self.kernel_work_scaled(factor, half)
+    }
+
+    /// The model with the P2P pairs `pair` times and the point-surface
+    /// work (surface and far points) `points` times as costly.
+    fn kernel_work_scaled(self, pair: f64, points: f64) -> Self {
         CostModel {
-            p2p_pair: self.p2p_pair * factor,
-            surface_point: self.surface_point * half,
-            far_point: self.far_point * half,
+            p2p_pair: self.p2p_pair * pair,
+            surface_point: self.surface_point * points,
+            far_point: self.far_point * points,
             ..self
         }
     }
@@ -154,12 +161,7 @@ impl CostModel {
     /// assert_eq!(m.m2l_flop, CostModel::default().m2l_flop);
     /// ```
     pub fn scaled_kernel(self, factor: f64) -> Self {
-        CostModel {
-            p2p_pair: self.p2p_pair * factor,
-            surface_point: self.surface_point * factor,
-            far_point: self.far_point * factor,
-            ..self
-        }
+        self.kernel_work_scaled(factor, factor)
     }
 }
 
@@ -433,4 +435,110 @@ pub(super) fn least_squares(rows: &[(Vec<f64>, f64)], idx: &[usize]) -> Option<V
         }
     }
     Some(c.iter().zip(&scale).map(|(c, s)| c / s).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Geometry;
+    use crate::tuning::{Occupancy, estimated_svd_rank};
+    use ferrofmm_tree::DEEPEST_LEVEL;
+
+    #[test]
+    fn fit_recovers_known_coefficients() {
+        let truth = CostModel {
+            p2p_pair: 1e-9,
+            p2p_entry: 3e-8,
+            surface_point: 2e-9,
+            far_point: 1.5e-9,
+            dense: 3e-11,
+            box_surface: 4e-8,
+            m2l_flop: 5e-11,
+            m2l_pair: 6e-10,
+            m2l_box: 7e-11,
+            tree_point: 1e-7,
+            tree_box: 2e-6,
+            tree_pair: 5e-8,
+            fft_pair: 2e-10,
+            fft_box: 3e-9,
+        };
+        let mut samples = Vec::new();
+        for (g, n) in [(Geometry::Cube, 6000), (Geometry::Plummer, 9000)] {
+            let pts: Vec<f64> = g.points(n, 1);
+            let occ = Occupancy::new(&pts, None, None, DEEPEST_LEVEL).unwrap();
+            for (p, leaf, tau) in [
+                (3, 16, 1e-3),
+                (4, 64, 1e-5),
+                (6, 32, 1e-6),
+                (8, 256, 1e-8),
+                (5, 128, 1e-4),
+                (7, 24, 1e-7),
+                (9, 48, 1e-9),
+            ] {
+                let w = occ.work(leaf);
+                let k = estimated_svd_rank(p, tau);
+                for shape in [M2lCostShape::Compressed, M2lCostShape::Fft] {
+                    let f = features_for(shape, &w, p, k);
+                    let (gp, gf, gm, gt) = truth.groups();
+                    let d = std::time::Duration::from_secs_f64;
+                    let far = dot(&gf, &f.far);
+                    let m2l = dot(&gm, &f.m2l) + dot(&[truth.fft_pair, truth.fft_box], &f.fft);
+                    let eval = EvalTimings {
+                        p2p: d(dot(&gp, &f.p2p)),
+                        p2m: d(0.3 * far),
+                        l2p: d(0.3 * far),
+                        m2m: d(0.1 * far),
+                        l2l: d(0.3 * far),
+                        m2l: d(m2l),
+                        ..Default::default()
+                    };
+                    samples.push(CostSample {
+                        work: w,
+                        order: p,
+                        rank: k,
+                        shape,
+                        eval,
+                        tree_seconds: dot(&gt, &f.tree),
+                    });
+                }
+            }
+        }
+        let fit = CostModel::fit(&samples);
+        let (a, b) = (fit.groups(), truth.groups());
+        let close = |x: &[f64], y: &[f64]| x.iter().zip(y).all(|(u, v)| (u / v - 1.0).abs() < 1e-4);
+        assert!(close(&a.0, &b.0), "{fit:?}");
+        assert!(close(&a.1, &b.1), "{fit:?}");
+        assert!(close(&a.2, &b.2), "{fit:?}");
+        assert!(close(&a.3, &b.3), "{fit:?}");
+        assert!(
+            close(
+                &[fit.fft_pair, fit.fft_box],
+                &[truth.fft_pair, truth.fft_box]
+            ),
+            "{fit:?}"
+        );
+        // Predictions of the fitted model reproduce the samples.
+        for s in &samples {
+            let t = fit.predict_for(s.shape, &s.work, s.order, s.rank);
+            let measured =
+                s.eval.p2p + s.eval.p2m + s.eval.l2p + s.eval.m2m + s.eval.l2l + s.eval.m2l;
+            let measured = measured.as_secs_f64() + s.tree_seconds;
+            assert!((t.total / measured - 1.0).abs() < 1e-4);
+        }
+    }
+
+    #[test]
+    fn non_negative_fit_drops_harmful_features() {
+        // y = 2 x0 exactly; x1 anti-correlated noise would get a negative
+        // coefficient in plain least squares.
+        let rows: Vec<(Vec<f64>, f64)> = (1..20)
+            .map(|i| {
+                let x0 = i as f64;
+                let x1 = if i % 2 == 0 { 1.0 } else { 0.5 };
+                (vec![x0, x1], 2.0 * x0 - 0.01 * x1)
+            })
+            .collect();
+        let c = fit_nonnegative(&rows).unwrap();
+        assert!(c[1] == 0.0 && (c[0] / 2.0 - 1.0).abs() < 0.01, "{c:?}");
+    }
 }

@@ -1,10 +1,8 @@
 //! The error model: measured errors per order, SVD and rounding terms, the
 //! f32/f64 limits.
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_field::{default_svd_tolerance, n_surface_points};
+use ferrofmm_kernels::{EvalMode, Precision};
 
 /// Safety factor `S` between the measured worst error of an order and the
 /// tolerance it is used for. The table is already the worst of 42 settings
@@ -23,7 +21,7 @@ pub const F32_ERROR_FLOOR: f64 = 2.5e-6;
 /// positive charges, orders 7 to 10: 2.9e-6 to 5.4e-6).
 pub const F32_GRADIENT_FLOOR: f64 = 6e-6;
 
-/// Rounding error per unit roundoff and unit of [`WorkCounts::rounding_ratio`]
+/// Rounding error per unit roundoff and unit of [`WorkCounts::rounding_ratio`](super::WorkCounts::rounding_ratio)
 /// (measured: `f32` on two clusters, ratios 0.7e5 to 4.5e5, errors 1.3e-4 to
 /// 9e-4, i.e. 0.02 to 0.06 `u ratio`).
 pub const ROUNDING_FACTOR: f64 = 0.1;
@@ -125,7 +123,7 @@ pub(super) const F64_GRADIENT_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 
 /// 2.14 measured (Laplace and modified Helmholtz, f64, SVD M2L, cube and
 /// Plummer, zero-mean and positive charges, orders 4..10, N = 2e4,
 /// `examples/sources_sweep.rs`; zero-mean charges 0.1..0.7). The table of
-/// [`F64_GRADIENT_ERRORS`] is scaled by it for
+/// `F64_GRADIENT_ERRORS` is scaled by it for
 /// `EvalMode::PotentialGradientHessian`.
 pub const HESSIAN_ERROR_FACTOR: f64 = 2.5;
 
@@ -139,7 +137,7 @@ pub(super) const SVD_RANKS: [f64; 10] = [
 /// The error model: predicted relative L2 error from the order, the SVD
 /// tolerance, the float type and how finely the tree resolves the
 /// coordinates (see the [module docs](crate::tuning)), for the potential or, with
-/// [`ErrorModel::for_mode`], for everything an evaluation mode computes.
+/// [`ErrorModel::laplace_for`], for everything an evaluation mode computes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ErrorModel {
     /// Float type the model is for.
@@ -252,7 +250,7 @@ impl ErrorModel {
 
     /// Error from rounding, for a tree whose leaves have
     /// `max |center| / half-width = ratio`
-    /// ([`WorkCounts::rounding_ratio`]): the larger of the float type's
+    /// ([`WorkCounts::rounding_ratio`](super::WorkCounts::rounding_ratio)): the larger of the float type's
     /// floor (measured on well-centred points, ratios up to a few hundred)
     /// and `rounding_factor u ratio`. Equivalent and check surfaces are points
     /// of the float type: around a box of half-width `h` centred at `c`
@@ -359,7 +357,7 @@ impl ErrorModel {
 /// stays below about 400 (true of uniform, sphere-surface and Plummer
 /// points centred near the origin up to millions of points; not of a tiny
 /// cluster far from the origin). For a decision about given points use
-/// [`choose_precision`].
+/// [`choose_precision`](super::choose_precision).
 ///
 /// ```
 /// use ferrofmm_fmm::tuning::f32_reaches;
@@ -375,69 +373,6 @@ pub fn f32_reaches(eps: f64) -> bool {
 /// best case: well-centred points).
 pub fn smallest_tolerance(precision: Precision) -> f64 {
     ErrorModel::laplace(precision).smallest_reachable(0.0)
-}
-
-/// Check a tolerance before looking at the points: `eps` in `(0, 1)`
-/// ([`FmmError::InvalidTolerance`]) and at least [`smallest_tolerance`]
-/// ([`FmmError::ToleranceBeyondPrecision`]). The chooser may still refuse
-/// it for points that need more digits than the float type has.
-pub fn validate_tolerance(eps: f64, precision: Precision) -> Result<(), FmmError> {
-    if !(eps.is_finite() && eps > 0.0 && eps < 1.0) {
-        return Err(FmmError::InvalidTolerance(eps));
-    }
-    let limit = smallest_tolerance(precision);
-    if eps < limit {
-        return Err(FmmError::ToleranceBeyondPrecision {
-            tolerance: eps,
-            precision: precision.name(),
-            limit,
-        });
-    }
-    Ok(())
-}
-
-/// The float type to use for `eps` on these points (`--precision auto`):
-/// `f32` when the chooser finds an `f32` setting that reaches `eps` (it is
-/// about twice as fast), else `f64` when that reaches it, else the `f64`
-/// error ([`FmmError::ToleranceBeyondPrecision`] or
-/// [`FmmError::InvalidTolerance`]).
-///
-/// ```
-/// use ferrofmm_fmm::Geometry;
-/// use ferrofmm_fmm::tuning::choose_precision;
-/// use ferrofmm_kernels::{EvalMode, Precision};
-/// let pot = EvalMode::Potential;
-/// let cube: Vec<f64> = Geometry::Cube.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, pot, &cube, None).unwrap(), Precision::F32);
-/// assert_eq!(choose_precision(1e-8, pot, &cube, None).unwrap(), Precision::F64);
-/// // f32 gradients level off near 5e-6.
-/// let both = EvalMode::PotentialGradient;
-/// assert_eq!(choose_precision(1e-5, both, &cube, None).unwrap(), Precision::F64);
-/// // A cluster of size 1e-4 at (1, 1, 1): f32 cannot resolve it to 1e-4.
-/// let clusters: Vec<f64> = Geometry::TwoClusters.points(5000, 1);
-/// assert_eq!(choose_precision(1e-4, pot, &clusters, None).unwrap(), Precision::F64);
-/// ```
-pub fn choose_precision(
-    eps: f64,
-    mode: EvalMode,
-    sources: &[f64],
-    targets: Option<&[f64]>,
-) -> Result<Precision, FmmError> {
-    validate_tolerance(eps, Precision::F64)?;
-    crate::builder::check_sources_and_targets(sources, targets)?;
-    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
-    if f32_reaches(eps)
-        && Tuner::new(Precision::F32)
-            .for_mode(mode)
-            .choose_with(eps, &occupancy)
-            .is_ok()
-    {
-        return Ok(Precision::F32);
-    }
-    Tuner::new(Precision::F64)
-        .for_mode(mode)
-        .choose_with(eps, &occupancy)
-        .map(|_| Precision::F64)
 }
 
 /// Estimated rank of the SVD-compressed M2L operators at `order` and
@@ -456,4 +391,19 @@ pub fn estimated_svd_rank(order: usize, tau: f64) -> usize {
         k *= (0.5f64).powf(2.0 - x);
     }
     (k.round() as usize).clamp(1, n)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn svd_tolerance_inverse() {
+        let m = ErrorModel::laplace(Precision::F64);
+        for tau in [1e-9, 1e-6, 1e-4, 1e-3, 5e-3] {
+            let e = m.svd_error(tau);
+            let back = m.svd_tolerance_adding(e);
+            assert!((back / tau - 1.0).abs() < 1e-9, "{tau} -> {back}");
+        }
+    }
 }

@@ -1,15 +1,17 @@
 //! The models behind a choice, keyed on kernel and M2L scheme
 //! ([`TuningModel`]).
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
-use ferrofmm_kernels::{KernelChoice, TuningFamily};
+use std::sync::Arc;
+
+use ferrofmm_field::M2lCostShape;
+use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, Precision, TuningFamily};
+
+use super::cost::CostModel;
+use super::error_model::ErrorModel;
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work
-/// costs. [`Tuner`] asks it for an [`ErrorModel`] and a [`CostModel`] for
+/// costs. [`Tuner`](super::Tuner) asks it for an [`ErrorModel`] and a [`CostModel`] for
 /// the float type, the evaluation mode and the scheme being built;
 /// [`FmmBuilder::tuning_model`](crate::FmmBuilder::tuning_model) replaces
 /// the default ([`default_model`]) with one of your own.
@@ -48,7 +50,7 @@ use ferrofmm_kernels::{KernelChoice, TuningFamily};
 /// assert!(p(&smooth) < p(&laplace));
 /// ```
 pub trait TuningModel: Send + Sync + std::fmt::Debug {
-    /// A short name for reports ([`ChosenParameters::model`]).
+    /// A short name for reports ([`ChosenParameters::model`](super::ChosenParameters::model)).
     fn name(&self) -> String;
 
     /// Whether the error table was measured for the kernel it is used for.

@@ -1,11 +1,16 @@
 //! Pre-pass: the work of the adaptive tree for any leaf size, counted on
 //! its shape ([`ferrofmm_tree::TreeShape`]: the tree builder's own
-//! refinement and 2:1 balance run on the sorted Morton codes).
+//! refinement and 2:1 balance run on the sorted Morton codes), with the
+//! interaction lists' own rules ([`ferrofmm_tree::list_rules`]: the
+//! neighbourhood's offsets, the V-list candidates among a neighbour's
+//! children, the children that touch a box).
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_tree::list_rules::{offsets, touching_children, v_children};
+use ferrofmm_tree::{DEEPEST_LEVEL, Domain, MortonCodes, MortonKey, ShapeBox, TreeShape};
+use rayon::prelude::*;
+
+use super::work::WorkCounts;
+use crate::FmmError;
 
 /// One level of a balanced [`TreeShape`], as the work count reads it.
 pub(super) struct CountLevel {
@@ -66,33 +71,6 @@ pub(super) fn count_find(levels: &[CountLevel], key: MortonKey) -> Option<(usize
     levels.get(l)?.find(key).map(|i| (l, i))
 }
 
-/// The 27 offsets of a box's neighbourhood (itself at index 13).
-pub(super) fn offsets() -> impl Iterator<Item = [i32; 3]> {
-    (0..27).map(|i| [i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1])
-}
-
-/// `NONADJ[o][i]`: mask of the children `j` of the neighbour at offset `o`
-/// (index into [`offsets`]) of a parent that are not adjacent to its child
-/// `i`, i.e. the V-list candidates. Octant bit 0 is `x`, 1 is `y`, 2 is `z`.
-pub(super) fn non_adjacent_masks() -> [[u8; 8]; 27] {
-    let mut out = [[0u8; 8]; 27];
-    for (oi, o) in offsets().enumerate() {
-        for (i, row) in out[oi].iter_mut().enumerate() {
-            for j in 0..8usize {
-                let far = (0..3).any(|a| {
-                    let ci = ((i >> a) & 1) as i32;
-                    let cj = ((j >> a) & 1) as i32;
-                    (2 * o[a] + cj - ci).abs() >= 2
-                });
-                if far {
-                    *row |= 1 << j;
-                }
-            }
-        }
-    }
-    out
-}
-
 /// Leaves (and split parents) per level whose work is counted exactly; a
 /// level with more is estimated from an evenly spaced sample of this many
 /// (in Morton order, so every region is represented).
@@ -100,23 +78,6 @@ pub(super) const MAX_SAMPLED_LEAVES: usize = 2048;
 
 /// Items per rayon task in the simulation (small levels run on one thread).
 pub(super) const MIN_PARALLEL: usize = 512;
-
-/// `ADJ[o]`: mask of the children of the same-level neighbour at offset `o`
-/// (index into [`offsets`]) of a box that touch the box.
-pub(super) fn adjacent_child_masks() -> [u8; 27] {
-    let mut out = [0u8; 27];
-    for (oi, o) in offsets().enumerate() {
-        for j in 0..8usize {
-            if (0..3).all(|a| {
-                let cj = ((j >> a) & 1) as i32;
-                (-1..=2).contains(&(2 * o[a] + cj))
-            }) {
-                out[oi] |= 1 << j;
-            }
-        }
-    }
-    out
-}
 
 /// The point distribution as sorted Morton codes: enough to find the
 /// adaptive, 2:1-balanced tree of any leaf size ([`ferrofmm_tree::shape`])
@@ -188,7 +149,8 @@ impl Occupancy {
     /// Estimated [`WorkCounts`] of the tree built with `leaf_size`, counted
     /// on the simulated 2:1-balanced tree: U-, W- and X-list work by walking
     /// each leaf's neighbourhood as the interaction lists do, V-list pairs
-    /// from the child masks of adjacent parents. Close to the real tree's
+    /// from the child masks of adjacent parents, both with the tree's own
+    /// list rules ([`ferrofmm_tree::list_rules`]). Close to the real tree's
     /// counts (within a few percent for uniform points, within about 20% for
     /// strongly clustered ones; the differences come from boxes holding
     /// only sources or only targets and from balancing details).
@@ -201,8 +163,6 @@ impl Occupancy {
     pub fn work_of(&self, mut shape: TreeShape) -> WorkCounts {
         shape.balance(&self.codes);
         let levels = count_levels(&shape);
-        let nonadj = non_adjacent_masks();
-        let adj = adjacent_child_masks();
         let depth = (levels.len() - 1) as u32;
         let n_boxes: usize = levels.iter().map(|l| l.keys.len()).sum();
         let n_leaves: usize = levels
@@ -238,9 +198,9 @@ impl Occupancy {
                             if mq == 0 {
                                 continue;
                             }
-                            for (c, &far) in nonadj[oi].iter().enumerate() {
+                            for c in 0..8 {
                                 if mp & (1 << c) != 0 {
-                                    pairs += (far & mq).count_ones();
+                                    pairs += (v_children(oi, c) & mq).count_ones();
                                 }
                             }
                         }
@@ -264,7 +224,7 @@ impl Occupancy {
             let (p, f, u) = sampled
                 .par_iter()
                 .with_min_len(MIN_PARALLEL)
-                .map_init(Vec::new, |stack, &i| leaf_work(&levels, l, i, &adj, stack))
+                .map_init(Vec::new, |stack, &i| leaf_work(&levels, l, i, stack))
                 .reduce(|| (0.0, 0.0, 0.0), |a, b| (a.0 + b.0, a.1 + b.1, a.2 + b.2));
             p2p_pairs += scale * p;
             far_points += scale * f;
@@ -293,10 +253,10 @@ impl Occupancy {
 }
 
 /// `|center - o| / half-width` of a box, `o` the point the FMM makes its
-/// coordinates relative to (`crate::fmm::coordinate_origin`).
+/// coordinates relative to (`crate::coordinates::coordinate_origin`).
 pub(super) fn center_ratio(key: MortonKey, domain: &Domain) -> f64 {
     let c = key.center(domain);
-    let o = crate::fmm::coordinate_origin(domain);
+    let o = crate::coordinates::coordinate_origin(domain);
     let r = [c[0] - o[0], c[1] - o[1], c[2] - o[2]];
     (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt() / key.half_width(domain)
 }
@@ -306,14 +266,13 @@ pub(super) fn center_ratio(key: MortonKey, domain: &Domain) -> f64 {
 /// targets (M2P) plus, for the matching X-list entry of `a`, its sources
 /// (P2L), and the length of its U list.
 ///
-/// The children of an internal colleague that touch the leaf are U-list
-/// leaves (2:1 balance: a box one level deeper touching a leaf is a leaf;
+/// The children of an internal colleague that touch the leaf
+/// ([`touching_children`]) are U-list leaves (2:1 balance: a box one level deeper touching a leaf is a leaf;
 /// deeper ones are still walked), the others are its W list.
 pub(super) fn leaf_work(
     levels: &[CountLevel],
     l: usize,
     i: usize,
-    adj: &[u8; 27],
     stack: &mut Vec<(usize, usize)>,
 ) -> (f64, f64, f64) {
     let lv = &levels[l];
@@ -336,8 +295,8 @@ pub(super) fn leaf_work(
                 u_entries += 1;
                 continue;
             }
-            w_boxes += (mask & !adj[oi]).count_ones();
-            let touching = mask & adj[oi];
+            w_boxes += (mask & !touching_children(oi)).count_ones();
+            let touching = mask & touching_children(oi);
             for (c, ck) in nk.children().into_iter().enumerate() {
                 if touching & (1 << c) == 0 {
                     continue;
@@ -396,4 +355,49 @@ pub(super) fn leaf_work(
         w_boxes as f64 * (nt + ns_self),
         u_entries as f64,
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Geometry;
+    use ferrofmm_tree::{Octree, TreeOptions};
+
+    /// The shape is the tree builder's (boxes and leaves exactly); the
+    /// list work is counted from child masks, without the lists' pruning
+    /// of boxes that exchange nothing, so it is close, not equal.
+    #[test]
+    fn estimated_work_follows_the_real_tree() {
+        for g in Geometry::ALL {
+            let pts: Vec<f64> = g.points(20_000, 5);
+            let occ = Occupancy::new(&pts, None, None, DEEPEST_LEVEL).unwrap();
+            for leaf in [32, 150, 400] {
+                let tree = Octree::new(&pts, None, &TreeOptions::adaptive(leaf)).unwrap();
+                let real = WorkCounts::of_tree(&tree);
+                let est = occ.work(leaf);
+                let ratio = |a: f64, b: f64| if b > 0.0 { a / b } else { 1.0 + a };
+                let checks = [
+                    ("boxes", ratio(est.n_boxes as f64, real.n_boxes as f64), 0.0),
+                    (
+                        "leaves",
+                        ratio(est.n_leaves as f64, real.n_leaves as f64),
+                        0.0,
+                    ),
+                    ("p2p", ratio(est.p2p_pairs, real.p2p_pairs), 0.05),
+                    ("m2l", ratio(est.m2l_pairs, real.m2l_pairs), 0.05),
+                    ("u", ratio(est.u_entries, real.u_entries), 0.05),
+                    ("far", ratio(est.far_points, real.far_points), 0.1),
+                    (
+                        "ratio",
+                        ratio(est.rounding_ratio, real.rounding_ratio),
+                        0.01,
+                    ),
+                ];
+                for (what, r, tol) in checks {
+                    assert!((r - 1.0).abs() <= tol, "{g:?} leaf {leaf}: {what} {r}");
+                }
+                assert_eq!(est.depth, real.depth);
+            }
+        }
+    }
 }

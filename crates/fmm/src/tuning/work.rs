@@ -1,13 +1,13 @@
 //! Work counts of a built tree (the cost model's inputs).
 
-// The parent's imports and the sibling modules' items (one namespace,
-// split by job).
-#[allow(unused_imports)]
-use super::*;
+use ferrofmm_tree::Octree;
+use rayon::prelude::*;
+
+use super::occupancy::center_ratio;
 
 /// The work of one evaluation, counted on a tree (exactly, with
 /// [`WorkCounts::of_tree`]) or estimated from the point distribution
-/// without building one ([`Occupancy::work`]).
+/// without building one ([`Occupancy::work`](super::Occupancy::work)).
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct WorkCounts {
     /// Sources.
@@ -36,7 +36,7 @@ pub struct WorkCounts {
     /// the centre relative to the tree's coordinate origin `o`, a point
     /// near the domain that the FMM subtracts in `f64` before rounding to
     /// its float type): how many digits of the coordinates the smallest
-    /// boxes need ([`ErrorModel::rounding_floor`]). A domain far from zero
+    /// boxes need ([`ErrorModel::rounding_floor`](super::ErrorModel::rounding_floor)). A domain far from zero
     /// costs nothing; a small cluster far from the rest of its tree does.
     pub rounding_ratio: f64,
 }

@@ -77,25 +77,7 @@ impl Route {
         nq: usize,
         n_owned: usize,
     ) -> (Vec<T>, u64) {
-        let send: Vec<Vec<u64>> = self
-            .by_owner
-            .iter()
-            .map(|ids| {
-                ids.iter()
-                    .flat_map(|&i| charges[nq * i..nq * (i + 1)].iter())
-                    .map(|x| x.to_f64().to_bits())
-                    .collect()
-            })
-            .collect();
-        let (recv, _, bytes) = all_to_all(comm, &send);
-        let mut out = vec![T::ZERO; nq * n_owned];
-        let order = self.by_origin.iter().flatten();
-        for (&k, chunk) in order.zip(recv.chunks_exact(nq)) {
-            for (o, &x) in out[nq * k..nq * (k + 1)].iter_mut().zip(chunk) {
-                *o = T::from_f64(f64::from_bits(x));
-            }
-        }
-        (out, bytes)
+        move_values(comm, charges, nq, &self.by_owner, &self.by_origin, n_owned)
     }
 
     /// Values of this rank's points (tree order, `w` each) back to their
@@ -107,24 +89,45 @@ impl Route {
         values: &[T],
         w: usize,
     ) -> (Vec<T>, u64) {
-        let send: Vec<Vec<u64>> = self
-            .by_origin
-            .iter()
-            .map(|ks| {
-                ks.iter()
-                    .flat_map(|&k| values[w * k..w * (k + 1)].iter())
-                    .map(|x| x.to_f64().to_bits())
-                    .collect()
-            })
-            .collect();
-        let (recv, _, bytes) = all_to_all(comm, &send);
-        let mut out = vec![T::ZERO; w * self.n_input];
-        let order = self.by_owner.iter().flatten();
-        for (&i, chunk) in order.zip(recv.chunks_exact(w)) {
-            for (o, &x) in out[w * i..w * (i + 1)].iter_mut().zip(chunk) {
-                *o = T::from_f64(f64::from_bits(x));
-            }
-        }
-        (out, bytes)
+        move_values(
+            comm,
+            values,
+            w,
+            &self.by_origin,
+            &self.by_owner,
+            self.n_input,
+        )
     }
+}
+
+/// One all-to-all of `w` values per item: rank `r` gets the items
+/// `send[r]` of `values` (in that order), and the items received from rank
+/// `r` land at `place[r]` of a vector of `n_out` items. Returns it and the
+/// bytes sent.
+fn move_values<C: Communicator, T: Real>(
+    comm: &C,
+    values: &[T],
+    w: usize,
+    send: &[Vec<usize>],
+    place: &[Vec<usize>],
+    n_out: usize,
+) -> (Vec<T>, u64) {
+    let send: Vec<Vec<u64>> = send
+        .iter()
+        .map(|items| {
+            items
+                .iter()
+                .flat_map(|&i| values[w * i..w * (i + 1)].iter())
+                .map(|x| x.to_f64().to_bits())
+                .collect()
+        })
+        .collect();
+    let (recv, _, bytes) = all_to_all(comm, &send);
+    let mut out = vec![T::ZERO; w * n_out];
+    for (&k, chunk) in place.iter().flatten().zip(recv.chunks_exact(w)) {
+        for (o, &x) in out[w * k..w * (k + 1)].iter_mut().zip(chunk) {
+            *o = T::from_f64(f64::from_bits(x));
+        }
+    }
+    (out, bytes)
 }
