@@ -178,7 +178,11 @@ fn bench_sources<K: Kernel, T: Real>(c: &mut Criterion, kernel: &K, name: &str, 
             }
             let mut out = vec![T::ZERO; kernel.values_per_target(mode) * n];
             let id = BenchmarkId::new(
-                format!("sources/{name}/{prec}{}/{}/dispatch", kind.name(), mode.name()),
+                format!(
+                    "sources/{name}/{prec}{}/{}/dispatch",
+                    kind.name(),
+                    mode.name()
+                ),
                 format!("{n}x{n}"),
             );
             group.bench_function(id, |b| {
