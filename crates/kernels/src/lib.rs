@@ -70,18 +70,14 @@ mod choice;
 mod direct;
 mod error;
 mod helmholtz;
-mod helmholtz_p2p;
 mod kernel;
 pub mod lanes;
 mod laplace;
-mod laplace_simd;
-mod oscillatory_helmholtz;
-mod oscillatory_helmholtz_p2p;
+mod modified_helmholtz;
 mod real;
 pub mod reference;
 mod simd;
 mod stokes;
-mod stokes_p2p;
 
 pub use choice::{KernelChoice, KernelVisitor, ParseKernelError};
 pub use direct::{
@@ -89,12 +85,10 @@ pub use direct::{
     direct_sum_checked, direct_sum_sources, direct_sum_sources_checked,
 };
 pub use error::KernelError;
-pub use helmholtz::ModifiedHelmholtz3d;
-pub use helmholtz_p2p::modified_helmholtz_p2p_with;
+pub use helmholtz::Helmholtz3d;
 pub use kernel::{EvalMode, Kernel, SourceKind};
-pub use laplace::{INV_4PI, Laplace3d};
-pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
-pub use oscillatory_helmholtz::Helmholtz3d;
+pub use laplace::{INV_4PI, Laplace3d, laplace_assemble_with, laplace_p2p, laplace_p2p_with};
+pub use modified_helmholtz::{ModifiedHelmholtz3d, modified_helmholtz_p2p_with};
 pub use real::{Precision, Real};
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};
 pub use stokes::Stokes3d;

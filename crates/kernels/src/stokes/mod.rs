@@ -24,6 +24,8 @@
 //! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
 //! as every kernel's outputs: the quantity, then its components).
 
+mod pair;
+
 use crate::{EvalMode, Kernel, KernelError, Real, SimdLevel, SourceKind};
 
 /// The Stokeslet `G = (I / r + d d^T / r^3) / (8 pi mu)`: forces in,
@@ -82,7 +84,7 @@ impl Stokes3d {
         out: &mut [T],
     ) {
         assert_evaluation(mode, sources, charges, targets, out);
-        crate::stokes_p2p::stokes_p2p_with(
+        pair::stokes_p2p_with(
             level,
             self.scale(),
             mode,

@@ -29,6 +29,8 @@
 //! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs:
 //! the memory of NumPy `complex128` arrays.
 
+mod pair;
+
 use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind};
 
 /// The 3D Helmholtz Green's function `G = e^{ikr} / (4 pi r)`, the
@@ -66,7 +68,7 @@ impl Helmholtz3d {
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        crate::helmholtz::check_wavenumber(k).map(|k| Helmholtz3d { k })
+        crate::modified_helmholtz::check_wavenumber(k).map(|k| Helmholtz3d { k })
     }
 }
 
@@ -232,7 +234,7 @@ impl Helmholtz3d {
             self.supports(kind, mode),
             "helmholtz3d: no Hessians (Kernel::supports)"
         );
-        crate::oscillatory_helmholtz_p2p::helmholtz_p2p_with(
+        pair::helmholtz_p2p_with(
             level, self.k, kind, mode, sources, densities, targets, out,
         );
     }
