@@ -1,19 +1,19 @@
-//! The vectorised P2P of the complex Helmholtz kernel ([`Helmholtz3d`]):
-//! target lanes as in [`lanes`](crate::lanes), with `sin` and `cos` on
-//! registers.
+//! The micro-kernel of the complex Helmholtz kernel ([`Helmholtz3d`]) in
+//! the lane engine of [`crate::lanes`], with `sin` and `cos` on registers.
 //!
-//! # Maths
-//! Per pair, with `d = y - x`, `r = |d|` and `f0 = e^{ikr} / (4 pi r)`,
-//! `f1 = f0 (ikr - 1) / r^2`, `f2 = f0 (3 - 3ikr - k^2 r^2) / r^4` (see
-//! [`Helmholtz3d`]'s module):
+//! # Per pair
+//! The engine hands `d = x - y` (source minus target), so with `r = |d|`,
+//! `f0 = e^{ikr} / (4 pi r)` and `g1 = -f1 = f0 (1 - ikr) / r^2`,
+//! `f2 = f0 (3 - 3ikr - k^2 r^2) / r^4` (see [`Helmholtz3d`]'s module, whose
+//! `d` is `y - x`):
 //!
 //! ```text
-//! u      += q f0 - f1 (n . d)
-//! grad u += (q f1 - f2 (n . d)) d - f1 n
+//! u      += q f0 - g1 (n . d)
+//! grad u += (q g1 - f2 (n . d)) d + g1 n
 //! ```
 //!
 //! in complex arithmetic on `(re, im)` registers. Coincident pairs get
-//! `1/r = 0` from [`Simd::rsqrt_or_zero`], which zeroes `f0`, `f1`, `f2`.
+//! `1/r = 0` from [`Simd::rsqrt_or_zero`], which zeroes `f0`, `g1`, `f2`.
 //!
 //! # `sin` and `cos` of `x = kr >= 0`
 //! `n = round(x / 2 pi)` (the round-to-integer step of adding and
@@ -28,8 +28,8 @@
 //!
 //! [`Helmholtz3d`]: crate::Helmholtz3d
 
-use crate::lanes::{LaneFloat, Simd, SimdTask, run_on_floats};
-use crate::{EvalMode, INV_4PI, Real, SimdLevel, SourceKind};
+use crate::lanes::{LaneFloat, LaneSources, PairKernel, Simd, run};
+use crate::{EvalMode, Helmholtz3d, INV_4PI, Real, SimdLevel, SourceKind};
 
 /// Taylor coefficients of `sin(h) / h` in `h^2`, highest degree first.
 const SIN_TAYLOR: [f64; 10] = [
@@ -63,113 +63,35 @@ const COS_TAYLOR: [f64; 11] = [
 /// `2 pi - fl64(2 pi)`.
 const TWO_PI_F64_LO: f64 = 2.449_293_598_294_706_4e-16;
 
-/// Largest target block, in targets.
-const MAX_BLOCK: usize = 16;
-/// Registers per block with one-lane (portable) registers.
-const PORTABLE_BLOCK: usize = 16;
-
-/// Accumulate the field of `densities` (complex charges and/or dipoles,
-/// `[re, im]` pairs, layout of [`Helmholtz3d`](crate::Helmholtz3d)) at
-/// `targets` into `out`, vectorised at `level`. Lengths are the caller's
-/// to check.
-#[allow(clippy::too_many_arguments)]
-pub(crate) fn helmholtz_p2p_with<T: Real>(
-    level: SimdLevel,
-    k: f64,
-    kind: SourceKind,
-    mode: EvalMode,
-    sources: &[T],
-    densities: &[T],
-    targets: &[T],
-    out: &mut [T],
-) {
-    if sources.is_empty() || targets.is_empty() {
-        return;
-    }
-    let grad = mode.has_gradient();
-    let (s, q, t, o) = (sources, densities, targets, out);
-    run_on_floats!(level, (s, q, t, o) => Task::new(k, kind, grad, s, q, t, o));
-}
-
-/// One P2P call as a [`SimdTask`].
-struct Task<'a, T> {
-    k: f64,
-    kind: SourceKind,
-    grad: bool,
-    sources: &'a [T],
-    densities: &'a [T],
-    targets: &'a [T],
-    out: &'a mut [T],
-}
-
-impl<'a, T: LaneFloat> Task<'a, T> {
-    #[allow(clippy::too_many_arguments)]
-    fn new(
-        k: f64,
+impl LaneSources for Helmholtz3d {
+    /// `NQ = 2, 6, 8` (complex charge, dipole, both) and `W = 2, 8`
+    /// (complex potential, with the gradient).
+    fn run_sources<T: Real>(
+        &self,
+        level: SimdLevel,
         kind: SourceKind,
-        grad: bool,
-        sources: &'a [T],
-        densities: &'a [T],
-        targets: &'a [T],
-        out: &'a mut [T],
-    ) -> Self {
-        Task {
-            k,
-            kind,
-            grad,
-            sources,
-            densities,
-            targets,
-            out,
-        }
-    }
-
-    /// All targets, `C` registers at a time: charges if `Q`, dipoles if
-    /// `N`, gradients if `G`.
-    #[inline(always)]
-    fn go<S: Simd<T>, const Q: bool, const N: bool, const G: bool>(self, s: S) {
-        if S::LANES == 1 {
-            self.blocks::<S, PORTABLE_BLOCK, Q, N, G>(s);
-        } else {
-            self.blocks::<S, 1, Q, N, G>(s);
-        }
-    }
-
-    #[inline(always)]
-    fn blocks<S: Simd<T>, const C: usize, const Q: bool, const N: bool, const G: bool>(self, s: S) {
-        let block = C * S::LANES;
-        debug_assert!(block <= MAX_BLOCK);
-        let w = if G { 8 } else { 2 };
-        let consts = Consts::new(s, self.k);
-        for (tb, ob) in self
-            .targets
-            .chunks(3 * block)
-            .zip(self.out.chunks_mut(w * block))
-        {
-            block_of::<T, S, C, Q, N, G>(s, &consts, self.sources, self.densities, tb, ob);
-        }
-    }
-}
-
-impl<T: LaneFloat> SimdTask<T> for Task<'_, T> {
-    type Output = ();
-
-    #[inline(always)]
-    fn run<S: Simd<T>>(self, s: S) {
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
         use SourceKind::{Charge, ChargeDipole, Dipole};
-        match (self.kind, self.grad) {
-            (Charge, false) => self.go::<S, true, false, false>(s),
-            (Charge, true) => self.go::<S, true, false, true>(s),
-            (Dipole, false) => self.go::<S, false, true, false>(s),
-            (Dipole, true) => self.go::<S, false, true, true>(s),
-            (ChargeDipole, false) => self.go::<S, true, true, false>(s),
-            (ChargeDipole, true) => self.go::<S, true, true, true>(s),
+        let (s, q, t, o) = (sources, densities, targets, out);
+        match (kind, mode.has_gradient()) {
+            (Charge, false) => run::<_, _, 2, 2>(level, self, s, q, t, o),
+            (Charge, true) => run::<_, _, 2, 8>(level, self, s, q, t, o),
+            (Dipole, false) => run::<_, _, 6, 2>(level, self, s, q, t, o),
+            (Dipole, true) => run::<_, _, 6, 8>(level, self, s, q, t, o),
+            (ChargeDipole, false) => run::<_, _, 8, 2>(level, self, s, q, t, o),
+            (ChargeDipole, true) => run::<_, _, 8, 8>(level, self, s, q, t, o),
         }
     }
 }
 
-/// The registers every pair uses, splatted once per call.
-struct Consts<V> {
+/// The registers every pair uses, splatted once per call
+/// ([`PairKernel::Regs`] of [`Helmholtz3d`]).
+pub struct Consts<V> {
     k: V,
     scale: V,
     one: V,
@@ -248,134 +170,96 @@ fn cmul<T: LaneFloat, S: Simd<T>>(s: S, a: S::V, b: S::V, c: S::V, d: S::V) -> (
     )
 }
 
-/// Up to `C * LANES` targets (`tb`, interleaved) against all sources.
-#[inline(always)]
-fn block_of<
-    T: LaneFloat,
-    S: Simd<T>,
-    const C: usize,
-    const Q: bool,
-    const N: bool,
-    const G: bool,
->(
-    s: S,
-    k: &Consts<S::V>,
-    sources: &[T],
-    densities: &[T],
-    tb: &[T],
-    ob: &mut [T],
-) {
-    let l = S::LANES;
-    let nq = 2 * (usize::from(Q) + 3 * usize::from(N));
-    let w = if G { 8 } else { 2 };
-    let mut buf = [[T::ZERO; MAX_BLOCK]; 3];
-    for (j, p) in tb.chunks_exact(3).enumerate() {
-        buf[0][j] = p[0];
-        buf[1][j] = p[1];
-        buf[2][j] = p[2];
+impl PairKernel for Helmholtz3d {
+    type Regs<T: LaneFloat, S: Simd<T>> = Consts<S::V>;
+
+    #[inline(always)]
+    fn regs<T: LaneFloat, S: Simd<T>>(&self, s: S) -> Consts<S::V> {
+        Consts::new(s, self.k)
     }
-    let zero = s.splat(T::ZERO);
-    let mut tx = [zero; C];
-    let mut ty = [zero; C];
-    let mut tz = [zero; C];
-    for c in 0..C {
-        tx[c] = s.load(&buf[0][c * l..]);
-        ty[c] = s.load(&buf[1][c * l..]);
-        tz[c] = s.load(&buf[2][c * l..]);
-    }
-    let mut acc = [[zero; C]; 8];
-    for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(nq)) {
-        let sx = s.splat(x[0]);
-        let sy = s.splat(x[1]);
-        let sz = s.splat(x[2]);
-        let (qr, qi) = if Q {
-            (s.splat(q[0]), s.splat(q[1]))
+
+    /// The formulas of the [module docs](self): charges unless `NQ = 6`,
+    /// dipoles when `NQ >= 6`, gradients when `W = 8`.
+    #[inline(always)]
+    fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
+        &self,
+        s: S,
+        k: &Consts<S::V>,
+        d: &[S::V; 3],
+        r2: S::V,
+        q: &[S::V; NQ],
+        acc: &mut [S::V; W],
+    ) {
+        let (has_q, has_n, grad) = (NQ != 6, NQ >= 6, W == 8);
+        let zero = s.splat(T::ZERO);
+        let rinv = s.rsqrt_or_zero(r2);
+        let kr = s.mul(k.k, s.mul(r2, rinv));
+        let (sn, cs) = sin_cos(s, k, kr);
+        let a = s.mul(k.scale, rinv);
+        let (gr, gi) = (s.mul(cs, a), s.mul(sn, a));
+        let rinv2 = s.mul(rinv, rinv);
+        // g1 = f0 (1 - i kr) / r^2
+        let (g1r, g1i) = if grad || has_n {
+            let (a, b) = (s.mul_add(gi, kr, gr), s.sub(gi, s.mul(gr, kr)));
+            (s.mul(a, rinv2), s.mul(b, rinv2))
         } else {
             (zero, zero)
         };
-        let o = if Q { 2 } else { 0 };
-        let mut n = [zero; 6];
-        if N {
-            for (v, &x) in n.iter_mut().zip(&q[o..o + 6]) {
-                *v = s.splat(x);
+        let (mut pr, mut pi) = (zero, zero);
+        let (mut cr, mut ci) = (zero, zero);
+        if has_q {
+            (pr, pi) = cmul(s, gr, gi, q[0], q[1]);
+            if grad {
+                (cr, ci) = cmul(s, g1r, g1i, q[0], q[1]);
             }
         }
-        for c in 0..C {
-            let d = [s.sub(tx[c], sx), s.sub(ty[c], sy), s.sub(tz[c], sz)];
-            let r2 = s.mul_add(d[2], d[2], s.mul_add(d[1], d[1], s.mul(d[0], d[0])));
-            let rinv = s.rsqrt_or_zero(r2);
-            let kr = s.mul(k.k, s.mul(r2, rinv));
-            let (sn, cs) = sin_cos(s, k, kr);
-            let a = s.mul(k.scale, rinv);
-            let (gr, gi) = (s.mul(cs, a), s.mul(sn, a));
-            let rinv2 = s.mul(rinv, rinv);
-            // f1 = f0 (-1 + i kr) / r^2
-            let (f1r, f1i) = if G || N {
-                let (a, b) = cmul(s, gr, gi, s.sub(zero, k.one), kr);
-                (s.mul(a, rinv2), s.mul(b, rinv2))
-            } else {
-                (zero, zero)
-            };
-            let (mut pr, mut pi) = (zero, zero);
-            let (mut cr, mut ci) = (zero, zero);
-            if Q {
-                (pr, pi) = cmul(s, gr, gi, qr, qi);
-                if G {
-                    (cr, ci) = cmul(s, f1r, f1i, qr, qi);
-                }
+        let n = &q[NQ - 6.min(NQ)..];
+        if has_n {
+            let ndr = s.mul_add(n[4], d[2], s.mul_add(n[2], d[1], s.mul(n[0], d[0])));
+            let ndi = s.mul_add(n[5], d[2], s.mul_add(n[3], d[1], s.mul(n[1], d[0])));
+            let (a, b) = cmul(s, g1r, g1i, ndr, ndi);
+            pr = s.sub(pr, a);
+            pi = s.sub(pi, b);
+            if grad {
+                // f2 = f0 ((3 - k^2 r^2) - 3i kr) / r^4
+                let re = s.sub(k.three, s.mul(kr, kr));
+                let im = s.sub(zero, s.mul(k.three, kr));
+                let (a, b) = cmul(s, gr, gi, re, im);
+                let rinv4 = s.mul(rinv2, rinv2);
+                let (f2r, f2i) = (s.mul(a, rinv4), s.mul(b, rinv4));
+                let (a, b) = cmul(s, f2r, f2i, ndr, ndi);
+                cr = s.sub(cr, a);
+                ci = s.sub(ci, b);
             }
-            if N {
-                let ndr = s.mul_add(n[4], d[2], s.mul_add(n[2], d[1], s.mul(n[0], d[0])));
-                let ndi = s.mul_add(n[5], d[2], s.mul_add(n[3], d[1], s.mul(n[1], d[0])));
-                let (a, b) = cmul(s, f1r, f1i, ndr, ndi);
-                pr = s.sub(pr, a);
-                pi = s.sub(pi, b);
-                if G {
-                    // f2 = f0 ((3 - k^2 r^2) - 3i kr) / r^4
-                    let re = s.sub(k.three, s.mul(kr, kr));
-                    let im = s.sub(zero, s.mul(k.three, kr));
-                    let (a, b) = cmul(s, gr, gi, re, im);
-                    let rinv4 = s.mul(rinv2, rinv2);
-                    let (f2r, f2i) = (s.mul(a, rinv4), s.mul(b, rinv4));
-                    let (a, b) = cmul(s, f2r, f2i, ndr, ndi);
-                    cr = s.sub(cr, a);
-                    ci = s.sub(ci, b);
+        }
+        acc[0] = s.add(acc[0], pr);
+        acc[1] = s.add(acc[1], pi);
+        if grad {
+            for m in 0..3 {
+                let mut gre = s.mul_add(cr, d[m], acc[2 + 2 * m]);
+                let mut gim = s.mul_add(ci, d[m], acc[3 + 2 * m]);
+                if has_n {
+                    let (a, b) = cmul(s, g1r, g1i, n[2 * m], n[2 * m + 1]);
+                    gre = s.add(gre, a);
+                    gim = s.add(gim, b);
                 }
-            }
-            acc[0][c] = s.add(acc[0][c], pr);
-            acc[1][c] = s.add(acc[1][c], pi);
-            if G {
-                for m in 0..3 {
-                    let mut gre = s.mul_add(cr, d[m], acc[2 + 2 * m][c]);
-                    let mut gim = s.mul_add(ci, d[m], acc[3 + 2 * m][c]);
-                    if N {
-                        let (a, b) = cmul(s, f1r, f1i, n[2 * m], n[2 * m + 1]);
-                        gre = s.sub(gre, a);
-                        gim = s.sub(gim, b);
-                    }
-                    acc[2 + 2 * m][c] = gre;
-                    acc[3 + 2 * m][c] = gim;
-                }
+                acc[2 + 2 * m] = gre;
+                acc[3 + 2 * m] = gim;
             }
         }
     }
-    let mut res = [[T::ZERO; MAX_BLOCK]; 8];
-    for c in 0..C {
-        for v in 0..w {
-            s.store(acc[v][c], &mut res[v][c * l..]);
-        }
-    }
-    for (j, o) in ob.chunks_exact_mut(w).enumerate() {
-        for (v, r) in o.iter_mut().zip(&res) {
-            *v += r[j];
-        }
-    }
+
+    /// One register per target block with SIMD registers (the micro-kernel
+    /// is long)...
+    const TWO_REGISTERS_UP_TO: usize = 0;
+    /// ... and 16 lanes with portable ones.
+    const PORTABLE_LANES: usize = 16;
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::lanes::run_task;
+    use crate::lanes::{SimdTask, run_task};
 
     /// The register `sin` and `cos` against `f64::sin_cos` over the range
     /// the FMM uses (`kr` up to 100), at every level the CPU has.

@@ -101,55 +101,13 @@ impl Kernel for Laplace3d {
         [s * d[0], s * d[1], s * d[2]]
     }
 
-    /// Vectorised P2P ([`laplace_p2p_with`] at [`SimdLevel::active`]).
-    ///
-    /// # Panics
-    /// When lengths are inconsistent (see [`laplace_p2p_with`]).
-    #[inline]
-    fn evaluate<T: Real>(
-        &self,
-        mode: EvalMode,
-        sources: &[T],
-        charges: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        laplace_p2p_with(SimdLevel::active(), mode, sources, charges, targets, out);
-    }
+    crate::lanes::kernel_entry_points!();
 
     /// Every source kind and output (charges and dipoles; potentials,
     /// gradients and Hessians), through the composed loop of
     /// [`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel).
     fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
         true
-    }
-
-    /// Charges with potentials or gradients take [`Kernel::evaluate`]'s
-    /// loop; everything else the composed loop of
-    /// [`lanes::evaluate_sources`](crate::lanes::evaluate_sources), at
-    /// [`SimdLevel::active`].
-    ///
-    /// # Panics
-    /// When lengths are inconsistent.
-    fn evaluate_sources<T: Real>(
-        &self,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[T],
-        densities: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        crate::lanes::evaluate_sources_with(
-            SimdLevel::active(),
-            self,
-            kind,
-            mode,
-            sources,
-            densities,
-            targets,
-            out,
-        );
     }
 
     /// Vectorised, row-parallel assembly ([`laplace_assemble_with`]); equal
@@ -240,14 +198,8 @@ pub fn laplace_p2p_with<T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
+    let kind = SourceKind::Charge;
     lanes::evaluate_sources_with(
-        level,
-        &Laplace3d,
-        crate::SourceKind::Charge,
-        mode,
-        sources,
-        charges,
-        targets,
-        out,
+        level, &Laplace3d, kind, mode, sources, charges, targets, out,
     );
 }

@@ -1,5 +1,29 @@
 //! The modified Helmholtz (Yukawa, screened Coulomb) kernel
-//! `K(x, y) = exp(-k |x - y|) / (4 pi |x - y|)`.
+//! `K(x, y) = exp(-k |x - y|) / (4 pi |x - y|)`: its maths and [`Kernel`]
+//! impl (here) and its micro-kernels in the lane engine of [`crate::lanes`]
+//! (`pair.rs`).
+//!
+//! # Maths
+//! With `d = x - y` (source minus target), `r = |d|` and `x = k r`,
+//!
+//! ```text
+//! K        = e^{-x} / (4 pi r)
+//! grad_y K = e^{-x} (1 + x) d / (4 pi r^3)
+//! ```
+//!
+//! and the radial derivatives of `k(r) = e^{-kr} / r` behind dipoles and
+//! Hessians ([`lanes::RadialLaneKernel`]), `f_{m+1} = (1/r) d f_m / dr`:
+//!
+//! ```text
+//! f_0 =  e^{-x} / r
+//! f_1 = -e^{-x} (1 + x) / r^3
+//! f_2 =  e^{-x} (3 + 3x + x^2) / r^5
+//! f_3 = -e^{-x} (15 + 15x + 6x^2 + x^3) / r^7
+//! ```
+//!
+//! (`k = 0` gives Laplace's). On registers `r` is the correctly rounded
+//! `sqrt(r^2)`, `1/r` comes from [`lanes::Simd::rsqrt_or_zero`] (zero for
+//! coincident points) and `e^{-x}` from [`lanes::exp_nonpositive`].
 
 mod pair;
 
@@ -16,8 +40,9 @@ use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind}
 /// * gradient with respect to the target, `d = y - x`:
 ///   `grad_y K = -exp(-k r) (1 + k r) d / (4 pi r^3)`.
 ///
-/// [`Kernel::evaluate`] runs [`modified_helmholtz_p2p_with`]: a lane-chunked
-/// loop with a polynomial `exp`, vectorised for the detected instruction set.
+/// [`Kernel::evaluate`] and [`Kernel::evaluate_sources`] run the lane engine
+/// with a polynomial `exp`, vectorised for the detected instruction set
+/// (see the [module docs](self)).
 ///
 /// ```
 /// use ferrofmm_kernels::{EvalMode, Kernel, ModifiedHelmholtz3d};
@@ -95,65 +120,13 @@ impl Kernel for ModifiedHelmholtz3d {
         [s * d[0], s * d[1], s * d[2]]
     }
 
-    /// Vectorised P2P ([`modified_helmholtz_p2p_with`] at
-    /// [`SimdLevel::active`]): `out[j] += sum_i q_i exp(-k r_ij) / (4 pi r_ij)`
-    /// (and the gradient), coincident pairs skipped.
-    ///
-    /// # Panics
-    /// When lengths are inconsistent.
-    #[inline]
-    fn evaluate<T: Real>(
-        &self,
-        mode: EvalMode,
-        sources: &[T],
-        charges: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        modified_helmholtz_p2p_with(
-            SimdLevel::active(),
-            self.k,
-            mode,
-            sources,
-            charges,
-            targets,
-            out,
-        );
-    }
+    crate::lanes::kernel_entry_points!();
 
     /// Every source kind and output (charges and dipoles; potentials,
     /// gradients and Hessians), through the composed loop of
     /// [`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel).
     fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
         true
-    }
-
-    /// Charges with potentials or gradients take [`Kernel::evaluate`]'s
-    /// loop; everything else the composed loop of
-    /// [`lanes::evaluate_sources`](crate::lanes::evaluate_sources), at
-    /// [`SimdLevel::active`].
-    ///
-    /// # Panics
-    /// When lengths are inconsistent.
-    fn evaluate_sources<T: Real>(
-        &self,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[T],
-        densities: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        crate::lanes::evaluate_sources_with(
-            SimdLevel::active(),
-            self,
-            kind,
-            mode,
-            sources,
-            densities,
-            targets,
-            out,
-        );
     }
 }
 
@@ -199,15 +172,6 @@ pub fn modified_helmholtz_p2p_with<T: Real>(
         k.is_finite() && k >= 0.0,
         "modified_helmholtz_p2p: k = {k} must be finite and >= 0"
     );
-    let kernel = ModifiedHelmholtz3d { k };
-    lanes::evaluate_sources_with(
-        level,
-        &kernel,
-        crate::SourceKind::Charge,
-        mode,
-        sources,
-        charges,
-        targets,
-        out,
-    );
+    let (kernel, kind) = (ModifiedHelmholtz3d { k }, SourceKind::Charge);
+    lanes::evaluate_sources_with(level, &kernel, kind, mode, sources, charges, targets, out);
 }
