@@ -68,7 +68,7 @@ impl Helmholtz3d {
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        crate::modified_helmholtz::check_wavenumber(k).map(|k| Helmholtz3d { k })
+        crate::error::check_wavenumber(k).map(|k| Helmholtz3d { k })
     }
 }
 
