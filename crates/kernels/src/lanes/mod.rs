@@ -206,8 +206,9 @@ pub trait Simd<T: LaneFloat>: Copy + Send + Sync + 'static {
     fn store(self, v: Self::V, a: &mut [T]);
 }
 
-/// A kernel whose P2P runs in the vectorised loop of this module: it
-/// supplies the contribution of one source to one register of targets.
+/// A scalar kernel whose P2P with charges runs in the lane engine: it
+/// supplies the contribution of one charge to one register of targets (the
+/// engine runs it as a [`PairKernel`] with `NQ = 1` and `W = 1` or 4).
 ///
 /// Implement [`LaneKernel::pair`] (mark it `#[inline(always)]`, so that it
 /// is compiled into each instruction set's loop), and let
