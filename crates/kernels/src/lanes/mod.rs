@@ -439,14 +439,14 @@ impl<K: LaneKernel> PairKernel for Charges<'_, K> {
         q: &[S::V; NQ],
         acc: &mut [S::V; W],
     ) {
-        let mut a = [s.splat(T::ZERO); 4];
-        a[..W].copy_from_slice(acc);
-        if W == 4 {
-            self.0.pair::<T, S, true>(s, *d, r2, q[0], &mut a);
+        if let Ok(a) = <&mut [S::V; 4]>::try_from(&mut acc[..]) {
+            self.0.pair::<T, S, true>(s, *d, r2, q[0], a);
         } else {
+            let zero = s.splat(T::ZERO);
+            let mut a = [acc[0], zero, zero, zero];
             self.0.pair::<T, S, false>(s, *d, r2, q[0], &mut a);
+            acc[0] = a[0];
         }
-        acc.copy_from_slice(&a[..W]);
     }
 
     fn lane_scale(&self) -> f64 {
