@@ -178,7 +178,7 @@ impl PairKernel for Helmholtz3d {
         Consts::new(s, self.k)
     }
 
-    /// The formulas of the [module docs](self): charges unless `NQ = 6`,
+    /// The formulas of the module docs (`helmholtz/pair.rs`): charges unless `NQ = 6`,
     /// dipoles when `NQ >= 6`, gradients when `W = 8`.
     #[inline(always)]
     fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(

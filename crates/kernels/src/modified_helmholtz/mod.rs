@@ -42,7 +42,7 @@ use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind}
 ///
 /// [`Kernel::evaluate`] and [`Kernel::evaluate_sources`] run the lane engine
 /// with a polynomial `exp`, vectorised for the detected instruction set
-/// (see the [module docs](self)).
+/// (see the module docs, `modified_helmholtz/mod.rs`).
 ///
 /// ```
 /// use ferrofmm_kernels::{EvalMode, Kernel, ModifiedHelmholtz3d};

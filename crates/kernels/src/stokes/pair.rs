@@ -49,7 +49,7 @@ impl PairKernel for Stokes3d {
         ]
     }
 
-    /// The formulas of the [module docs](self); gradients when `W = 12`,
+    /// The formulas of the module docs (`stokes/pair.rs`); gradients when `W = 12`,
     /// `d_k u_a` stored at `3 + 3 k + a`.
     #[inline(always)]
     fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
