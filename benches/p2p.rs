@@ -2,7 +2,8 @@
 //! thread) for every SIMD level this CPU supports, plus the dense assembly,
 //! the modified Helmholtz loop, and every source kind x output of every
 //! kernel (`p2p/sources/{laplace,yukawa,helmholtz,stokes}/{charge,dipole,
-//! charge+dipole}/{potential,gradient,hessian}/dispatch`, f64; the complex
+//! charge+dipole}/{potential,gradient,hessian}/dispatch`, f64, and the same
+//! with `f32/` after the kernel's name; the complex
 //! Helmholtz kernel at k = 10, the Stokeslet with forces only).
 //!
 //! Ids: `p2p/laplace/{f64,f32}/{potential,potential+gradient}/{level}/{ns}x{nt}`
@@ -150,12 +151,13 @@ fn bench_yukawa(c: &mut Criterion) {
 
 /// Every source kind x output the kernel supports through
 /// `Kernel::evaluate_sources`, as the FMM calls it (best level of the CPU),
-/// f64, 1024 x 1024 (complex and vector kernels: pairs, not components).
-fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
+/// 1024 x 1024 (complex and vector kernels: pairs, not components); `prec`
+/// is `""` for f64 (the ids of old) and `"f32/"` for f32.
+fn bench_sources<K: Kernel, T: Real>(c: &mut Criterion, kernel: &K, name: &str, prec: &str) {
     let mut rng = StdRng::seed_from_u64(11);
     let n = 1024;
-    let (s, _) = points::<f64>(&mut rng, n);
-    let (t, _) = points::<f64>(&mut rng, n);
+    let (s, _) = points::<T>(&mut rng, n);
+    let (t, _) = points::<T>(&mut rng, n);
     let mut group = c.benchmark_group("p2p");
     group.throughput(Throughput::Elements((n * n) as u64));
     for kind in [
@@ -164,7 +166,7 @@ fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
         SourceKind::ChargeDipole,
     ] {
         let per_source = kernel.values_per_source(kind);
-        let (d, _) = points::<f64>(&mut rng, n * per_source);
+        let (d, _) = points::<T>(&mut rng, n * per_source);
         let d = &d[..n * per_source];
         for mode in [
             EvalMode::Potential,
@@ -174,9 +176,13 @@ fn bench_sources<K: Kernel>(c: &mut Criterion, kernel: &K, name: &str) {
             if !kernel.supports(kind, mode) {
                 continue;
             }
-            let mut out = vec![0.0f64; kernel.values_per_target(mode) * n];
+            let mut out = vec![T::ZERO; kernel.values_per_target(mode) * n];
             let id = BenchmarkId::new(
-                format!("sources/{name}/{}/{}/dispatch", kind.name(), mode.name()),
+                format!(
+                    "sources/{name}/{prec}{}/{}/dispatch",
+                    kind.name(),
+                    mode.name()
+                ),
                 format!("{n}x{n}"),
             );
             group.bench_function(id, |b| {
@@ -201,10 +207,17 @@ fn benches(c: &mut Criterion) {
     bench_laplace::<f32>(c, "f32");
     bench_assemble(c);
     bench_yukawa(c);
-    bench_sources(c, &Laplace3d, "laplace");
-    bench_sources(c, &ModifiedHelmholtz3d::new(1.0).unwrap(), "yukawa");
-    bench_sources(c, &Helmholtz3d::new(10.0).unwrap(), "helmholtz");
-    bench_sources(c, &Stokes3d::default(), "stokes");
+    let yukawa = ModifiedHelmholtz3d::new(1.0).unwrap();
+    let helmholtz = Helmholtz3d::new(10.0).unwrap();
+    let stokes = Stokes3d::default();
+    bench_sources::<_, f64>(c, &Laplace3d, "laplace", "");
+    bench_sources::<_, f64>(c, &yukawa, "yukawa", "");
+    bench_sources::<_, f64>(c, &helmholtz, "helmholtz", "");
+    bench_sources::<_, f64>(c, &stokes, "stokes", "");
+    bench_sources::<_, f32>(c, &Laplace3d, "laplace", "f32/");
+    bench_sources::<_, f32>(c, &yukawa, "yukawa", "f32/");
+    bench_sources::<_, f32>(c, &helmholtz, "helmholtz", "f32/");
+    bench_sources::<_, f32>(c, &stokes, "stokes", "f32/");
 }
 
 criterion_group!(p2p, benches);

@@ -82,15 +82,8 @@ pub fn direct_sum_sources<K: Kernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) = check_lengths(
-        kernel.components(),
-        kind,
-        mode,
-        sources,
-        densities,
-        targets,
-        out,
-    ) {
+    let slices = [sources, densities, targets, &*out];
+    if let Err(e) = check_lengths(kernel.components(), kind, mode, slices) {
         panic!("direct_sum: {e}");
     }
     assert!(
@@ -196,7 +189,7 @@ pub fn check_source_inputs<T: Real>(
     targets: &[T],
     out: &[T],
 ) -> Result<(), KernelError> {
-    check_values(1, kind, mode, sources, densities, targets, out)
+    check_values(1, kind, mode, [sources, densities, targets, out])
 }
 
 /// [`check_source_inputs`] for `kernel`, whose densities and outputs have
@@ -215,28 +208,20 @@ pub fn check_kernel_inputs<K: Kernel, T: Real>(
     targets: &[T],
     out: &[T],
 ) -> Result<(), KernelError> {
-    check_values(
-        kernel.components(),
-        kind,
-        mode,
-        sources,
-        densities,
-        targets,
-        out,
-    )
+    let slices = [sources, densities, targets, out];
+    check_values(kernel.components(), kind, mode, slices)
 }
 
-/// Lengths, then finiteness, for `components` values per quantity.
+/// Lengths, then finiteness, for `components` values per quantity, of
+/// `[sources, densities, targets, out]`.
 fn check_values<T: Real>(
     components: usize,
     kind: SourceKind,
     mode: EvalMode,
-    sources: &[T],
-    densities: &[T],
-    targets: &[T],
-    out: &[T],
+    slices: [&[T]; 4],
 ) -> Result<(), KernelError> {
-    check_lengths(components, kind, mode, sources, densities, targets, out)?;
+    check_lengths(components, kind, mode, slices)?;
+    let [sources, densities, targets, _] = slices;
     let densities_name = match kind {
         SourceKind::Charge => "charges",
         SourceKind::Dipole => "dipoles",
@@ -258,15 +243,13 @@ fn check_values<T: Real>(
     Ok(())
 }
 
-/// Lengths of an evaluation with `components` values per quantity.
+/// Lengths of an evaluation with `components` values per quantity:
+/// `[sources, densities, targets, out]`.
 pub(crate) fn check_lengths<T: Real>(
     components: usize,
     kind: SourceKind,
     mode: EvalMode,
-    sources: &[T],
-    densities: &[T],
-    targets: &[T],
-    out: &[T],
+    [sources, densities, targets, out]: [&[T]; 4],
 ) -> Result<(), KernelError> {
     for (what, p) in [("sources", sources), ("targets", targets)] {
         if !p.len().is_multiple_of(3) {

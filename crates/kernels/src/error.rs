@@ -80,3 +80,20 @@ pub enum KernelError {
         expected: &'static str,
     },
 }
+
+/// `k` when it is a valid wavenumber (finite and `>= 0`) of either
+/// Helmholtz kernel.
+///
+/// # Errors
+/// [`KernelError::InvalidParameter`] otherwise.
+pub(crate) fn check_wavenumber(k: f64) -> Result<f64, KernelError> {
+    if k.is_finite() && k >= 0.0 {
+        Ok(k)
+    } else {
+        Err(KernelError::InvalidParameter {
+            name: "k",
+            value: k,
+            expected: "finite and >= 0",
+        })
+    }
+}

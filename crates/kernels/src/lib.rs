@@ -47,16 +47,33 @@
 //! ## Vectorisation and dispatch
 //!
 //! The crate builds for the portable baseline (no `-C target-cpu`). One P2P
-//! loop serves every kernel ([`lanes`]): a kernel plugs in a per-pair
-//! micro-kernel on SIMD registers ([`lanes::LaneKernel`]), and the loop is
-//! compiled as AVX-512F, AVX2+FMA and portable lane-chunked versions
-//! (`#[target_feature]`, chosen at run time by [`SimdLevel::detected`],
-//! cached). Laplace, modified Helmholtz and kernels written outside the
-//! crate all run in it. [`SimdLevel`] lets tests and benchmarks force a
-//! level, per call ([`laplace_p2p_with`], [`lanes::evaluate_with`]) or
+//! loop, the lane engine of [`lanes`], serves every kernel: a kernel plugs
+//! in a per-pair micro-kernel on SIMD registers ([`lanes::PairKernel`];
+//! for a scalar kernel with charges the shorter [`lanes::LaneKernel`], for
+//! a radial one [`lanes::RadialLaneKernel`], from which dipoles and
+//! Hessians are composed), and the loop is compiled as AVX-512F, AVX2+FMA
+//! and portable lane-chunked versions (`#[target_feature]`, chosen at run
+//! time by [`SimdLevel::detected`], cached). Laplace, modified Helmholtz,
+//! Helmholtz, Stokes and kernels written outside the crate all run in it,
+//! with charges, dipoles or both, complex values and several components.
+//! Every kernel's P2P has the same entry points: [`Kernel::evaluate`] and
+//! [`Kernel::evaluate_sources`] at [`SimdLevel::active`], and
+//! [`lanes::evaluate_sources_with`] at a given level ([`laplace_p2p_with`]
+//! and [`modified_helmholtz_p2p_with`] are the same for those two kernels).
+//! [`SimdLevel`] lets tests and benchmarks force a level, per call or
 //! globally ([`set_simd_level`], env `FERROFMM_SIMD=scalar|avx2|avx512`).
 //! The AVX-512 path uses `vrsqrt14` with a polynomial refinement to full
 //! precision; see [`lanes`] for the error analysis.
+//!
+//! ## Layout of the crate
+//!
+//! One folder per kernel, each with its maths (module docs), its
+//! [`Kernel`] impl (`mod.rs`) and its micro-kernel (`pair.rs`):
+//! `laplace/` (and its dense assembly), `modified_helmholtz/` (Yukawa),
+//! `helmholtz/` (the oscillatory kernel) and `stokes/`. Shared machinery
+//! stays outside them: the lane engine and its instruction sets
+//! (`lanes/`), direct summation (`direct.rs`), the pairwise references
+//! (`reference.rs`), [`Real`] and [`SimdLevel`].
 //!
 //! ## Conventions
 //!
@@ -69,31 +86,25 @@
 mod direct;
 mod error;
 mod helmholtz;
-mod helmholtz_p2p;
 mod kernel;
 pub mod lanes;
 mod laplace;
-mod laplace_simd;
-mod oscillatory_helmholtz;
-mod oscillatory_helmholtz_p2p;
+mod modified_helmholtz;
 mod real;
 pub mod reference;
 mod registry;
 mod simd;
 mod stokes;
-mod stokes_p2p;
 
 pub use direct::{
     DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,
     direct_sum_checked, direct_sum_sources, direct_sum_sources_checked,
 };
 pub use error::KernelError;
-pub use helmholtz::ModifiedHelmholtz3d;
-pub use helmholtz_p2p::modified_helmholtz_p2p_with;
+pub use helmholtz::Helmholtz3d;
 pub use kernel::{EvalMode, Kernel, SourceKind};
-pub use laplace::{INV_4PI, Laplace3d};
-pub use laplace_simd::{laplace_assemble_with, laplace_p2p, laplace_p2p_with};
-pub use oscillatory_helmholtz::Helmholtz3d;
+pub use laplace::{INV_4PI, Laplace3d, laplace_assemble_with, laplace_p2p, laplace_p2p_with};
+pub use modified_helmholtz::{ModifiedHelmholtz3d, modified_helmholtz_p2p_with};
 pub use real::{Precision, Real};
 pub use registry::{
     AutoScheme, BuiltinKernel, KernelChoice, KernelDescription, KernelVisitor,

@@ -107,20 +107,20 @@ portable_impl!(f64, u64, 1023, 52);
 portable_impl!(f32, u32, 127, 23);
 
 #[cfg(target_arch = "x86_64")]
-pub(super) use x86::{run_avx2, run_avx512, task_avx2, task_avx512};
+pub(super) use x86::{task_avx2, task_avx512};
 
 #[cfg(target_arch = "x86_64")]
 mod x86 {
     use std::arch::x86_64::*;
 
-    use super::super::{LaneFloat, LaneKernel, SIMD_BLOCK, Simd, SimdTask, p2p};
+    use super::super::{LaneFloat, Simd, SimdTask};
     use super::{Avx2, Avx512};
 
     /// Run an intrinsic of the token's instruction set.
     macro_rules! simd {
         ($e:expr) => {
             // SAFETY: a token (`Avx512`, `Avx2`) is only made by the
-            // `run_*` functions below, which callers enter only after
+            // `task_*` functions below, which callers enter only after
             // `SimdLevel` detection confirmed the CPU supports the
             // instruction set; the pointer intrinsics (loads, stores) get
             // slices checked to hold `LANES` values.
@@ -185,34 +185,6 @@ mod x86 {
                 simd!($store(a.as_mut_ptr(), v))
             }
         };
-    }
-
-    /// The loop compiled for AVX-512F.
-    #[target_feature(enable = "avx512f")]
-    pub(in crate::lanes) fn run_avx512<T: LaneFloat, K: LaneKernel, const GRAD: bool>(
-        kernel: &K,
-        s: &[T],
-        q: &[T],
-        t: &[T],
-        o: &mut [T],
-    ) where
-        Avx512: Simd<T>,
-    {
-        p2p::<T, Avx512, K, SIMD_BLOCK, GRAD>(Avx512(()), kernel, s, q, t, o);
-    }
-
-    /// The loop compiled for AVX2 + FMA.
-    #[target_feature(enable = "avx2,fma")]
-    pub(in crate::lanes) fn run_avx2<T: LaneFloat, K: LaneKernel, const GRAD: bool>(
-        kernel: &K,
-        s: &[T],
-        q: &[T],
-        t: &[T],
-        o: &mut [T],
-    ) where
-        Avx2: Simd<T>,
-    {
-        p2p::<T, Avx2, K, SIMD_BLOCK, GRAD>(Avx2(()), kernel, s, q, t, o);
     }
 
     /// A [`SimdTask`] compiled for AVX-512F.

@@ -1,32 +1,58 @@
-//! One vectorised P2P loop for every kernel: a kernel supplies a per-pair
-//! **micro-kernel** on SIMD registers ([`LaneKernel::pair`]); the loop, the
-//! target blocking and the run-time choice of instruction set live here,
-//! once (the model is PVFMM's generic kernel).
+//! The plumbing for those who implement a kernel: one vectorised P2P loop,
+//! the **lane engine**, for every kernel of the crate and kernels written
+//! outside it. A kernel supplies a per-pair **micro-kernel** on SIMD
+//! registers; the loop over targets and sources, the target blocking, the
+//! block sizes and the run-time choice of instruction set live here, once
+//! (the model is PVFMM's generic kernel; the layout of this module that of
+//! rayon's `iter::plumbing`).
 //!
-//! # The loop
-//! For sources `x_i` with charges `q_i` and targets `y_j`, every kernel
-//! computes
+//! # The engine
+//! For sources `x_i` with densities `q_i` (`NQ` values each: a charge, a
+//! complex charge, a dipole, a force, ...) and targets `y_j`, every kernel
+//! computes `W` outputs per target
 //!
 //! ```text
-//! out_j[0]    += s_K sum_i q_i K(x_i, y_j)                 (potential)
-//! out_j[1..4] += s_K sum_i q_i grad_y K(x_i, y_j)          (gradient, optional)
+//! out_j[0..W] += s_K sum_i m(x_i - y_j, q_i)
 //! ```
 //!
-//! with a constant factor `s_K` ([`LaneKernel::lane_scale`], `1 / (4 pi)`
-//! for the kernels of this crate) applied once per target at the end.
-//! Targets are taken in blocks of `C` registers of `L` lanes (`L` = 8 `f64`
-//! / 16 `f32` with AVX-512, 4 / 8 with AVX2; `C` = 2, so that two
+//! with a micro-kernel `m` ([`PairKernel::pair`]) and a constant factor
+//! `s_K` ([`PairKernel::lane_scale`]) applied once per target at the end.
+//! `NQ` and `W` are compile-time constants (the *shape* of a call), picked
+//! by the kernel from the source kind, the outputs and its components
+//! ([`LaneSources`]), so each shape compiles to its own loop. Targets are
+//! taken in blocks of `C` registers of `L` lanes (`L` = 8 `f64` / 16 `f32`
+//! with AVX-512, 4 / 8 with AVX2; `C` = 2 while `W` is small, so that two
 //! independent dependency chains hide the latency of a reciprocal square
-//! root; the portable backend uses `L` = 1 and `C` = 64 lanes written as
-//! plain loops that the compiler vectorises for the baseline target). A
-//! block's target coordinates are de-interleaved once into registers, and
-//! its accumulators stay in registers for the whole sweep over the sources.
-//! Each source costs four broadcasts (`x`, `y`, `z`, `q`) shared by the
-//! block; per register the loop forms `d = x_i - y` (source minus target)
-//! and `r2 = |d|^2` (fused multiply-adds) and calls the micro-kernel, which
-//! adds `q K` to `acc[0]` and, with `GRAD`, `q grad_y K` to `acc[1..4]`.
-//! Sources are read in storage order, so each target's sum runs in the same
-//! order on every backend.
+//! root, else 1; the portable backend uses `L` = 1 and `C` = 64 lanes
+//! written as plain loops that the compiler vectorises for the baseline
+//! target, or 16 for long micro-kernels: [`PairKernel::TWO_REGISTERS_UP_TO`],
+//! [`PairKernel::PORTABLE_LANES`]). A block's target coordinates are
+//! de-interleaved once into registers, and its `W` accumulators stay in
+//! registers for the whole sweep over the sources. Each source costs
+//! `3 + NQ` broadcasts shared by the block; per register the loop forms
+//! `d = x_i - y` (source minus target) and `r2 = |d|^2` (fused
+//! multiply-adds) and calls the micro-kernel. Sources are read in storage
+//! order, so each target's sum runs in the same order on every backend.
+//!
+//! # Entry points and layers
+//! * [`evaluate_sources_with`] (and [`evaluate_sources`] at
+//!   [`SimdLevel::active`]): every kernel of the crate ([`LaneSources`]),
+//!   every source kind and output it supports; what their
+//!   [`Kernel::evaluate`] and [`Kernel::evaluate_sources`] call.
+//! * [`LaneKernel`]: the short way for a scalar kernel with charges: one
+//!   micro-kernel for a charge and 1 or 4 outputs, run by [`evaluate_with`]
+//!   (see the example below).
+//! * [`RadialLaneKernel`]: a radial kernel's derivatives `f_0 .. f_3`,
+//!   from which the engine composes dipoles and Hessians (and which makes
+//!   the kernel a [`LaneSources`]).
+//! * [`PairKernel`] and [`run`]: the engine itself, for a kernel with
+//!   several components or its own source kinds ([`Helmholtz3d`] and
+//!   [`Stokes3d`] are written this way).
+//! * [`SimdTask`] and [`run_task`]: other vectorised work on the same
+//!   instruction-set tokens.
+//!
+//! [`Helmholtz3d`]: crate::Helmholtz3d
+//! [`Stokes3d`]: crate::Stokes3d
 //!
 //! # Instruction sets
 //! [`Simd`] is implemented by three zero-sized *tokens*: [`Avx512`],
@@ -97,12 +123,14 @@
 //! ```
 
 mod backends;
+mod engine;
 mod exp;
 mod radial;
 
 pub use backends::{Avx2, Avx512, Portable};
+pub use engine::{PairKernel, run};
 pub use exp::exp_nonpositive;
-pub use radial::{RadialLaneKernel, composed_with, evaluate_sources, evaluate_sources_with};
+pub use radial::{RadialLaneKernel, composed_with};
 
 use crate::{EvalMode, Kernel, Real, SimdLevel, SourceKind};
 
@@ -178,8 +206,9 @@ pub trait Simd<T: LaneFloat>: Copy + Send + Sync + 'static {
     fn store(self, v: Self::V, a: &mut [T]);
 }
 
-/// A kernel whose P2P runs in the vectorised loop of this module: it
-/// supplies the contribution of one source to one register of targets.
+/// A scalar kernel whose P2P with charges runs in the lane engine: it
+/// supplies the contribution of one charge to one register of targets (the
+/// engine runs it as a [`PairKernel`] with `NQ = 1` and `W = 1` or 4).
 ///
 /// Implement [`LaneKernel::pair`] (mark it `#[inline(always)]`, so that it
 /// is compiled into each instruction set's loop), and let
@@ -330,7 +359,7 @@ pub(crate) use run_on_floats;
 
 /// Accumulate the kernel's potentials (and gradients) of `sources` with
 /// `charges` at `targets` into `out` (layout of [`Kernel::evaluate`]) with
-/// the vectorised loop at [`SimdLevel::active`].
+/// the lane engine at [`SimdLevel::active`].
 ///
 /// # Panics
 /// When a coordinate slice's length is not a multiple of 3, or `charges` /
@@ -358,8 +387,7 @@ pub fn evaluate<K: LaneKernel, T: Real>(
 }
 
 /// [`evaluate`] at a given instruction-set `level` (lowered to what the
-/// CPU supports, so any value is safe). Float types other than `f32` and
-/// `f64` use the pairwise reference.
+/// CPU supports, so any value is safe).
 ///
 /// # Panics
 /// As [`evaluate`].
@@ -372,199 +400,195 @@ pub fn evaluate_with<K: LaneKernel, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    if let Err(e) =
-        crate::direct::check_lengths(1, SourceKind::Charge, mode, sources, charges, targets, out)
-    {
-        panic!("{} P2P: {e}", kernel.name());
-    }
+    check(
+        kernel,
+        SourceKind::Charge,
+        mode,
+        [sources, charges, targets, out],
+    );
     assert!(
         !mode.has_hessian(),
         "{} P2P: Hessians come from lanes::evaluate_sources (RadialLaneKernel)",
         kernel.name()
     );
-    if sources.is_empty() || targets.is_empty() {
-        return;
-    }
-    let level = level.clamp_supported();
-    let grad = mode == EvalMode::PotentialGradient;
-    if let (Some(s), Some(q), Some(t)) = (
-        T::as_f64_slice(sources),
-        T::as_f64_slice(charges),
-        T::as_f64_slice(targets),
-    ) {
-        let o = T::as_f64_slice_mut(out).expect("same type as the inputs");
-        dispatch(level, grad, kernel, s, q, t, o);
-    } else if let (Some(s), Some(q), Some(t)) = (
-        T::as_f32_slice(sources),
-        T::as_f32_slice(charges),
-        T::as_f32_slice(targets),
-    ) {
-        let o = T::as_f32_slice_mut(out).expect("same type as the inputs");
-        dispatch(level, grad, kernel, s, q, t, o);
+    let (s, q, t, o) = (sources, charges, targets, out);
+    if mode.has_gradient() {
+        run::<_, _, 1, 4>(level, &Charges(kernel), s, q, t, o);
     } else {
-        crate::reference::evaluate_pairwise(kernel, mode, sources, charges, targets, out);
+        run::<_, _, 1, 1>(level, &Charges(kernel), s, q, t, o);
     }
 }
 
-/// The loop for `level` (which the CPU supports: callers clamp it).
-#[cfg(target_arch = "x86_64")]
-fn dispatch<T: LaneFloat, K: LaneKernel>(
-    level: SimdLevel,
-    grad: bool,
-    kernel: &K,
-    s: &[T],
-    q: &[T],
-    t: &[T],
-    o: &mut [T],
-) where
-    Avx512: Simd<T>,
-    Avx2: Simd<T>,
-    Portable: Simd<T>,
-{
-    match (level, grad) {
-        #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx512, true) => {
-            // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the
-            // CPU supports avx512f, the only feature this function enables.
-            unsafe { backends::run_avx512::<T, K, true>(kernel, s, q, t, o) }
+/// A [`LaneKernel`] as the engine's [`PairKernel`]: one charge per source,
+/// 1 or 4 outputs per target.
+struct Charges<'a, K>(&'a K);
+
+impl<K: LaneKernel> PairKernel for Charges<'_, K> {
+    type Regs<T: LaneFloat, S: Simd<T>> = ();
+
+    #[inline(always)]
+    fn regs<T: LaneFloat, S: Simd<T>>(&self, _s: S) {}
+
+    #[inline(always)]
+    fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
+        &self,
+        s: S,
+        _regs: &(),
+        d: &[S::V; 3],
+        r2: S::V,
+        q: &[S::V; NQ],
+        acc: &mut [S::V; W],
+    ) {
+        if let Ok(a) = <&mut [S::V; 4]>::try_from(&mut acc[..]) {
+            self.0.pair::<T, S, true>(s, *d, r2, q[0], a);
+        } else {
+            let zero = s.splat(T::ZERO);
+            let mut a = [acc[0], zero, zero, zero];
+            self.0.pair::<T, S, false>(s, *d, r2, q[0], &mut a);
+            acc[0] = a[0];
         }
-        #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx512, false) => {
-            // SAFETY: as above.
-            unsafe { backends::run_avx512::<T, K, false>(kernel, s, q, t, o) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx2, true) => {
-            // SAFETY: `level` was clamped to `SimdLevel::detected()`, so the
-            // CPU supports avx2 and fma, the features this function enables.
-            unsafe { backends::run_avx2::<T, K, true>(kernel, s, q, t, o) }
-        }
-        #[cfg(target_arch = "x86_64")]
-        (SimdLevel::Avx2, false) => {
-            // SAFETY: as above.
-            unsafe { backends::run_avx2::<T, K, false>(kernel, s, q, t, o) }
-        }
-        (_, true) => p2p::<T, Portable, K, PORTABLE_BLOCK, true>(Portable, kernel, s, q, t, o),
-        (_, false) => p2p::<T, Portable, K, PORTABLE_BLOCK, false>(Portable, kernel, s, q, t, o),
+    }
+
+    fn lane_scale(&self) -> f64 {
+        self.0.lane_scale()
     }
 }
 
-/// The portable loop (no other backend on this architecture).
-#[cfg(not(target_arch = "x86_64"))]
-fn dispatch<T: LaneFloat, K: LaneKernel>(
-    _level: SimdLevel,
-    grad: bool,
-    kernel: &K,
-    s: &[T],
-    q: &[T],
-    t: &[T],
-    o: &mut [T],
-) where
-    Portable: Simd<T>,
-{
-    if grad {
-        p2p::<T, Portable, K, PORTABLE_BLOCK, true>(Portable, kernel, s, q, t, o)
-    } else {
-        p2p::<T, Portable, K, PORTABLE_BLOCK, false>(Portable, kernel, s, q, t, o)
-    }
+/// A kernel whose every supported `(kind, mode)` runs in the lane engine:
+/// it picks the shape `(NQ, W)` and the [`PairKernel`] of each and calls
+/// [`run`]. Every [`RadialLaneKernel`] is one; so are
+/// [`Helmholtz3d`](crate::Helmholtz3d) and [`Stokes3d`](crate::Stokes3d).
+/// [`evaluate_sources_with`] is the entry point.
+pub trait LaneSources: Kernel {
+    /// Run the engine for `(kind, mode)` at `level`: the pair is
+    /// [supported](Kernel::supports) and the lengths are checked.
+    #[allow(clippy::too_many_arguments)]
+    fn run_sources<T: Real>(
+        &self,
+        level: SimdLevel,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    );
 }
 
-/// Registers per target block of the SIMD backends.
-const SIMD_BLOCK: usize = 2;
-/// Lanes per target block of the portable backend (one lane per register).
-const PORTABLE_BLOCK: usize = 64;
-/// Largest block, in targets (`C * LANES`): 2 x 16 `f32` or 64 x 1.
-const MAX_BLOCK: usize = 64;
-
-/// The loop over all targets, `C` registers at a time (`GRAD`: 4 values per
-/// target, else 1); inlined into each backend's `target_feature` function.
-/// Mismatched lengths only truncate the loops.
-#[inline(always)]
-fn p2p<T: LaneFloat, S: Simd<T>, K: LaneKernel, const C: usize, const GRAD: bool>(
-    s: S,
+/// Accumulate the field of sources of `kind` (densities interleaved,
+/// [`Kernel::values_per_source`] per source) at `targets`, outputs of
+/// `mode` ([`Kernel::values_per_target`] per target), into `out`, at
+/// [`SimdLevel::active`]: what the kernels of this crate run in
+/// [`Kernel::evaluate`] and [`Kernel::evaluate_sources`].
+///
+/// # Panics
+/// When a coordinate slice's length is not a multiple of 3, `densities` /
+/// `out` do not match the number of sources / targets, or the kernel does
+/// not [support](Kernel::supports) `(kind, mode)`.
+#[inline]
+pub fn evaluate_sources<K: LaneSources, T: Real>(
     kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
     sources: &[T],
-    charges: &[T],
+    densities: &[T],
     targets: &[T],
     out: &mut [T],
 ) {
-    let w = w_of::<GRAD>();
-    let block = C * S::LANES;
-    debug_assert!(block <= MAX_BLOCK);
-    for (tb, ob) in targets.chunks(3 * block).zip(out.chunks_mut(w * block)) {
-        if C > 1 && tb.len() <= 3 * S::LANES {
-            // One register suffices for the last few targets.
-            block_of::<T, S, K, 1, GRAD>(s, kernel, sources, charges, tb, ob);
-        } else {
-            block_of::<T, S, K, C, GRAD>(s, kernel, sources, charges, tb, ob);
-        }
-    }
+    let level = SimdLevel::active();
+    evaluate_sources_with(level, kernel, kind, mode, sources, densities, targets, out);
 }
 
-/// Up to `C * LANES` targets (`tb`, interleaved) against all sources.
-#[inline(always)]
-fn block_of<T: LaneFloat, S: Simd<T>, K: LaneKernel, const C: usize, const GRAD: bool>(
-    s: S,
+/// [`evaluate_sources`] at a given instruction-set `level` (lowered to
+/// what the CPU supports, so any value is safe): the one entry point of
+/// every kernel's P2P at a chosen level, for tests and benchmarks.
+///
+/// ```
+/// use ferrofmm_kernels::{lanes, EvalMode, SimdLevel, SourceKind, Stokes3d};
+/// // A unit force along x at the origin, seen from (2, 0, 0): 2 / (8 pi 2).
+/// let mut u = [0.0f64; 3];
+/// lanes::evaluate_sources_with(SimdLevel::Scalar, &Stokes3d::default(), SourceKind::Charge,
+///     EvalMode::Potential, &[0.0; 3], &[1.0, 0.0, 0.0], &[2.0, 0.0, 0.0], &mut u);
+/// assert!((u[0] - 1.0 / (8.0 * std::f64::consts::PI)).abs() < 1e-16);
+/// ```
+///
+/// # Panics
+/// As [`evaluate_sources`].
+#[allow(clippy::too_many_arguments)]
+pub fn evaluate_sources_with<K: LaneSources, T: Real>(
+    level: SimdLevel,
     kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
     sources: &[T],
-    charges: &[T],
-    tb: &[T],
-    ob: &mut [T],
+    densities: &[T],
+    targets: &[T],
+    out: &mut [T],
 ) {
-    let l = S::LANES;
-    // De-interleave the block's targets, zero-padded.
-    let mut buf = [[T::ZERO; MAX_BLOCK]; 3];
-    for (k, p) in tb.chunks_exact(3).enumerate() {
-        buf[0][k] = p[0];
-        buf[1][k] = p[1];
-        buf[2][k] = p[2];
-    }
-    let zero = s.splat(T::ZERO);
-    let mut tx = [zero; C];
-    let mut ty = [zero; C];
-    let mut tz = [zero; C];
-    for c in 0..C {
-        tx[c] = s.load(&buf[0][c * l..]);
-        ty[c] = s.load(&buf[1][c * l..]);
-        tz[c] = s.load(&buf[2][c * l..]);
-    }
-    // Accumulators by output, then register: with one lane per register
-    // (portable) the loop over registers is then unit-stride, which the
-    // compiler vectorises; with SIMD registers it is all in registers.
-    let mut acc = [[zero; C]; 4];
-    for (x, &q) in sources.chunks_exact(3).zip(charges) {
-        let sx = s.splat(x[0]);
-        let sy = s.splat(x[1]);
-        let sz = s.splat(x[2]);
-        let vq = s.splat(q);
-        for c in 0..C {
-            let dx = s.sub(sx, tx[c]);
-            let dy = s.sub(sy, ty[c]);
-            let dz = s.sub(sz, tz[c]);
-            let r2 = s.mul_add(dz, dz, s.mul_add(dy, dy, s.mul(dx, dx)));
-            let mut a = [acc[0][c], acc[1][c], acc[2][c], acc[3][c]];
-            kernel.pair::<T, S, GRAD>(s, [dx, dy, dz], r2, vq, &mut a);
-            for (k, v) in a.into_iter().enumerate() {
-                acc[k][c] = v;
-            }
-        }
-    }
-    let scale = s.splat(T::from_f64(kernel.lane_scale()));
-    let mut res = [[T::ZERO; MAX_BLOCK]; 4];
-    for c in 0..C {
-        for v in 0..w_of::<GRAD>() {
-            s.store(s.mul(acc[v][c], scale), &mut res[v][c * l..]);
-        }
-    }
-    for (j, o) in ob.chunks_exact_mut(w_of::<GRAD>()).enumerate() {
-        for (v, r) in o.iter_mut().zip(&res) {
-            *v += r[j];
-        }
-    }
+    check(kernel, kind, mode, [sources, densities, targets, out]);
+    assert!(
+        kernel.supports(kind, mode),
+        "{} P2P: {} sources with {} outputs are not supported (Kernel::supports)",
+        kernel.name(),
+        kind.name(),
+        mode.name()
+    );
+    kernel.run_sources(level, kind, mode, sources, densities, targets, out);
 }
 
-/// Values per target: 4 with gradients, else 1.
-#[inline(always)]
-const fn w_of<const GRAD: bool>() -> usize {
-    if GRAD { 4 } else { 1 }
+/// The [`Kernel::evaluate`] and [`Kernel::evaluate_sources`] of a
+/// [`LaneSources`] kernel of this crate: the lane engine at
+/// [`SimdLevel::active`] ([`evaluate_sources`]), written once.
+macro_rules! kernel_entry_points {
+    () => {
+        /// The lane engine at [`SimdLevel::active`](crate::SimdLevel::active)
+        /// ([`lanes::evaluate_sources`](crate::lanes::evaluate_sources)
+        /// with charges; [`lanes::evaluate_sources_with`](crate::lanes::evaluate_sources_with)
+        /// takes the level).
+        ///
+        /// # Panics
+        /// When lengths are inconsistent or the kernel does not
+        /// [support](crate::Kernel::supports) `mode` with charges.
+        #[inline]
+        fn evaluate<T: crate::Real>(
+            &self,
+            mode: crate::EvalMode,
+            sources: &[T],
+            charges: &[T],
+            targets: &[T],
+            out: &mut [T],
+        ) {
+            let (kind, q) = (crate::SourceKind::Charge, charges);
+            crate::lanes::evaluate_sources(self, kind, mode, sources, q, targets, out);
+        }
+
+        /// The lane engine at [`SimdLevel::active`](crate::SimdLevel::active)
+        /// ([`lanes::evaluate_sources`](crate::lanes::evaluate_sources)).
+        ///
+        /// # Panics
+        /// When lengths are inconsistent or the kernel does not
+        /// [support](crate::Kernel::supports) `(kind, mode)`.
+        #[inline]
+        fn evaluate_sources<T: crate::Real>(
+            &self,
+            kind: crate::SourceKind,
+            mode: crate::EvalMode,
+            sources: &[T],
+            densities: &[T],
+            targets: &[T],
+            out: &mut [T],
+        ) {
+            crate::lanes::evaluate_sources(self, kind, mode, sources, densities, targets, out);
+        }
+    };
+}
+pub(crate) use kernel_entry_points;
+
+/// Panic unless the lengths of `[sources, densities, targets, out]` fit
+/// `kernel`'s components, `kind` and `mode`.
+fn check<K: Kernel, T: Real>(kernel: &K, kind: SourceKind, mode: EvalMode, slices: [&[T]; 4]) {
+    let c = kernel.components();
+    if let Err(e) = crate::direct::check_lengths(c, kind, mode, slices) {
+        panic!("{} P2P: {e}", kernel.name());
+    }
 }

@@ -7,7 +7,7 @@
 
 use ferrofmm_kernels::{
     EvalMode, Helmholtz3d, Kernel, KernelError, Laplace3d, SimdLevel, SourceKind, Stokes3d,
-    check_kernel_inputs, direct_sum_sources_checked,
+    check_kernel_inputs, direct_sum_sources_checked, lanes,
 };
 use ferrofmm_testing::{errors::relative_l2, points::uniform_cube, rng::SplitMix64};
 
@@ -350,7 +350,7 @@ fn helmholtz_vector_loop_matches_the_pairwise_loop_at_every_level() {
                 k.evaluate_sources_pairwise(kind, mode, &s, &d, &t, &mut want);
                 for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
                     let mut got = vec![0.0; want.len()];
-                    k.evaluate_sources_with(level, kind, mode, &s, &d, &t, &mut got);
+                    lanes::evaluate_sources_with(level, &k, kind, mode, &s, &d, &t, &mut got);
                     assert!(got.iter().all(|v| v.is_finite()));
                     let err = relative_l2(&got, &want);
                     assert!(err < 1e-13, "k={kw} {kind:?} {mode:?} {level:?}: {err:e}");
@@ -375,7 +375,7 @@ fn stokes_vector_loop_matches_the_pairwise_loop_at_every_level() {
         k.evaluate_pairwise(mode, &s, &f, &t, &mut want);
         for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
             let mut got = vec![0.0; want.len()];
-            k.evaluate_with(level, mode, &s, &f, &t, &mut got);
+            lanes::evaluate_sources_with(level, &k, SourceKind::Charge, mode, &s, &f, &t, &mut got);
             assert!(got.iter().all(|v| v.is_finite()));
             let err = relative_l2(&got, &want);
             assert!(err < 1e-14, "{mode:?} {level:?}: {err:e}");

@@ -1,64 +1,11 @@
-//! Modified Helmholtz (Yukawa) P2P: the micro-kernel of
-//! [`ModifiedHelmholtz3d`] in the vectorised loop of [`crate::lanes`], with
-//! a polynomial `exp` on registers ([`crate::lanes::exp_nonpositive`]).
+//! The micro-kernels of [`ModifiedHelmholtz3d`] in the lane engine of
+//! [`crate::lanes`]: charges ([`LaneKernel::pair`]) and the radial
+//! derivatives behind dipoles and Hessians ([`RadialLaneKernel::radial`]),
+//! with a polynomial `exp` on registers ([`exp_nonpositive`]). The maths is
+//! in the [parent module](super).
 
+use crate::ModifiedHelmholtz3d;
 use crate::lanes::{self, LaneFloat, LaneKernel, RadialLaneKernel, Simd, exp_nonpositive};
-use crate::{EvalMode, ModifiedHelmholtz3d, Real, SimdLevel};
-
-/// Accumulate the modified Helmholtz potential (and gradient) with
-/// wavenumber `k >= 0` using instruction-set `level` (clamped to what the CPU
-/// supports):
-///
-/// ```text
-/// phi(y_j)   += sum_i q_i exp(-k r_ij) / (4 pi r_ij)
-/// grad phi_j += sum_i -q_i exp(-k r_ij) (1 + k r_ij) (y_j - x_i) / (4 pi r_ij^3)
-/// ```
-///
-/// Layout, accumulation and the coincidence rule (`r^2` below the smallest
-/// normal number contributes exactly zero) are those of
-/// [`laplace_p2p_with`](crate::laplace_p2p_with). `r` is the correctly
-/// rounded `sqrt(r^2)` (the error of `exp(-k r)` is `k r` times that of
-/// `r`), `1/r` comes from [`Simd::rsqrt_or_zero`], and `exp` from a
-/// polynomial accurate to a few ulps, which returns 0 once `exp(-k r)`
-/// drops below the smallest normal number. This is what
-/// [`ModifiedHelmholtz3d`]'s `evaluate` calls at [`SimdLevel::active`].
-///
-/// # Panics
-/// When lengths are inconsistent, or `k` is negative or not finite.
-///
-/// ```
-/// use ferrofmm_kernels::{modified_helmholtz_p2p_with, EvalMode, SimdLevel};
-/// let mut phi = [0.0f64];
-/// modified_helmholtz_p2p_with(SimdLevel::detected(), 2.0, EvalMode::Potential,
-///     &[0.0, 0.0, 0.0], &[1.0], &[0.5, 0.0, 0.0], &mut phi);
-/// let expected = (-1.0f64).exp() / (4.0 * std::f64::consts::PI * 0.5);
-/// assert!((phi[0] - expected).abs() < 1e-15);
-/// ```
-pub fn modified_helmholtz_p2p_with<T: Real>(
-    level: SimdLevel,
-    k: f64,
-    mode: EvalMode,
-    sources: &[T],
-    charges: &[T],
-    targets: &[T],
-    out: &mut [T],
-) {
-    assert!(
-        k.is_finite() && k >= 0.0,
-        "modified_helmholtz_p2p: k = {k} must be finite and >= 0"
-    );
-    let kernel = ModifiedHelmholtz3d { k };
-    lanes::evaluate_sources_with(
-        level,
-        &kernel,
-        crate::SourceKind::Charge,
-        mode,
-        sources,
-        charges,
-        targets,
-        out,
-    );
-}
 
 impl LaneKernel for ModifiedHelmholtz3d {
     /// `qer = q exp(-k r) / r` into the potential and, with gradients,

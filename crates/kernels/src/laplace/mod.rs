@@ -1,13 +1,23 @@
-//! Laplace P2P (`phi(y) = sum_i q_i / (4 pi |y - x_i|)`, optionally with its
-//! gradient): the micro-kernel of [`Laplace3d`] in the vectorised
-//! target-lane loop of [`crate::lanes`] (blocking, dispatch), and the dense
-//! assembly.
+//! The Laplace kernel `K(x, y) = 1 / (4 pi |x - y|)`: its maths and
+//! [`Kernel`] impl (here), its micro-kernels in the lane engine of
+//! [`crate::lanes`] (`pair.rs`) and its dense assembly (`assemble.rs`).
 //!
-//! Per pair: `d = x - y` (source minus target), `r2 = |d|^2` (FMA),
-//! `rinv ~ 1/sqrt(r2)`, `phi += q rinv`, and with gradients
-//! `g += q rinv^3 d` (`= -q (y - x) / r^3`, written without a negation so
-//! that the compiler keeps plain FMAs). The factor `1/(4 pi)` is applied
-//! once per target at the end.
+//! # Maths
+//! With `d = x - y` (source minus target) and `r = |d|`,
+//!
+//! ```text
+//! K = 1 / (4 pi r),    grad_y K = d / (4 pi r^3)
+//! ```
+//!
+//! and the radial derivatives behind dipoles and Hessians
+//! ([`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel)) are
+//! `f_0 = 1/r`, `f_1 = -1/r^3`, `f_2 = 3/r^5`, `f_3 = -15/r^7`.
+//!
+//! # P2P
+//! Per pair: `r2 = |d|^2` (FMA), `rinv ~ 1/sqrt(r2)`, `phi += q rinv`, and
+//! with gradients `g += q rinv^3 d` (`= -q (y - x) / r^3`, written without a
+//! negation so that the compiler keeps plain FMAs). The factor `1/(4 pi)` is
+//! applied once per target at the end.
 //!
 //! # Reciprocal square root
 //! * AVX-512: `vrsqrt14` (relative error `< 2^-14`) refined to full precision.
@@ -30,11 +40,85 @@
 //! with [`check_inputs`](crate::check_inputs) where that matters.
 
 mod assemble;
+mod pair;
 
 pub use assemble::laplace_assemble_with;
 
-use crate::lanes::{self, LaneFloat, LaneKernel, RadialLaneKernel, Simd};
-use crate::{EvalMode, Laplace3d, Real, SimdLevel};
+use crate::{EvalMode, Kernel, Real, SimdLevel, SourceKind, lanes};
+
+/// `1 / (4 pi)`: the factor of the 3D Laplace Green's function (and of the
+/// modified Helmholtz one), applied once per target by their P2P loops.
+pub const INV_4PI: f64 = 0.25 * std::f64::consts::FRAC_1_PI;
+
+/// The 3D Laplace Green's function `K(x, y) = 1 / (4 pi |x - y|)`, the
+/// solution of `-Delta u = delta`.
+///
+/// * homogeneous of degree `-1`: `K(s x, s y) = K(x, y) / s`;
+/// * gradient with respect to the target `y`, with `d = y - x` and `r = |d|`:
+///   `grad_y K = -d / (4 pi r^3)`.
+///
+/// [`Kernel::evaluate`] runs the vectorised P2P of
+/// [`laplace_p2p_with`] at [`SimdLevel::active`]; [`Kernel::assemble`] the
+/// vectorised [`laplace_assemble_with`].
+///
+/// ```
+/// use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d};
+/// let sources = [0.0f64, 0.0, 0.0, 1.0, 0.0, 0.0];
+/// let charges = [1.0f64, -1.0];
+/// let targets = [0.0f64, 0.0, 1.0];
+/// let mut phi = [0.0f64];
+/// Laplace3d.evaluate(EvalMode::Potential, &sources, &charges, &targets, &mut phi);
+/// let k = 1.0 / (4.0 * std::f64::consts::PI);
+/// assert!((phi[0] - k * (1.0 - 1.0 / 2f64.sqrt())).abs() < 1e-15);
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Laplace3d;
+
+impl Kernel for Laplace3d {
+    /// `"laplace3d"`.
+    fn name(&self) -> String {
+        "laplace3d".to_string()
+    }
+
+    /// `Some(-1.0)`.
+    fn homogeneity(&self) -> Option<f64> {
+        Some(-1.0)
+    }
+
+    /// `1 / (4 pi |d|)`, computed as `INV_4PI / sqrt(d.d)`.
+    #[inline]
+    fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        T::from_f64(INV_4PI) / r2.sqrt()
+    }
+
+    /// `-d / (4 pi |d|^3)`.
+    #[inline]
+    fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
+        let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        let rinv = T::ONE / r2.sqrt();
+        let s = -(T::from_f64(INV_4PI) * rinv * rinv * rinv);
+        [s * d[0], s * d[1], s * d[2]]
+    }
+
+    crate::lanes::kernel_entry_points!();
+
+    /// Every source kind and output (charges and dipoles; potentials,
+    /// gradients and Hessians), through the composed loop of
+    /// [`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel).
+    fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
+        true
+    }
+
+    /// Vectorised, row-parallel assembly ([`laplace_assemble_with`]); equal
+    /// to the pairwise reference bit for bit.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent.
+    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
+        laplace_assemble_with(SimdLevel::active(), sources, targets, matrix);
+    }
+}
 
 /// Accumulate the Laplace potential (and gradient) of `sources` with
 /// `charges` at `targets` into `out`, using [`SimdLevel::active`].
@@ -114,63 +198,8 @@ pub fn laplace_p2p_with<T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
+    let kind = SourceKind::Charge;
     lanes::evaluate_sources_with(
-        level,
-        &Laplace3d,
-        crate::SourceKind::Charge,
-        mode,
-        sources,
-        charges,
-        targets,
-        out,
+        level, &Laplace3d, kind, mode, sources, charges, targets, out,
     );
-}
-
-impl LaneKernel for Laplace3d {
-    /// `qr = q / r` into the potential and, with gradients, `qr / r^2 (x - y)`
-    /// (`q grad_y K` without `1/(4 pi)`, written without a negation so that
-    /// it stays three fused multiply-adds); `1/r = 0` makes coincident lanes
-    /// zero.
-    #[inline(always)]
-    fn pair<T: LaneFloat, S: Simd<T>, const GRAD: bool>(
-        &self,
-        s: S,
-        d: [S::V; 3],
-        r2: S::V,
-        q: S::V,
-        acc: &mut [S::V; 4],
-    ) {
-        let rinv = s.rsqrt_or_zero(r2);
-        let qr = s.mul(q, rinv);
-        acc[0] = s.add(acc[0], qr);
-        if GRAD {
-            let qr3 = s.mul(qr, s.mul(rinv, rinv));
-            lanes::add_radial_gradient(s, qr3, &d, acc);
-        }
-    }
-
-    /// `1 / (4 pi)`.
-    fn lane_scale(&self) -> f64 {
-        crate::INV_4PI
-    }
-}
-
-impl RadialLaneKernel for Laplace3d {
-    /// `k = 1/r`: `f_0 = 1/r`, `f_1 = -1/r^3`, `f_2 = 3/r^5`,
-    /// `f_3 = -15/r^7` (each `-(2m - 1)/r^2` times the one before);
-    /// `1/r = 0` makes coincident lanes zero.
-    #[inline(always)]
-    fn radial<T: LaneFloat, S: Simd<T>, const M: usize>(&self, s: S, r2: S::V) -> [S::V; 4] {
-        let rinv = s.rsqrt_or_zero(r2);
-        let zero = s.splat(T::ZERO);
-        let mut f = [rinv, zero, zero, zero];
-        if M >= 1 {
-            let rinv2 = s.mul(rinv, rinv);
-            for m in 1..=M.min(3) {
-                let c = s.splat(T::from_f64(-(2.0 * m as f64 - 1.0)));
-                f[m] = s.mul(s.mul(c, f[m - 1]), rinv2);
-            }
-        }
-        f
-    }
 }

@@ -24,7 +24,9 @@
 //! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
 //! as every kernel's outputs: the quantity, then its components).
 
-use crate::{EvalMode, Kernel, KernelError, Real, SimdLevel, SourceKind};
+mod pair;
+
+use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};
 
 /// The Stokeslet `G = (I / r + d d^T / r^3) / (8 pi mu)`: forces in,
 /// velocities (and velocity gradients) out. See the [module docs](self).
@@ -65,32 +67,6 @@ impl Stokes3d {
                 expected: "finite and > 0",
             })
         }
-    }
-
-    /// [`Kernel::evaluate`] at SIMD `level` (lowered to what the CPU
-    /// supports), for tests and benchmarks.
-    ///
-    /// # Panics
-    /// When lengths are inconsistent or `mode` asks for Hessians.
-    pub fn evaluate_with<T: Real>(
-        &self,
-        level: SimdLevel,
-        mode: EvalMode,
-        sources: &[T],
-        charges: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        assert_evaluation(mode, sources, charges, targets, out);
-        crate::stokes_p2p::stokes_p2p_with(
-            level,
-            self.scale(),
-            mode,
-            sources,
-            charges,
-            targets,
-            out,
-        );
     }
 
     /// The scalar pairwise loop, the reference the vectorised
@@ -213,22 +189,7 @@ impl Kernel for Stokes3d {
         ]
     }
 
-    /// Point forces, `[u]` or `[u, d_x u, d_y u, d_z u]` per target (each a
-    /// 3-vector); coincident pairs skipped. A vectorised loop over target
-    /// lanes at [`SimdLevel::active`].
-    ///
-    /// # Panics
-    /// When lengths are inconsistent or `mode` asks for Hessians.
-    fn evaluate<T: Real>(
-        &self,
-        mode: EvalMode,
-        sources: &[T],
-        charges: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        self.evaluate_with(SimdLevel::active(), mode, sources, charges, targets, out);
-    }
+    crate::lanes::kernel_entry_points!();
 
     /// Point forces with potentials or gradients.
     fn supports(&self, kind: SourceKind, mode: EvalMode) -> bool {
@@ -277,7 +238,7 @@ fn assert_evaluation<T: Real>(
     out: &[T],
 ) {
     if let Err(e) =
-        crate::direct::check_lengths(3, SourceKind::Charge, mode, sources, forces, targets, out)
+        crate::direct::check_lengths(3, SourceKind::Charge, mode, [sources, forces, targets, out])
     {
         panic!("stokes3d: {e}");
     }

@@ -29,7 +29,9 @@
 //! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs:
 //! the memory of NumPy `complex128` arrays.
 
-use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SimdLevel, SourceKind};
+mod pair;
+
+use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
 
 /// The 3D Helmholtz Green's function `G = e^{ikr} / (4 pi r)`, the
 /// outgoing solution of `(Delta + k^2) u = -delta`, as a complex kernel in
@@ -66,7 +68,7 @@ impl Helmholtz3d {
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        crate::helmholtz::check_wavenumber(k).map(|k| Helmholtz3d { k })
+        crate::error::check_wavenumber(k).map(|k| Helmholtz3d { k })
     }
 }
 
@@ -130,52 +132,11 @@ impl Kernel for Helmholtz3d {
         [f1 * d[0], f1 * d[1], f1 * d[2]]
     }
 
-    /// Complex charges `[re, im]` per source; `[u]` or `[u, ux, uy, uz]` as
-    /// complex pairs per target.
-    ///
-    /// # Panics
-    /// When lengths are inconsistent or `mode` asks for Hessians.
-    fn evaluate<T: Real>(
-        &self,
-        mode: EvalMode,
-        sources: &[T],
-        charges: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        self.evaluate_sources(SourceKind::Charge, mode, sources, charges, targets, out);
-    }
+    crate::lanes::kernel_entry_points!();
 
     /// Charges, dipoles or both, with potentials or gradients (no Hessians).
     fn supports(&self, _kind: SourceKind, mode: EvalMode) -> bool {
         !mode.has_hessian()
-    }
-
-    /// `u_j += sum_i q_i f0 - f1 (n_i . d)` (and the gradient), in complex
-    /// arithmetic on `[re, im]` pairs, coincident pairs skipped: a
-    /// vectorised loop over target lanes with `sin` and `cos` on registers
-    /// (at [`SimdLevel::active`]).
-    ///
-    /// # Panics
-    /// When lengths are inconsistent or `mode` asks for Hessians.
-    fn evaluate_sources<T: Real>(
-        &self,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[T],
-        densities: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        self.evaluate_sources_with(
-            SimdLevel::active(),
-            kind,
-            mode,
-            sources,
-            densities,
-            targets,
-            out,
-        );
     }
 
     /// `[[Re G, -Im G], [Im G, Re G]]` blocks (`2 n_targets x 2 n_sources`,
@@ -207,36 +168,6 @@ impl Kernel for Helmholtz3d {
 }
 
 impl Helmholtz3d {
-    /// [`Kernel::evaluate_sources`] at SIMD `level` (lowered to what the
-    /// CPU supports), for tests and benchmarks.
-    ///
-    /// # Panics
-    /// When lengths are inconsistent or `mode` asks for Hessians.
-    #[allow(clippy::too_many_arguments)]
-    pub fn evaluate_sources_with<T: Real>(
-        &self,
-        level: SimdLevel,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[T],
-        densities: &[T],
-        targets: &[T],
-        out: &mut [T],
-    ) {
-        if let Err(e) =
-            crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
-        {
-            panic!("helmholtz3d: {e}");
-        }
-        assert!(
-            self.supports(kind, mode),
-            "helmholtz3d: no Hessians (Kernel::supports)"
-        );
-        crate::oscillatory_helmholtz_p2p::helmholtz_p2p_with(
-            level, self.k, kind, mode, sources, densities, targets, out,
-        );
-    }
-
     /// The scalar pairwise loop (`f64::sin_cos`), the reference the
     /// vectorised [`Kernel::evaluate_sources`] is tested against. Same
     /// layout and panics.
@@ -250,7 +181,7 @@ impl Helmholtz3d {
         out: &mut [T],
     ) {
         if let Err(e) =
-            crate::direct::check_lengths(2, kind, mode, sources, densities, targets, out)
+            crate::direct::check_lengths(2, kind, mode, [sources, densities, targets, out])
         {
             panic!("helmholtz3d: {e}");
         }
