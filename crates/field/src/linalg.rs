@@ -1,6 +1,8 @@
 //! `f64` dense building blocks of the precomputation: kernel matrices,
 //! SVD, and an R-only Householder QR for tall stacks.
 //!
+//! Uses [`FieldError`] and the thread policy of `crate::threads` only.
+//!
 //! Everything here is `f64`; operators are rounded to the working type only
 //! once they are complete.
 
@@ -8,6 +10,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::FieldError;
+use crate::threads::nested_par;
 
 /// Column-major kernel matrix `A[j, i] = K(x_i, y_j)` (`n_targets x
 /// n_sources`) between interleaved `f64` point sets; `c n_targets x c
@@ -38,20 +41,6 @@ pub(crate) struct SvdF64 {
     pub u: Mat<f64>,
     pub s: Vec<f64>,
     pub v: Mat<f64>,
-}
-
-/// Parallelism for faer inside the precomputation: sequential when called
-/// from a rayon worker (the caller already runs in parallel, and nesting
-/// faer's own splitting on top of it oversubscribes the cores), otherwise
-/// the current pool's threads, at most one per core (a pool of 64 threads
-/// on 2 cores would split every factorisation 64 ways and spend its time
-/// waiting; see the `--threads` notes of the CLI).
-pub(crate) fn nested_par() -> Par {
-    if rayon::current_thread_index().is_some() {
-        Par::Seq
-    } else {
-        Par::rayon(crate::precompute::effective_threads())
-    }
 }
 
 /// Thin SVD of `a` (faer, parallelism from [`nested_par`]).

@@ -734,7 +734,7 @@ fn compute_with<K: Kernel, T: Real>(
     };
     let n_sets = levels.n_sets();
     let pinvs: Vec<(PinvF64, PinvF64, [bool; 8])> =
-        if n_sets >= 2 && n_sets >= crate::precompute::effective_threads() {
+        if n_sets >= 2 && n_sets >= crate::threads::effective_threads() {
             (0..n_sets)
                 .into_par_iter()
                 .map(one_set)

@@ -109,22 +109,19 @@ impl<T: Real> DenseM2l<T> {
             .is_some_and(|&s| s != NOT_COMPUTED)
     }
 
-    /// Build for `plan` (`None`: all 316 vectors of every set).
+    /// Build the matrices [`planned_sets`] gives for `usage`.
     fn build<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         domain_width: f64,
         depth: u32,
-        plan: Option<&M2lUsage>,
+        usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
         params.validate()?;
         let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
         let n = crate::expansion_len(kernel, params.order);
         let n_sets = levels.n_sets();
-        let sets: Vec<Vec<usize>> = match plan {
-            None => vec![(0..N_TRANSFER_VECTORS).collect(); n_sets],
-            Some(u) => planned_sets(levels.homogeneity.is_some(), params, depth, u),
-        };
+        let sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
         let full = sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
         let monitor = &params.monitor;
         monitor.check()?;
@@ -198,16 +195,6 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         "dense"
     }
 
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        _config: &DenseConfig,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, domain_width, depth, None)
-    }
-
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -216,7 +203,7 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         depth: u32,
         usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, domain_width, depth, Some(usage))
+        Self::build(kernel, params, domain_width, depth, usage)
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {

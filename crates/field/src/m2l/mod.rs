@@ -30,12 +30,16 @@ use faer::Mat;
 use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
+use crate::levels::FIRST_M2L_LEVEL;
+use crate::usage::planned_sets;
+
+use crate::estimate::seconds_for;
 use crate::interactions::ChunkView;
 use crate::linalg::kernel_matrix;
-use crate::precompute::{FLOPS_PER_THREAD, effective_threads};
+use crate::threads::effective_threads;
 use crate::{
-    CacheStatus, FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams,
-    PrecomputeEstimate, SurfaceRadii, surface_points,
+    CacheStatus, FieldError, M2lInteractions, M2lUsage, OperatorParams, PrecomputeEstimate,
+    SurfaceRadii, surface_points,
 };
 
 /// How a scheme's M2L time grows with the order and the tree, for the
@@ -103,14 +107,20 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     /// Precompute the operators of `kernel` for a domain of width
     /// `domain_width` and levels up to `depth` (per level for a
     /// non-homogeneous kernel), using the order and radii of `params` and
-    /// its cache directory.
+    /// its cache directory: every transfer vector at every level, that is
+    /// [`M2lScheme::precompute_for`] with [`M2lUsage::all`]`(depth)`.
+    ///
+    /// Provided; a scheme implements [`M2lScheme::precompute_for`] only.
     fn precompute<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         config: &Self::Config,
         domain_width: f64,
         depth: u32,
-    ) -> Result<Self, FieldError>;
+    ) -> Result<Self, FieldError> {
+        let usage = M2lUsage::all(depth);
+        Self::precompute_for(kernel, params, config, domain_width, depth, &usage)
+    }
 
     /// Precompute only what `usage` needs: for a kernel homogeneous of
     /// degree `d` the operators `K_v` for `v` in the union `V = U_l V_l` of
@@ -122,10 +132,9 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     ///
     /// With a cache directory in `params`, all 316 vectors of every set are
     /// computed (unless `usage` is empty) so that the cache file stays
-    /// complete and serves any later tree.
-    ///
-    /// The default implementation ignores `usage` and calls
-    /// [`M2lScheme::precompute`] (after checking the monitor).
+    /// complete and serves any later tree ([`planned_sets`] says which
+    /// vectors each set gets). A scheme that cannot make use of `usage` may
+    /// ignore it and build everything.
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -133,11 +142,7 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
         domain_width: f64,
         depth: u32,
         usage: &M2lUsage,
-    ) -> Result<Self, FieldError> {
-        let _ = usage;
-        params.monitor.check()?;
-        Self::precompute(kernel, params, config, domain_width, depth)
-    }
+    ) -> Result<Self, FieldError>;
 
     /// Predicted peak memory and time of
     /// [`M2lScheme::precompute_for`]`(.., depth, usage)`, before any work.
@@ -166,7 +171,7 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
             matrices: m,
             peak_bytes: m as u64 * n * n * size + if m > 0 { threads * n * n * 8 } else { 0 },
             flops,
-            seconds: flops / (FLOPS_PER_THREAD * threads as f64),
+            seconds: seconds_for(flops),
         }
     }
 
@@ -191,35 +196,6 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     /// What happened with the on-disk cache during precomputation.
     fn cache_status(&self) -> CacheStatus {
         CacheStatus::Disabled
-    }
-}
-
-/// First tree level with V-list interactions (boxes of level 1 are all
-/// neighbours of each other).
-pub const FIRST_M2L_LEVEL: u32 = 2;
-
-/// The transfer vectors (indices) to compute per operator set for
-/// [`M2lScheme::precompute_for`]: nothing for an empty `usage`; all 316 per
-/// set with a cache directory (so the file stays complete); otherwise the
-/// union of the used vectors (homogeneous kernel, one set) or those of each
-/// level `2..=depth`.
-pub fn planned_sets(
-    homogeneous: bool,
-    params: &OperatorParams,
-    depth: u32,
-    usage: &M2lUsage,
-) -> Vec<Vec<usize>> {
-    let n_sets = if homogeneous {
-        1
-    } else {
-        (depth + 1).saturating_sub(FIRST_M2L_LEVEL) as usize
-    };
-    if usage.is_empty() {
-        vec![Vec::new(); n_sets]
-    } else if params.cache_dir.is_some() {
-        vec![(0..N_TRANSFER_VECTORS).collect(); n_sets]
-    } else {
-        usage.per_set(homogeneous, FIRST_M2L_LEVEL, depth)
     }
 }
 

@@ -10,9 +10,11 @@ use super::{
     planned_sets,
 };
 use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
+use crate::estimate::seconds_for;
 use crate::levels::LevelMap;
-use crate::linalg::{col_major, householder_r_until, nested_par, round_to, svd};
-use crate::precompute::{FLOPS_PER_THREAD, Units, effective_threads};
+use crate::linalg::{col_major, householder_r_until, round_to, svd};
+use crate::monitor::Units;
+use crate::threads::{effective_threads, nested_par};
 use crate::{
     FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
     Update, expansion_len, gemm, gemm_scaled, transfer_vectors,
@@ -262,14 +264,14 @@ impl<T: Real> SvdM2l<T> {
             .fold(0.0, f64::max)
     }
 
-    /// Build for `plan` (`None`: all 316 vectors of every set).
+    /// Build the operators [`planned_sets`] gives for `usage`.
     fn build<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         config: &SvdConfig,
         domain_width: f64,
         depth: u32,
-        plan: Option<&M2lUsage>,
+        usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
         params.validate()?;
         if !config.tolerance.is_finite() || config.tolerance >= 1.0 {
@@ -290,10 +292,7 @@ impl<T: Real> SvdM2l<T> {
         } else {
             default_svd_tolerance(T::PRECISION, params.order)
         };
-        let plan_sets: Vec<Vec<usize>> = match plan {
-            None => vec![(0..N_TRANSFER_VECTORS).collect(); levels.n_sets()],
-            Some(u) => planned_sets(levels.homogeneity.is_some(), params, depth, u),
-        };
+        let plan_sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
         let full = plan_sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
         let monitor = &params.monitor;
         monitor.check()?;
@@ -402,16 +401,6 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         "svd"
     }
 
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        config: &SvdConfig,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, config, domain_width, depth, None)
-    }
-
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -420,7 +409,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         depth: u32,
         usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, config, domain_width, depth, Some(usage))
+        Self::build(kernel, params, config, domain_width, depth, usage)
     }
 
     /// Per set of `m` vectors (`n` points per surface, `t` threads): `t`
@@ -470,7 +459,7 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             matrices,
             peak_bytes: peak_bytes as u64,
             flops,
-            seconds: flops / (FLOPS_PER_THREAD * threads),
+            seconds: seconds_for(flops),
         }
     }
 

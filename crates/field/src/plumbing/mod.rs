@@ -60,10 +60,9 @@
 pub mod conformance;
 
 pub use crate::interactions::{ChunkView, GroupView};
-pub use crate::levels::{LevelMap, REFERENCE_HALF_WIDTH, half_width};
+pub use crate::levels::{FIRST_M2L_LEVEL, LevelMap, REFERENCE_HALF_WIDTH, half_width};
 pub use crate::m2l::{
-    FIRST_M2L_LEVEL, check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix,
-    scatter_add,
+    check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix, scatter_add,
 };
 pub use crate::siblings::{
     LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,

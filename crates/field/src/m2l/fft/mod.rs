@@ -84,10 +84,10 @@ use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
 use crate::cache::{
     CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
 };
+use crate::estimate::seconds_for;
 use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
 use crate::plumbing::SiblingBlocks;
-use crate::precompute::effective_threads;
 use crate::surface::unit_surface;
 use crate::{
     FieldError, M2lInteractions, M2lUsage, OperatorParams, PrecomputeEstimate, n_surface_points,
@@ -335,23 +335,6 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         "fft"
     }
 
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        config: &Self::Config,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::precompute_for(
-            kernel,
-            params,
-            config,
-            domain_width,
-            depth,
-            &M2lUsage::all(depth),
-        )
-    }
-
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -476,7 +459,6 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let m: usize = sets.iter().map(Vec::len).sum();
         let grid = grid_size(params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
-        let threads = effective_threads() as f64;
         // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
         let flops = cc * m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
         // The slabs hold every vector of a used set; each computed spectrum
@@ -487,7 +469,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             peak_bytes: ((used_sets * SLAB_VECTORS as f64 + m as f64) * cc * spectrum * 16.0)
                 as u64,
             flops,
-            seconds: flops / (crate::precompute::FLOPS_PER_THREAD * threads),
+            seconds: seconds_for(flops),
         }
     }
 
