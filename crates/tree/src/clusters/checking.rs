@@ -14,7 +14,7 @@
 
 use rayon::prelude::*;
 
-use super::bounds::{Bounds, bounds};
+use crate::bounds::{Bounds, bounds};
 
 /// Merges groups until every two are apart along some axis by at least
 /// `separation` times the wider one's width. Each pass joins every pair

@@ -17,7 +17,7 @@
 
 use rayon::prelude::*;
 
-use super::bounds::{Bounds, bounds};
+use crate::bounds::{Bounds, bounds};
 
 /// Cells of the histogram along an axis.
 const CELLS: usize = 256;

@@ -61,10 +61,9 @@
 //! a set still gets one tree, as deep as its extent demands.
 //!
 //! The modules: `cutting` (the histogram, the stack scan, the best axis),
-//! `checking` (the 3D separation test and the merging), `bounds` (the
-//! bounding boxes both steps measure with).
+//! `checking` (the 3D separation test and the merging); both measure with
+//! the bounding boxes of `crate::bounds`.
 
-mod bounds;
 mod checking;
 mod cutting;
 
@@ -194,7 +193,7 @@ fn whole(n_src: usize, n_tgt: usize, separate_targets: bool) -> Cluster {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bounds::{Bounds, bounds};
+    use crate::bounds::{Bounds, bounds};
     use checking::separated;
 
     fn cloud(n: usize, offset: [f64; 3], size: f64, seed: u64) -> Vec<f64> {
