@@ -33,13 +33,15 @@ use rayon::prelude::*;
 use crate::levels::FIRST_M2L_LEVEL;
 use crate::usage::planned_sets;
 
+use crate::cache::{CacheKey, CachePayload, load_or_compute};
 use crate::estimate::seconds_for;
 use crate::interactions::ChunkView;
+use crate::levels::LevelMap;
 use crate::linalg::kernel_matrix;
 use crate::threads::effective_threads;
 use crate::{
-    CacheStatus, FieldError, M2lInteractions, M2lUsage, OperatorParams, PrecomputeEstimate,
-    SurfaceRadii, surface_points,
+    CacheStatus, FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams,
+    PrecomputeEstimate, SurfaceRadii, surface_points,
 };
 
 /// How a scheme's M2L time grows with the order and the tree, for the
@@ -196,6 +198,53 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     /// What happened with the on-disk cache during precomputation.
     fn cache_status(&self) -> CacheStatus {
         CacheStatus::Disabled
+    }
+}
+
+/// What one precomputation of a scheme builds: which operator set serves
+/// which level, at which half-width (`levels`), and the transfer vectors
+/// of each set (`sets`, from [`planned_sets`]).
+pub(crate) struct Plan {
+    /// Levels `2..=depth` and their sets.
+    pub levels: LevelMap,
+    /// Per set, the transfer vector indices to compute.
+    pub sets: Vec<Vec<usize>>,
+}
+
+impl Plan {
+    /// The plan for `usage` (see [`M2lScheme::precompute_for`]).
+    pub(crate) fn new<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        domain_width: f64,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> Result<Self, FieldError> {
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
+        Ok(Plan { levels, sets })
+    }
+
+    /// Whether every set gets all 316 vectors.
+    pub(crate) fn is_complete(&self) -> bool {
+        self.sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS)
+    }
+
+    /// The scheme's store: through the cache of `params` (the file named by
+    /// `key`, its layout checked by `accept`) when the plan is complete,
+    /// else computed and not cached (a partial store would not serve a
+    /// later tree).
+    pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
+        &self,
+        params: &OperatorParams,
+        key: impl FnOnce() -> CacheKey,
+        accept: impl Fn(&S::Layout) -> Result<(), String>,
+        compute: impl FnOnce() -> Result<S, FieldError>,
+    ) -> Result<(S, CacheStatus), FieldError> {
+        match params.cache_dir.as_deref() {
+            Some(dir) if self.is_complete() => load_or_compute(Some(dir), &key(), accept, compute),
+            _ => Ok((compute()?, CacheStatus::Disabled)),
+        }
     }
 }
 

@@ -80,14 +80,12 @@ use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
 use self::hadamard::{FREQ_BLOCK, Many, One, Products, SLAB_VECTORS, W, block_tables};
-use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
-use crate::cache::{
-    CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
-};
+use super::{M2lScheme, Plan, check_lengths, planned_sets};
+use crate::cache::{CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader};
 use crate::estimate::seconds_for;
 use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
-use crate::plumbing::SiblingBlocks;
+use crate::siblings::SiblingBlocks;
 use crate::surface::unit_surface;
 use crate::{
     FieldError, M2lInteractions, M2lUsage, OperatorParams, PrecomputeEstimate, n_surface_points,
@@ -347,7 +345,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         check_radii(params)?;
         params.monitor.check()?;
         let c = kernel.components();
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let plan = Plan::new(kernel, params, domain_width, depth, usage)?;
+        let (levels, sets) = (&plan.levels, &plan.sets);
         let grid = grid_size(params.order);
         let fft = Fft3d::new(grid);
         let blocks = fft.spectrum_len().div_ceil(FREQ_BLOCK);
@@ -360,9 +359,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             })
             .collect();
         let vectors = transfer_vectors();
-        // Without a cache file there is nothing to keep complete: compute
-        // only the used vectors (with one, `planned_sets` gives all 316).
-        let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
+        // Without a cache file there is nothing to keep complete: the plan
+        // has only the used vectors (with one, `planned_sets` gives all 316).
         let n_sets = sets.len();
         let cc = c * c;
         let slab_len = blocks * SLAB_VECTORS * cc * W;
@@ -391,36 +389,28 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             }
             Ok(slab)
         };
-        let complete = sets.iter().all(|w| w.len() == vectors.len());
-        let (slabs, cache_status) = if complete && params.cache_dir.is_some() {
+        let key = || {
             let mut key =
                 CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array())
                     .for_domain(domain_width, depth);
             key.scheme_config = format!("grid {grid}");
-            let layout = FftLayout {
-                blocks,
-                sets: n_sets,
-                components: c,
-            };
-            let compute = || -> Result<FftSlabs, FieldError> {
-                let slabs = sets
-                    .iter()
-                    .enumerate()
-                    .map(|(set, wanted)| compute_set(set, wanted))
-                    .collect::<Result<_, _>>()?;
-                Ok(FftSlabs { layout, slabs })
-            };
-            let (store, status) =
-                load_or_compute(params.cache_dir.as_deref(), &key, layout.accept(), compute)?;
-            (store.slabs, status)
-        } else {
+            key
+        };
+        let layout = FftLayout {
+            blocks,
+            sets: n_sets,
+            components: c,
+        };
+        let compute = || -> Result<FftSlabs, FieldError> {
             let slabs = sets
                 .iter()
                 .enumerate()
                 .map(|(set, wanted)| compute_set(set, wanted))
-                .collect::<Result<Vec<_>, _>>()?;
-            (slabs, CacheStatus::Disabled)
+                .collect::<Result<_, _>>()?;
+            Ok(FftSlabs { layout, slabs })
         };
+        let (store, cache_status) = plan.load_or_compute(params, key, layout.accept(), compute)?;
+        let slabs = store.slabs;
         let present = sets
             .iter()
             .map(|wanted| {
@@ -435,7 +425,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             n: n_surface_points(params.order),
             components: c,
             order: params.order,
-            levels,
+            levels: plan.levels,
             fft,
             lattice,
             blocks,

@@ -12,8 +12,8 @@ mod store;
 
 use ferrofmm_kernels::{Kernel, Precision, Real};
 
-use super::{FIRST_M2L_LEVEL, M2lScheme, planned_sets};
-use crate::cache::{CacheKey, CacheStatus, FlatStore, load_or_compute};
+use super::{M2lScheme, Plan, planned_sets};
+use crate::cache::{CacheKey, CacheStatus, FlatStore};
 use crate::estimate::seconds_for;
 use crate::levels::LevelMap;
 use crate::linalg::round_to;
@@ -181,8 +181,26 @@ impl<T: Real> SvdM2l<T> {
             .fold(0.0, f64::max)
     }
 
-    /// Build the operators [`planned_sets`] gives for `usage`.
-    fn build<K: Kernel>(
+    /// Number of transfer vectors with an operator, over all sets.
+    pub fn n_vectors(&self) -> usize {
+        self.store
+            .layout
+            .sets
+            .iter()
+            .map(|s| s.vector_ranks.iter().filter(|&&r| r > 0).count())
+            .sum()
+    }
+}
+
+impl<T: Real> M2lScheme<T> for SvdM2l<T> {
+    type Config = SvdConfig;
+    const COST_SHAPE: super::M2lCostShape = super::M2lCostShape::Compressed;
+
+    fn name(&self) -> &'static str {
+        "svd"
+    }
+
+    fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         config: &SvdConfig,
@@ -202,15 +220,14 @@ impl<T: Real> SvdM2l<T> {
                 "SVD rank must be positive".into(),
             ));
         }
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let plan = Plan::new(kernel, params, domain_width, depth, usage)?;
+        let (levels, plan_sets) = (&plan.levels, &plan.sets);
         let n = expansion_len(kernel, params.order);
         let tolerance = if config.tolerance > 0.0 {
             config.tolerance
         } else {
             default_svd_tolerance(T::PRECISION, params.order)
         };
-        let plan_sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
-        let full = plan_sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
         let monitor = &params.monitor;
         monitor.check()?;
         let total: u64 = plan_sets
@@ -242,7 +259,7 @@ impl<T: Real> SvdM2l<T> {
                 data,
             })
         };
-        let (store, cache_status) = if full {
+        let key = || {
             let mut key =
                 CacheKey::new::<K, T>("m2l-svd", kernel, params.order, params.radii.to_array())
                     .for_domain(domain_width, depth);
@@ -251,56 +268,25 @@ impl<T: Real> SvdM2l<T> {
                 config.rank.map(|r| r.min(n)),
                 tolerance
             );
-            let accept = |l: &SvdLayout| {
-                if l.n == n && l.sets.len() == levels.n_sets() {
-                    Ok(())
-                } else {
-                    Err("layout disagrees with the parameters".to_string())
-                }
-            };
-            load_or_compute(params.cache_dir.as_deref(), &key, accept, compute)?
-        } else {
-            (compute()?, CacheStatus::Disabled)
+            key
         };
+        let accept = |l: &SvdLayout| {
+            if l.n == n && l.sets.len() == levels.n_sets() {
+                Ok(())
+            } else {
+                Err("layout disagrees with the parameters".to_string())
+            }
+        };
+        let (store, cache_status) = plan.load_or_compute(params, key, accept, compute)?;
         let layout = store.layout.operators();
         Ok(SvdM2l {
             n,
-            levels,
+            levels: plan.levels,
             store,
             layout,
             tolerance,
             cache_status,
         })
-    }
-
-    /// Number of transfer vectors with an operator, over all sets.
-    pub fn n_vectors(&self) -> usize {
-        self.store
-            .layout
-            .sets
-            .iter()
-            .map(|s| s.vector_ranks.iter().filter(|&&r| r > 0).count())
-            .sum()
-    }
-}
-
-impl<T: Real> M2lScheme<T> for SvdM2l<T> {
-    type Config = SvdConfig;
-    const COST_SHAPE: super::M2lCostShape = super::M2lCostShape::Compressed;
-
-    fn name(&self) -> &'static str {
-        "svd"
-    }
-
-    fn precompute_for<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        config: &SvdConfig,
-        domain_width: f64,
-        depth: u32,
-        usage: &M2lUsage,
-    ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, config, domain_width, depth, usage)
     }
 
     /// Per set of `m` vectors (`n` points per surface, `t` threads): `t`
