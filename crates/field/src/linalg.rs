@@ -195,15 +195,7 @@ fn apply_block(
     }
     // T (b x b) upper triangular with H_1 ... H_b = I - V T V^T (dlarft):
     // T[i, i] = tau_i, T[0..i, i] = -tau_i T[0..i, 0..i] Z[0..i, i], Z = V^T V.
-    let mut z = Mat::<f64>::zeros(b, b);
-    faer::linalg::matmul::matmul(
-        z.as_mut(),
-        Accum::Replace,
-        vmat.transpose(),
-        vmat.as_ref(),
-        1.0,
-        par,
-    );
+    let z = product(vmat.transpose(), vmat.as_ref(), 1.0, par);
     let mut t = Mat::<f64>::zeros(b, b);
     for i in 0..b {
         let tau = taus[jb + i];
@@ -218,24 +210,8 @@ fn apply_block(
     }
     let amat = MatMut::from_column_major_slice_mut(&mut a[..m * (c0 + nc)], m, c0 + nc);
     let mut a2 = amat.submatrix_mut(jb, c0, rows, nc);
-    let mut w = Mat::<f64>::zeros(b, nc);
-    faer::linalg::matmul::matmul(
-        w.as_mut(),
-        Accum::Replace,
-        vmat.transpose(),
-        a2.as_ref(),
-        1.0,
-        par,
-    );
-    let mut w2 = Mat::<f64>::zeros(b, nc);
-    faer::linalg::matmul::matmul(
-        w2.as_mut(),
-        Accum::Replace,
-        t.transpose(),
-        w.as_ref(),
-        1.0,
-        par,
-    );
+    let w = product(vmat.transpose(), a2.as_ref(), 1.0, par);
+    let w2 = product(t.transpose(), w.as_ref(), 1.0, par);
     faer::linalg::matmul::matmul(
         a2.as_mut(),
         Accum::Add,
@@ -284,6 +260,13 @@ fn make_householder(x: &mut [f64]) -> f64 {
     }
     x[0] = beta;
     tau
+}
+
+/// `alpha a b` as a new matrix (faer, parallelism `par`).
+pub(crate) fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64, par: Par) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    faer::linalg::matmul::matmul(out.as_mut(), Accum::Replace, a, b, alpha, par);
+    out
 }
 
 /// Round an `f64` slice to the working type.

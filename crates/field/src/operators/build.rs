@@ -17,7 +17,7 @@
 //! (`A_d = D A_u^T D`) and octant `o`'s M2M / L2L are octant 0's with rows
 //! and columns permuted: one product per set instead of eight.
 
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Mat, MatRef, Par};
 use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
@@ -25,7 +25,7 @@ use super::octant_offset;
 use super::symmetry::{is_permuted, permute, reflection, transpose_signs};
 use super::tables::{CheckToEquivalent, ChildTranslations, OperatorTables, PinvFactors};
 use crate::levels::LevelMap;
-use crate::linalg::{col_major, kernel_matrix, round_to};
+use crate::linalg::{col_major, kernel_matrix, product, round_to};
 use crate::pinv::{PinvF64, pinv, pinv_pair};
 use crate::{FieldError, OperatorParams, expansion_len, surface_points};
 
@@ -253,21 +253,10 @@ fn compute_with<K: Kernel, T: Real>(
 
 /// `factor * vs * (ut * k)` in `f64`, column-major.
 fn apply_pinv_f64(p: &PinvF64, factor: f64, k: MatRef<'_, f64>) -> Vec<f64> {
-    let n_out = p.summary.n;
-    let vs = MatRef::from_column_major_slice(&p.vs, n_out, p.rank);
+    let vs = MatRef::from_column_major_slice(&p.vs, p.summary.n, p.rank);
     let ut = MatRef::from_column_major_slice(&p.ut, p.rank, k.nrows());
-    let mut tmp = Mat::<f64>::zeros(p.rank, k.ncols());
-    faer::linalg::matmul::matmul(tmp.as_mut(), Accum::Replace, ut, k, 1.0, Par::Seq);
-    let mut out = Mat::<f64>::zeros(n_out, k.ncols());
-    faer::linalg::matmul::matmul(
-        out.as_mut(),
-        Accum::Replace,
-        vs,
-        tmp.as_ref(),
-        factor,
-        Par::Seq,
-    );
-    col_major(out.as_ref())
+    let tmp = product(ut, k, 1.0, Par::Seq);
+    col_major(product(vs, tmp.as_ref(), factor, Par::Seq).as_ref())
 }
 
 #[cfg(test)]
@@ -349,20 +338,11 @@ mod tests {
         let h = levels.half_width(2);
         let r = params.radii;
         let at = |radius: f64| surface_points::<f64>(params.order, [0.0; 3], h, radius);
-        let a_u = kernel_matrix(
-            &helmholtz,
-            &at(r.upward_equivalent),
-            &at(r.upward_check),
-            "",
-        )
-        .unwrap();
-        let a_d = kernel_matrix(
-            &helmholtz,
-            &at(r.downward_equivalent),
-            &at(r.downward_check),
-            "",
-        )
-        .unwrap();
+        let check_matrix = |equivalent: f64, check: f64| {
+            kernel_matrix(&helmholtz, &at(equivalent), &at(check), "").unwrap()
+        };
+        let a_u = check_matrix(r.upward_equivalent, r.upward_check);
+        let a_d = check_matrix(r.downward_equivalent, r.downward_check);
         let d = transpose_signs(a_u.as_ref(), a_d.as_ref()).expect("a symmetric kernel");
         assert_eq!(d[..4], [1.0, -1.0, 1.0, -1.0]);
         let fast: OperatorTables<f64> = compute(&helmholtz, &params, 1e-13, &levels, 3).unwrap();

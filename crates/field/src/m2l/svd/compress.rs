@@ -20,12 +20,12 @@
 //! Progress is counted in units roughly proportional to time
 //! ([`set_units`]).
 
-use faer::{Accum, Mat, MatRef, Par};
+use faer::{Mat, MatRef, Par};
 use ferrofmm_kernels::Kernel;
 use rayon::prelude::*;
 
 use super::store::SvdSetInfo;
-use crate::linalg::{col_major, householder_r_until, svd};
+use crate::linalg::{col_major, householder_r_until, product, svd};
 use crate::m2l::m2l_matrix;
 use crate::monitor::Units;
 use crate::threads::nested_par;
@@ -220,16 +220,6 @@ pub(super) fn compress_set<K: Kernel>(
 
 /// `U^T K V` (column-major `k x k`).
 fn project(u: MatRef<'_, f64>, kv: MatRef<'_, f64>, v: MatRef<'_, f64>) -> Vec<f64> {
-    let mut kvv = Mat::<f64>::zeros(kv.nrows(), v.ncols());
-    faer::linalg::matmul::matmul(kvv.as_mut(), Accum::Replace, kv, v, 1.0, Par::Seq);
-    let mut c = Mat::<f64>::zeros(u.ncols(), v.ncols());
-    faer::linalg::matmul::matmul(
-        c.as_mut(),
-        Accum::Replace,
-        u.transpose(),
-        kvv.as_ref(),
-        1.0,
-        Par::Seq,
-    );
-    col_major(c.as_ref())
+    let kvv = product(kv, v, 1.0, Par::Seq);
+    col_major(product(u.transpose(), kvv.as_ref(), 1.0, Par::Seq).as_ref())
 }
