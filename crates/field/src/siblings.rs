@@ -149,7 +149,11 @@ pub struct LoosePair {
 }
 
 /// A level's pairs as [`SiblingBlock`]s and [`LoosePair`]s per target
-/// group (see the [module docs](self)).
+/// group: a pair `(t, s, v)` with slots `T`, `S` goes to target group
+/// `T / 8`, source group `S / 8`, parent offset `d = (v - octant_bits(S %
+/// 8) + octant_bits(T % 8)) / 2` and mask bit `8 (T % 8) + S % 8`, or is
+/// kept loose when `d` is not in `[-1, 1]^3` or its block is taken (the
+/// derivation is in the source module `siblings`).
 #[derive(Clone, Debug, Default)]
 pub struct SiblingBlocks {
     n_target_groups: usize,

@@ -35,8 +35,7 @@
 //!   [`M2lInteractions::sibling_blocks`](crate::M2lInteractions::sibling_blocks))
 //!   regroups a level's pairs by parent: `8 x 8` blocks of children at 26
 //!   parent offsets, for schemes that treat siblings together (the FFT
-//!   scheme); the maths is in [`crate::siblings`]' docs, repeated on
-//!   [`SiblingBlocks`].
+//!   scheme); the maths is on [`SiblingBlocks`].
 //! * [`crate::planned_sets`] and [`crate::M2lUsage`] say which transfer
 //!   vectors a tree uses, for
 //!   [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for).

@@ -101,7 +101,11 @@ const GROUPS_PER_TASK: usize = 16;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FftConfig;
 
-/// FFT-accelerated M2L (see the [module documentation](self)).
+/// FFT-accelerated M2L: for each transfer vector `v`, `check[j] = sum_i
+/// T_v[j - i] phi[i]` on the surface lattice, a 3D convolution computed as
+/// a circular one on an `N^3` grid (`N >= 2p - 1`, prime factors 2, 3, 5,
+/// 7) with real FFTs, siblings together (the derivation is in the source
+/// module `m2l::fft`).
 ///
 /// ```
 /// use ferrofmm_field::{FftConfig, FftM2l, M2lInteractions, M2lScheme, OperatorParams};
