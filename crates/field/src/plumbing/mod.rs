@@ -19,6 +19,11 @@
 //! serves every level; otherwise each level `2..=depth` has its own set.
 //! [`LevelMap`] says which set serves a level and with which factor.
 //!
+//! A scheme builds its operators in
+//! [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for) (only
+//! the transfer vectors a tree uses); [`M2lScheme::precompute`](
+//! crate::M2lScheme::precompute), every vector at every level, is provided.
+//!
 //! # The building blocks
 //!
 //! * [`M2lInteractions`](crate::M2lInteractions) holds a level's pairs cut

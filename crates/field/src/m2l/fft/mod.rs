@@ -58,7 +58,7 @@
 //! # Siblings together
 //!
 //! The products are organised by parent (as in PVFMM, ExaFMM-T and kifmm):
-//! [`SiblingBlocks`](crate::plumbing::SiblingBlocks) files the pairs of the
+//! [`SiblingBlocks`](crate::siblings::SiblingBlocks) files the pairs of the
 //! eight children of a target parent and a neighbouring source parent as
 //! one `8 x 8` block per frequency, so each source spectrum value loaded
 //! serves eight targets and each accumulator eight sources
