@@ -88,23 +88,6 @@ impl<T: Real> M2lScheme<T> for PerVectorSvd<T> {
         "per-vector-svd"
     }
 
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        config: &Self::Config,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::precompute_for(
-            kernel,
-            params,
-            config,
-            domain_width,
-            depth,
-            &M2lUsage::all(depth),
-        )
-    }
-
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,

@@ -102,10 +102,7 @@ impl Fft3d {
         support: usize,
         work: &mut FftWorkspace,
     ) {
-        let (n, h) = (self.n, self.n / 2 + 1);
-        let support = support.min(n);
-        assert_eq!(grid.len(), self.real_len());
-        assert_eq!(spectrum.len(), self.spectrum_len());
+        let (n, h, support) = self.dims(grid, spectrum, support);
         spectrum.fill(Complex::new(0.0, 0.0));
         for x in 0..support {
             for y in 0..support {
@@ -136,10 +133,7 @@ impl Fft3d {
         support: usize,
         work: &mut FftWorkspace,
     ) {
-        let (n, h) = (self.n, self.n / 2 + 1);
-        let support = support.min(n);
-        assert_eq!(grid.len(), self.real_len());
-        assert_eq!(spectrum.len(), self.spectrum_len());
+        let (n, h, support) = self.dims(grid, spectrum, support);
         self.along_x(spectrum, &self.inverse, work, support);
         for x in 0..support {
             self.along_y(spectrum, x, &self.inverse, work, support);
@@ -167,6 +161,19 @@ impl Fft3d {
         }
     }
 
+    /// `(N, N/2 + 1, min(support, N))`, after checking the lengths of a
+    /// grid and a spectrum.
+    fn dims(
+        &self,
+        grid: &[f64],
+        spectrum: &[Complex<f64>],
+        support: usize,
+    ) -> (usize, usize, usize) {
+        assert_eq!(grid.len(), self.real_len());
+        assert_eq!(spectrum.len(), self.spectrum_len());
+        (self.n, self.n / 2 + 1, support.min(self.n))
+    }
+
     /// Transform along `y` every `c` column of plane `x`, keeping the first
     /// `keep` outputs of each (all `N` for a forward step).
     fn along_y(
@@ -179,18 +186,7 @@ impl Fft3d {
     ) {
         let (n, h) = (self.n, self.n / 2 + 1);
         let plane = &mut spectrum[x * n * h..(x + 1) * n * h];
-        let lines = &mut work.lines[..n * h];
-        for y in 0..n {
-            for c in 0..h {
-                lines[c * n + y] = plane[y * h + c];
-            }
-        }
-        fft.process_with_scratch(lines, &mut work.complex);
-        for y in 0..keep {
-            for c in 0..h {
-                plane[y * h + c] = lines[c * n + y];
-            }
-        }
+        Self::along(plane, h, fft, work, keep);
     }
 
     /// Transform along `x` every `(y, c)` line, keeping the first `keep`
@@ -202,18 +198,32 @@ impl Fft3d {
         work: &mut FftWorkspace,
         keep: usize,
     ) {
-        let (n, h) = (self.n, self.n / 2 + 1);
-        let m = n * h;
-        let buffer = &mut work.lines;
-        for x in 0..n {
-            for yc in 0..m {
-                buffer[yc * n + x] = spectrum[x * m + yc];
+        let m = self.n * (self.n / 2 + 1);
+        Self::along(spectrum, m, fft, work, keep);
+    }
+
+    /// Transform the `stride` lines of `data` along its slowest index
+    /// (element `k` of line `l` at `k stride + l`, `k < N`), keeping the
+    /// first `keep` outputs of each: the lines are gathered contiguous into
+    /// the workspace, transformed in one batch and scattered back.
+    fn along(
+        data: &mut [Complex<f64>],
+        stride: usize,
+        fft: &Arc<dyn Fft<f64>>,
+        work: &mut FftWorkspace,
+        keep: usize,
+    ) {
+        let n = data.len() / stride;
+        let lines = &mut work.lines[..n * stride];
+        for k in 0..n {
+            for l in 0..stride {
+                lines[l * n + k] = data[k * stride + l];
             }
         }
-        fft.process_with_scratch(buffer, &mut work.complex);
-        for x in 0..keep {
-            for yc in 0..m {
-                spectrum[x * m + yc] = buffer[yc * n + x];
+        fft.process_with_scratch(lines, &mut work.complex);
+        for k in 0..keep {
+            for l in 0..stride {
+                data[k * stride + l] = lines[l * n + k];
             }
         }
     }

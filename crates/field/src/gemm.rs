@@ -1,6 +1,7 @@
 //! Sequential dense matrix products on plain column-major slices, dispatched
 //! to faer for the concrete float type.
 
+use faer::traits::ComplexField;
 use faer::{Accum, MatMut, MatRef, Par};
 use ferrofmm_kernels::Real;
 
@@ -100,30 +101,39 @@ pub fn gemm_scaled<T: Real>(
         T::as_f64_slice(b),
         T::as_f64_slice_mut(c),
     ) {
-        faer::linalg::matmul::matmul(
-            MatMut::from_column_major_slice_mut(c, m, n),
-            accum,
-            MatRef::from_column_major_slice(a, m, k),
-            MatRef::from_column_major_slice(b, k, n),
-            alpha,
-            Par::Seq,
-        );
+        faer_gemm(m, n, k, alpha, a, b, c, accum);
     } else if let (Some(a), Some(b), Some(c)) = (
         T::as_f32_slice(a),
         T::as_f32_slice(b),
         T::as_f32_slice_mut(c),
     ) {
-        faer::linalg::matmul::matmul(
-            MatMut::from_column_major_slice_mut(c, m, n),
-            accum,
-            MatRef::from_column_major_slice(a, m, k),
-            MatRef::from_column_major_slice(b, k, n),
-            alpha as f32,
-            Par::Seq,
-        );
+        faer_gemm(m, n, k, alpha as f32, a, b, c, accum);
     } else {
         unreachable!("Real is implemented for f32 and f64 only")
     }
+}
+
+/// `c = [c +] alpha a b` in faer, for the concrete float type `E` behind
+/// `T` (sequential).
+#[allow(clippy::too_many_arguments)]
+fn faer_gemm<E: ComplexField>(
+    m: usize,
+    n: usize,
+    k: usize,
+    alpha: E,
+    a: &[E],
+    b: &[E],
+    c: &mut [E],
+    accum: Accum,
+) {
+    faer::linalg::matmul::matmul(
+        MatMut::from_column_major_slice_mut(c, m, n),
+        accum,
+        MatRef::from_column_major_slice(a, m, k),
+        MatRef::from_column_major_slice(b, k, n),
+        alpha,
+        Par::Seq,
+    );
 }
 
 #[cfg(test)]

@@ -1,6 +1,17 @@
 //! Which operator set serves which tree level, and the homogeneous scaling.
+//!
+//! A level-`l` box of a domain of width `W` has half-width
+//! `h_l = W / 2^(l+1)`; for a kernel homogeneous of degree `d`,
+//! `K(s x, s y) = s^d K(x, y)`, so an operator computed at `h_ref` serves
+//! every level scaled by `(h_l / h_ref)^(power d)`. Uses only
+//! [`FieldError`].
 
 use crate::FieldError;
+
+/// First tree level with V-list interactions (boxes of level 1 are all
+/// neighbours of each other): the shallowest level an M2L operator set
+/// serves.
+pub const FIRST_M2L_LEVEL: u32 = 2;
 
 /// Half-width of the reference box at which the operators of a homogeneous
 /// kernel are computed (independent of the domain, so cache files are too).
@@ -36,7 +47,7 @@ pub struct LevelMap {
     /// Deepest level served.
     pub depth: u32,
     /// Shallowest level served (2 for M2L, see
-    /// [`FIRST_M2L_LEVEL`](crate::plumbing::FIRST_M2L_LEVEL)).
+    /// [`FIRST_M2L_LEVEL`]).
     pub first_level: u32,
 }
 

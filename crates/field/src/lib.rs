@@ -75,36 +75,44 @@
 #![warn(missing_docs)]
 
 mod cache;
+mod environment;
 mod error;
+mod estimate;
 mod fft3d;
 mod gemm;
 mod interactions;
 mod levels;
 mod linalg;
 mod m2l;
+mod memory;
+mod monitor;
 mod operators;
 mod params;
 mod pinv;
 pub mod plumbing;
-mod precompute;
 pub(crate) mod siblings;
 mod surface;
+mod sysmem;
+mod threads;
+mod usage;
 
 pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};
+pub use environment::MEMORY_LIMIT_ENV;
 pub use error::FieldError;
+pub use estimate::PrecomputeEstimate;
 pub use gemm::{Update, gemm, gemm_scaled};
 pub use interactions::{
     M2lInteractions, N_TRANSFER_VECTORS, transfer_vector_index, transfer_vectors,
 };
 pub use m2l::{
     DenseConfig, DenseM2l, FftConfig, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l,
-    default_svd_tolerance, fft_frequencies, planned_sets,
+    default_svd_tolerance, fft_frequencies,
 };
+pub use memory::MemoryLimit;
+pub use monitor::{PrecomputeMonitor, PrecomputeProgress};
 pub use operators::{AMPLIFICATION_WARNING, OperatorDiagnostics, Operators, octant_offset};
 pub use params::{MAX_ORDER, MIN_ORDER, OperatorParams, default_pinv_rcond};
 pub use pinv::PinvSummary;
-pub use precompute::{
-    M2lUsage, MEMORY_LIMIT_ENV, MemoryLimit, PrecomputeEstimate, PrecomputeMonitor,
-    PrecomputeProgress, address_space_limit, available_memory,
-};
 pub use surface::{SurfaceKind, SurfaceRadii, expansion_len, n_surface_points, surface_points};
+pub use sysmem::{address_space_limit, available_memory};
+pub use usage::{M2lUsage, planned_sets};

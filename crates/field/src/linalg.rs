@@ -1,6 +1,8 @@
 //! `f64` dense building blocks of the precomputation: kernel matrices,
 //! SVD, and an R-only Householder QR for tall stacks.
 //!
+//! Uses [`FieldError`] and the thread policy of `crate::threads` only.
+//!
 //! Everything here is `f64`; operators are rounded to the working type only
 //! once they are complete.
 
@@ -8,6 +10,7 @@ use faer::{Accum, Mat, MatMut, MatRef, Par};
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::FieldError;
+use crate::threads::nested_par;
 
 /// Column-major kernel matrix `A[j, i] = K(x_i, y_j)` (`n_targets x
 /// n_sources`) between interleaved `f64` point sets; `c n_targets x c
@@ -38,20 +41,6 @@ pub(crate) struct SvdF64 {
     pub u: Mat<f64>,
     pub s: Vec<f64>,
     pub v: Mat<f64>,
-}
-
-/// Parallelism for faer inside the precomputation: sequential when called
-/// from a rayon worker (the caller already runs in parallel, and nesting
-/// faer's own splitting on top of it oversubscribes the cores), otherwise
-/// the current pool's threads, at most one per core (a pool of 64 threads
-/// on 2 cores would split every factorisation 64 ways and spend its time
-/// waiting; see the `--threads` notes of the CLI).
-pub(crate) fn nested_par() -> Par {
-    if rayon::current_thread_index().is_some() {
-        Par::Seq
-    } else {
-        Par::rayon(crate::precompute::effective_threads())
-    }
 }
 
 /// Thin SVD of `a` (faer, parallelism from [`nested_par`]).
@@ -206,15 +195,7 @@ fn apply_block(
     }
     // T (b x b) upper triangular with H_1 ... H_b = I - V T V^T (dlarft):
     // T[i, i] = tau_i, T[0..i, i] = -tau_i T[0..i, 0..i] Z[0..i, i], Z = V^T V.
-    let mut z = Mat::<f64>::zeros(b, b);
-    faer::linalg::matmul::matmul(
-        z.as_mut(),
-        Accum::Replace,
-        vmat.transpose(),
-        vmat.as_ref(),
-        1.0,
-        par,
-    );
+    let z = product(vmat.transpose(), vmat.as_ref(), 1.0, par);
     let mut t = Mat::<f64>::zeros(b, b);
     for i in 0..b {
         let tau = taus[jb + i];
@@ -229,24 +210,8 @@ fn apply_block(
     }
     let amat = MatMut::from_column_major_slice_mut(&mut a[..m * (c0 + nc)], m, c0 + nc);
     let mut a2 = amat.submatrix_mut(jb, c0, rows, nc);
-    let mut w = Mat::<f64>::zeros(b, nc);
-    faer::linalg::matmul::matmul(
-        w.as_mut(),
-        Accum::Replace,
-        vmat.transpose(),
-        a2.as_ref(),
-        1.0,
-        par,
-    );
-    let mut w2 = Mat::<f64>::zeros(b, nc);
-    faer::linalg::matmul::matmul(
-        w2.as_mut(),
-        Accum::Replace,
-        t.transpose(),
-        w.as_ref(),
-        1.0,
-        par,
-    );
+    let w = product(vmat.transpose(), a2.as_ref(), 1.0, par);
+    let w2 = product(t.transpose(), w.as_ref(), 1.0, par);
     faer::linalg::matmul::matmul(
         a2.as_mut(),
         Accum::Add,
@@ -295,6 +260,13 @@ fn make_householder(x: &mut [f64]) -> f64 {
     }
     x[0] = beta;
     tau
+}
+
+/// `alpha a b` as a new matrix (faer, parallelism `par`).
+pub(crate) fn product(a: MatRef<'_, f64>, b: MatRef<'_, f64>, alpha: f64, par: Par) -> Mat<f64> {
+    let mut out = Mat::<f64>::zeros(a.nrows(), b.ncols());
+    faer::linalg::matmul::matmul(out.as_mut(), Accum::Replace, a, b, alpha, par);
+    out
 }
 
 /// Round an `f64` slice to the working type.

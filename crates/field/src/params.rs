@@ -120,17 +120,14 @@ impl OperatorParams {
     /// * `pinv_rcond`, if given, finite and in `[0, 1)`.
     pub fn validate(&self) -> Result<(), FieldError> {
         let bad = |m: String| Err(FieldError::InvalidParams(m));
-        if self.order < MIN_ORDER {
-            return bad(format!(
-                "order must be at least {MIN_ORDER}, got {}",
-                self.order
-            ));
-        }
-        if self.order > MAX_ORDER {
-            return bad(format!(
-                "order must be at most {MAX_ORDER}, got {}",
-                self.order
-            ));
+        let order = self.order;
+        if !(MIN_ORDER..=MAX_ORDER).contains(&order) {
+            let (bound, limit) = if order < MIN_ORDER {
+                ("at least", MIN_ORDER)
+            } else {
+                ("at most", MAX_ORDER)
+            };
+            return bad(format!("order must be {bound} {limit}, got {order}"));
         }
         let r = &self.radii;
         if !r.to_array().iter().all(|x| x.is_finite()) {
@@ -142,24 +139,28 @@ impl OperatorParams {
                 r.upward_equivalent
             ));
         }
-        if !(r.upward_equivalent < r.upward_check && r.upward_check <= 3.0) {
-            return bad(format!(
-                "need upward equivalent < upward check <= 3, got {} / {}",
-                r.upward_equivalent, r.upward_check
-            ));
-        }
+        // Two radii `inner < outer <= 3`, named in the message.
+        let nested = |(a, inner): (&str, f64), (b, outer): (&str, f64)| {
+            if inner < outer && outer <= 3.0 {
+                Ok(())
+            } else {
+                bad(format!("need {a} < {b} <= 3, got {inner} / {outer}"))
+            }
+        };
+        nested(
+            ("upward equivalent", r.upward_equivalent),
+            ("upward check", r.upward_check),
+        )?;
         if r.downward_check < 1.0 {
             return bad(format!(
                 "downward check radius must be at least 1 (enclose the box), got {}",
                 r.downward_check
             ));
         }
-        if !(r.downward_check < r.downward_equivalent && r.downward_equivalent <= 3.0) {
-            return bad(format!(
-                "need downward check < downward equivalent <= 3, got {} / {}",
-                r.downward_check, r.downward_equivalent
-            ));
-        }
+        nested(
+            ("downward check", r.downward_check),
+            ("downward equivalent", r.downward_equivalent),
+        )?;
         if r.upward_equivalent + r.downward_check >= 4.0 {
             return bad(format!(
                 "upward equivalent + downward check radii must be < 4 (surfaces of the closest \

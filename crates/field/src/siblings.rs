@@ -149,7 +149,11 @@ pub struct LoosePair {
 }
 
 /// A level's pairs as [`SiblingBlock`]s and [`LoosePair`]s per target
-/// group (see the [module docs](self)).
+/// group: a pair `(t, s, v)` with slots `T`, `S` goes to target group
+/// `T / 8`, source group `S / 8`, parent offset `d = (v - octant_bits(S %
+/// 8) + octant_bits(T % 8)) / 2` and mask bit `8 (T % 8) + S % 8`, or is
+/// kept loose when `d` is not in `[-1, 1]^3` or its block is taken (the
+/// derivation is in the source module `siblings`).
 #[derive(Clone, Debug, Default)]
 pub struct SiblingBlocks {
     n_target_groups: usize,
@@ -374,22 +378,10 @@ mod tests {
         let vs = transfer_vectors();
         // A 6 x 6 x 6 grid of children (3^3 parents) in Morton-like column
         // order, plus a misaligned pair and a repeated pair.
-        let col = |x: i32, y: i32, z: i32| {
-            let g = ((x / 2) * 9 + (y / 2) * 3 + z / 2) as usize;
-            8 * g + ((x % 2) + 2 * (y % 2) + 4 * (z % 2)) as usize
-        };
-        let mut pairs = Vec::new();
-        for (x, y, z) in itertools(6) {
-            for (a, b, c) in itertools(6) {
-                let v = [a - x, b - y, c - z];
-                let near = (x / 2 - a / 2).abs() <= 1
-                    && (y / 2 - b / 2).abs() <= 1
-                    && (z / 2 - c / 2).abs() <= 1;
-                if near && transfer_vector_index(v).is_some() {
-                    pairs.push((col(x, y, z), col(a, b, c), v));
-                }
-            }
-        }
+        let col = |p: [i32; 3]| slot(p) as usize;
+        let mut pairs: Vec<_> = grid_v_pairs()
+            .map(|(t, s, v)| (col(t), col(s), v))
+            .collect();
         let aligned = pairs.len();
         pairs.push((3, 200, [3, 3, 3])); // columns unrelated to v
         pairs.push(pairs[0]);
@@ -426,29 +418,11 @@ mod tests {
     /// slots every pair still lands in a block; without them most go loose.
     #[test]
     fn slots_find_the_blocks_of_a_sparse_level() {
-        let slot = |x: i32, y: i32, z: i32| {
-            let g = ((x / 2) * 9 + (y / 2) * 3 + z / 2) as u32;
-            8 * g + ((x % 2) + 2 * (y % 2) + 4 * (z % 2)) as u32
-        };
         let kept: Vec<u32> = (0..216u32).filter(|m| m % 3 != 1).collect();
         let column = |m: u32| kept.iter().position(|&k| k == m);
-        let mut pairs = Vec::new();
-        for (x, y, z) in itertools(6) {
-            for (a, b, c) in itertools(6) {
-                let v = [a - x, b - y, c - z];
-                let near = (x / 2 - a / 2).abs() <= 1
-                    && (y / 2 - b / 2).abs() <= 1
-                    && (z / 2 - c / 2).abs() <= 1;
-                if let (true, Some(_), Some(t), Some(s)) = (
-                    near,
-                    transfer_vector_index(v),
-                    column(slot(x, y, z)),
-                    column(slot(a, b, c)),
-                ) {
-                    pairs.push((t, s, v));
-                }
-            }
-        }
+        let pairs: Vec<_> = grid_v_pairs()
+            .filter_map(|(t, s, v)| Some((column(slot(t))?, column(slot(s))?, v)))
+            .collect();
         let n = kept.len();
         let plain = M2lInteractions::with_chunk_size(n, n, &pairs, 16).unwrap();
         assert!(SiblingBlocks::new(&plain).n_loose() > pairs.len() / 2);
@@ -475,5 +449,25 @@ mod tests {
 
     fn itertools(n: i32) -> impl Iterator<Item = (i32, i32, i32)> {
         (0..n).flat_map(move |x| (0..n).flat_map(move |y| (0..n).map(move |z| (x, y, z))))
+    }
+
+    /// The V-list pairs `(target, source, v)` of a 6 x 6 x 6 grid of
+    /// children (3^3 parents): parents neighbours, `v` a transfer vector.
+    fn grid_v_pairs() -> impl Iterator<Item = ([i32; 3], [i32; 3], [i32; 3])> {
+        itertools(6).flat_map(|(x, y, z)| {
+            itertools(6).filter_map(move |(a, b, c)| {
+                let v = [a - x, b - y, c - z];
+                let near = (x / 2 - a / 2).abs() <= 1
+                    && (y / 2 - b / 2).abs() <= 1
+                    && (z / 2 - c / 2).abs() <= 1;
+                (near && transfer_vector_index(v).is_some()).then_some(([x, y, z], [a, b, c], v))
+            })
+        })
+    }
+
+    /// Morton-like slot of a child of the grid: `8 parent + octant`.
+    fn slot([x, y, z]: [i32; 3]) -> u32 {
+        let g = ((x / 2) * 9 + (y / 2) * 3 + z / 2) as u32;
+        8 * g + ((x % 2) + 2 * (y % 2) + 4 * (z % 2)) as u32
     }
 }

@@ -15,6 +15,7 @@
 
 use rayon::prelude::*;
 
+use crate::bounds::Bounds;
 use crate::error::{PointSet, TreeError};
 use crate::morton::{FINEST_GRID, encode};
 
@@ -196,37 +197,49 @@ pub(crate) fn validate_points(set: PointSet, p: &[f64]) -> Result<(), TreeError>
                     .position(|q| q.iter().any(|x| !x.is_finite()))
                     .unwrap_or(0)
         });
-    match bad {
-        Some(index) => Err(TreeError::NonFinite {
-            set,
-            index,
-            point: [p[3 * index], p[3 * index + 1], p[3 * index + 2]],
-        }),
-        None => Ok(()),
-    }
+    reject(set, p, bad, |set, index, point| TreeError::NonFinite {
+        set,
+        index,
+        point,
+    })
 }
 
 /// Per-axis minimum and maximum of finite interleaved points (`+inf/-inf`
 /// for an empty set).
 fn bounds(p: &[f64]) -> ([f64; 3], [f64; 3]) {
-    let empty = || ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    p.par_chunks(3 * BLOCK)
+    let b = p
+        .par_chunks(3 * BLOCK)
         .map(|block| {
-            let (mut lo, mut hi) = empty();
+            let mut b = Bounds::EMPTY;
             for c in block.chunks_exact(3) {
-                for i in 0..3 {
-                    lo[i] = lo[i].min(c[i]);
-                    hi[i] = hi[i].max(c[i]);
-                }
+                b.add(point_at(c, 0));
             }
-            (lo, hi)
+            b
         })
-        .reduce(empty, |(l1, h1), (l2, h2)| {
-            (
-                std::array::from_fn(|i| l1[i].min(l2[i])),
-                std::array::from_fn(|i| h1[i].max(h2[i])),
-            )
-        })
+        .reduce(
+            || Bounds::EMPTY,
+            |mut a, b| {
+                a.merge(&b);
+                a
+            },
+        );
+    (b.lo, b.hi)
+}
+
+/// `Err(error(set, index, point))` for the first bad point `index` of `p`
+/// (none: `Ok`).
+fn reject(
+    set: PointSet,
+    p: &[f64],
+    bad: Option<usize>,
+    error: fn(PointSet, usize, [f64; 3]) -> TreeError,
+) -> Result<(), TreeError> {
+    bad.map_or(Ok(()), |index| Err(error(set, index, point_at(p, index))))
+}
+
+/// Point `index` of interleaved coordinates.
+fn point_at(p: &[f64], index: usize) -> [f64; 3] {
+    [p[3 * index], p[3 * index + 1], p[3 * index + 2]]
 }
 
 /// Checks that every point of `p` lies in the closed cube of `d`.
@@ -234,12 +247,9 @@ pub(crate) fn check_inside(set: PointSet, p: &[f64], d: &Domain) -> Result<(), T
     let bad = p
         .par_chunks_exact(3)
         .position_first(|c| !d.contains([c[0], c[1], c[2]]));
-    match bad {
-        Some(index) => Err(TreeError::OutsideDomain {
-            set,
-            index,
-            point: [p[3 * index], p[3 * index + 1], p[3 * index + 2]],
-        }),
-        None => Ok(()),
-    }
+    reject(set, p, bad, |set, index, point| TreeError::OutsideDomain {
+        set,
+        index,
+        point,
+    })
 }

@@ -46,6 +46,7 @@
 #![warn(missing_docs)]
 
 pub mod balance;
+mod bounds;
 mod build;
 pub mod clusters;
 pub mod csr;

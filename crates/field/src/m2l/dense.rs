@@ -4,10 +4,10 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, check_lengths, for_each_chunk, for_each_vector_group, m2l_matrix,
-    planned_sets,
+    FIRST_M2L_LEVEL, M2lScheme, Plan, check_lengths, for_each_chunk, for_each_vector_group,
+    m2l_matrix,
 };
-use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout, load_or_compute};
+use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout};
 use crate::levels::LevelMap;
 use crate::linalg::col_major;
 use crate::{
@@ -108,24 +108,37 @@ impl<T: Real> DenseM2l<T> {
             .and_then(|s| s.get(vector))
             .is_some_and(|&s| s != NOT_COMPUTED)
     }
+}
 
-    /// Build for `plan` (`None`: all 316 vectors of every set).
-    fn build<K: Kernel>(
+/// Marks a transfer vector without a matrix.
+const NOT_COMPUTED: u32 = u32::MAX;
+
+/// The 316 transfer vectors, computed once.
+fn vectors() -> &'static [[i32; 3]] {
+    static V: std::sync::OnceLock<Vec<[i32; 3]>> = std::sync::OnceLock::new();
+    V.get_or_init(transfer_vectors)
+}
+
+impl<T: Real> M2lScheme<T> for DenseM2l<T> {
+    type Config = DenseConfig;
+
+    fn name(&self) -> &'static str {
+        "dense"
+    }
+
+    fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
+        _config: &DenseConfig,
         domain_width: f64,
         depth: u32,
-        plan: Option<&M2lUsage>,
+        usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
         params.validate()?;
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let plan = Plan::new(kernel, params, domain_width, depth, usage)?;
+        let (levels, sets) = (&plan.levels, &plan.sets);
         let n = crate::expansion_len(kernel, params.order);
         let n_sets = levels.n_sets();
-        let sets: Vec<Vec<usize>> = match plan {
-            None => vec![(0..N_TRANSFER_VECTORS).collect(); n_sets],
-            Some(u) => planned_sets(levels.homogeneity.is_some(), params, depth, u),
-        };
-        let full = sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS);
         let monitor = &params.monitor;
         monitor.check()?;
         let total: usize = sets.iter().map(Vec::len).sum();
@@ -154,69 +167,24 @@ impl<T: Real> DenseM2l<T> {
                 data,
             })
         };
-        let (store, cache_status) = if full {
-            let key =
-                CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array())
-                    .for_domain(domain_width, depth);
-            let expected = DenseLayout { n, sets: n_sets };
-            load_or_compute(
-                params.cache_dir.as_deref(),
-                &key,
-                expected.accept(),
-                compute,
-            )?
-        } else {
-            (compute()?, CacheStatus::Disabled)
+        let key = || {
+            CacheKey::new::<K, T>("m2l-dense", kernel, params.order, params.radii.to_array())
+                .for_domain(domain_width, depth)
         };
+        let expected = DenseLayout { n, sets: n_sets };
+        let (store, cache_status) =
+            plan.load_or_compute(params, key, expected.accept(), compute)?;
         let mut slots = vec![vec![NOT_COMPUTED; N_TRANSFER_VECTORS]; n_sets];
         for (slot, &(set, v)) in order.iter().enumerate() {
             slots[set][v] = slot as u32;
         }
         Ok(DenseM2l {
             n,
-            levels,
+            levels: plan.levels,
             store,
             slots,
             cache_status,
         })
-    }
-}
-
-/// Marks a transfer vector without a matrix.
-const NOT_COMPUTED: u32 = u32::MAX;
-
-/// The 316 transfer vectors, computed once.
-fn vectors() -> &'static [[i32; 3]] {
-    static V: std::sync::OnceLock<Vec<[i32; 3]>> = std::sync::OnceLock::new();
-    V.get_or_init(transfer_vectors)
-}
-
-impl<T: Real> M2lScheme<T> for DenseM2l<T> {
-    type Config = DenseConfig;
-
-    fn name(&self) -> &'static str {
-        "dense"
-    }
-
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        _config: &DenseConfig,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, domain_width, depth, None)
-    }
-
-    fn precompute_for<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        _config: &DenseConfig,
-        domain_width: f64,
-        depth: u32,
-        usage: &M2lUsage,
-    ) -> Result<Self, FieldError> {
-        Self::build(kernel, params, domain_width, depth, Some(usage))
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {

@@ -30,9 +30,15 @@ use faer::Mat;
 use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
+use crate::levels::FIRST_M2L_LEVEL;
+use crate::usage::planned_sets;
+
+use crate::cache::{CacheKey, CachePayload, load_or_compute};
+use crate::estimate::seconds_for;
 use crate::interactions::ChunkView;
+use crate::levels::LevelMap;
 use crate::linalg::kernel_matrix;
-use crate::precompute::{FLOPS_PER_THREAD, effective_threads};
+use crate::threads::effective_threads;
 use crate::{
     CacheStatus, FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams,
     PrecomputeEstimate, SurfaceRadii, surface_points,
@@ -103,14 +109,20 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     /// Precompute the operators of `kernel` for a domain of width
     /// `domain_width` and levels up to `depth` (per level for a
     /// non-homogeneous kernel), using the order and radii of `params` and
-    /// its cache directory.
+    /// its cache directory: every transfer vector at every level, that is
+    /// [`M2lScheme::precompute_for`] with [`M2lUsage::all`]`(depth)`.
+    ///
+    /// Provided; a scheme implements [`M2lScheme::precompute_for`] only.
     fn precompute<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
         config: &Self::Config,
         domain_width: f64,
         depth: u32,
-    ) -> Result<Self, FieldError>;
+    ) -> Result<Self, FieldError> {
+        let usage = M2lUsage::all(depth);
+        Self::precompute_for(kernel, params, config, domain_width, depth, &usage)
+    }
 
     /// Precompute only what `usage` needs: for a kernel homogeneous of
     /// degree `d` the operators `K_v` for `v` in the union `V = U_l V_l` of
@@ -122,10 +134,9 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     ///
     /// With a cache directory in `params`, all 316 vectors of every set are
     /// computed (unless `usage` is empty) so that the cache file stays
-    /// complete and serves any later tree.
-    ///
-    /// The default implementation ignores `usage` and calls
-    /// [`M2lScheme::precompute`] (after checking the monitor).
+    /// complete and serves any later tree ([`planned_sets`] says which
+    /// vectors each set gets). A scheme that cannot make use of `usage` may
+    /// ignore it and build everything.
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -133,11 +144,7 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
         domain_width: f64,
         depth: u32,
         usage: &M2lUsage,
-    ) -> Result<Self, FieldError> {
-        let _ = usage;
-        params.monitor.check()?;
-        Self::precompute(kernel, params, config, domain_width, depth)
-    }
+    ) -> Result<Self, FieldError>;
 
     /// Predicted peak memory and time of
     /// [`M2lScheme::precompute_for`]`(.., depth, usage)`, before any work.
@@ -166,7 +173,7 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
             matrices: m,
             peak_bytes: m as u64 * n * n * size + if m > 0 { threads * n * n * 8 } else { 0 },
             flops,
-            seconds: flops / (FLOPS_PER_THREAD * threads as f64),
+            seconds: seconds_for(flops),
         }
     }
 
@@ -194,32 +201,50 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     }
 }
 
-/// First tree level with V-list interactions (boxes of level 1 are all
-/// neighbours of each other).
-pub const FIRST_M2L_LEVEL: u32 = 2;
+/// What one precomputation of a scheme builds: which operator set serves
+/// which level, at which half-width (`levels`), and the transfer vectors
+/// of each set (`sets`, from [`planned_sets`]).
+pub(crate) struct Plan {
+    /// Levels `2..=depth` and their sets.
+    pub levels: LevelMap,
+    /// Per set, the transfer vector indices to compute.
+    pub sets: Vec<Vec<usize>>,
+}
 
-/// The transfer vectors (indices) to compute per operator set for
-/// [`M2lScheme::precompute_for`]: nothing for an empty `usage`; all 316 per
-/// set with a cache directory (so the file stays complete); otherwise the
-/// union of the used vectors (homogeneous kernel, one set) or those of each
-/// level `2..=depth`.
-pub fn planned_sets(
-    homogeneous: bool,
-    params: &OperatorParams,
-    depth: u32,
-    usage: &M2lUsage,
-) -> Vec<Vec<usize>> {
-    let n_sets = if homogeneous {
-        1
-    } else {
-        (depth + 1).saturating_sub(FIRST_M2L_LEVEL) as usize
-    };
-    if usage.is_empty() {
-        vec![Vec::new(); n_sets]
-    } else if params.cache_dir.is_some() {
-        vec![(0..N_TRANSFER_VECTORS).collect(); n_sets]
-    } else {
-        usage.per_set(homogeneous, FIRST_M2L_LEVEL, depth)
+impl Plan {
+    /// The plan for `usage` (see [`M2lScheme::precompute_for`]).
+    pub(crate) fn new<K: Kernel>(
+        kernel: &K,
+        params: &OperatorParams,
+        domain_width: f64,
+        depth: u32,
+        usage: &M2lUsage,
+    ) -> Result<Self, FieldError> {
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
+        Ok(Plan { levels, sets })
+    }
+
+    /// Whether every set gets all 316 vectors.
+    pub(crate) fn is_complete(&self) -> bool {
+        self.sets.iter().all(|s| s.len() == N_TRANSFER_VECTORS)
+    }
+
+    /// The scheme's store: through the cache of `params` (the file named by
+    /// `key`, its layout checked by `accept`) when the plan is complete,
+    /// else computed and not cached (a partial store would not serve a
+    /// later tree).
+    pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
+        &self,
+        params: &OperatorParams,
+        key: impl FnOnce() -> CacheKey,
+        accept: impl Fn(&S::Layout) -> Result<(), String>,
+        compute: impl FnOnce() -> Result<S, FieldError>,
+    ) -> Result<(S, CacheStatus), FieldError> {
+        match params.cache_dir.as_deref() {
+            Some(dir) if self.is_complete() => load_or_compute(Some(dir), &key(), accept, compute),
+            _ => Ok((compute()?, CacheStatus::Disabled)),
+        }
     }
 }
 

@@ -19,6 +19,11 @@
 //! serves every level; otherwise each level `2..=depth` has its own set.
 //! [`LevelMap`] says which set serves a level and with which factor.
 //!
+//! A scheme builds its operators in
+//! [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for) (only
+//! the transfer vectors a tree uses); [`M2lScheme::precompute`](
+//! crate::M2lScheme::precompute), every vector at every level, is provided.
+//!
 //! # The building blocks
 //!
 //! * [`M2lInteractions`](crate::M2lInteractions) holds a level's pairs cut
@@ -35,8 +40,7 @@
 //!   [`M2lInteractions::sibling_blocks`](crate::M2lInteractions::sibling_blocks))
 //!   regroups a level's pairs by parent: `8 x 8` blocks of children at 26
 //!   parent offsets, for schemes that treat siblings together (the FFT
-//!   scheme); the maths is in [`crate::siblings`]' docs, repeated on
-//!   [`SiblingBlocks`].
+//!   scheme); the maths is on [`SiblingBlocks`].
 //! * [`crate::planned_sets`] and [`crate::M2lUsage`] say which transfer
 //!   vectors a tree uses, for
 //!   [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for).
@@ -60,10 +64,9 @@
 pub mod conformance;
 
 pub use crate::interactions::{ChunkView, GroupView};
-pub use crate::levels::{LevelMap, REFERENCE_HALF_WIDTH, half_width};
+pub use crate::levels::{FIRST_M2L_LEVEL, LevelMap, REFERENCE_HALF_WIDTH, half_width};
 pub use crate::m2l::{
-    FIRST_M2L_LEVEL, check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix,
-    scatter_add,
+    check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix, scatter_add,
 };
 pub use crate::siblings::{
     LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,

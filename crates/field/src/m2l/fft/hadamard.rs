@@ -49,7 +49,7 @@ use ferrofmm_kernels::lanes::{Simd, SimdTask};
 use rayon::prelude::*;
 
 use crate::N_TRANSFER_VECTORS;
-use crate::plumbing::{N_PARENT_OFFSETS, SiblingBlocks, block_vector};
+use crate::siblings::{N_PARENT_OFFSETS, SiblingBlocks, block_vector};
 
 /// Frequencies per block.
 pub(super) const FREQ_BLOCK: usize = 8;
@@ -240,7 +240,7 @@ fn dense_blocks<S: Simd<f64>, C: Components>(
     at: Offsets<C>,
     slab: &[f64],
     sources: &[f64],
-    blocks: &[crate::plumbing::SiblingBlock],
+    blocks: &[crate::siblings::SiblingBlock],
     tables: &[BlockTable],
     out: &mut [f64],
 ) {

@@ -58,7 +58,7 @@
 //! # Siblings together
 //!
 //! The products are organised by parent (as in PVFMM, ExaFMM-T and kifmm):
-//! [`SiblingBlocks`](crate::plumbing::SiblingBlocks) files the pairs of the
+//! [`SiblingBlocks`](crate::siblings::SiblingBlocks) files the pairs of the
 //! eight children of a target parent and a neighbouring source parent as
 //! one `8 x 8` block per frequency, so each source spectrum value loaded
 //! serves eight targets and each accumulator eight sources
@@ -80,14 +80,12 @@ use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
 use self::hadamard::{FREQ_BLOCK, Many, One, Products, SLAB_VECTORS, W, block_tables};
-use super::{FIRST_M2L_LEVEL, M2lScheme, check_lengths, planned_sets};
-use crate::cache::{
-    CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader, load_or_compute,
-};
+use super::{M2lScheme, Plan, check_lengths, planned_sets};
+use crate::cache::{CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader};
+use crate::estimate::seconds_for;
 use crate::fft3d::{Fft3d, FftWorkspace};
 use crate::levels::LevelMap;
-use crate::plumbing::SiblingBlocks;
-use crate::precompute::effective_threads;
+use crate::siblings::SiblingBlocks;
 use crate::surface::unit_surface;
 use crate::{
     FieldError, M2lInteractions, M2lUsage, OperatorParams, PrecomputeEstimate, n_surface_points,
@@ -103,7 +101,11 @@ const GROUPS_PER_TASK: usize = 16;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct FftConfig;
 
-/// FFT-accelerated M2L (see the [module documentation](self)).
+/// FFT-accelerated M2L: for each transfer vector `v`, `check[j] = sum_i
+/// T_v[j - i] phi[i]` on the surface lattice, a 3D convolution computed as
+/// a circular one on an `N^3` grid (`N >= 2p - 1`, prime factors 2, 3, 5,
+/// 7) with real FFTs, siblings together (the derivation is in the source
+/// module `m2l::fft`).
 ///
 /// ```
 /// use ferrofmm_field::{FftConfig, FftM2l, M2lInteractions, M2lScheme, OperatorParams};
@@ -335,23 +337,6 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         "fft"
     }
 
-    fn precompute<K: Kernel>(
-        kernel: &K,
-        params: &OperatorParams,
-        config: &Self::Config,
-        domain_width: f64,
-        depth: u32,
-    ) -> Result<Self, FieldError> {
-        Self::precompute_for(
-            kernel,
-            params,
-            config,
-            domain_width,
-            depth,
-            &M2lUsage::all(depth),
-        )
-    }
-
     fn precompute_for<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -364,7 +349,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         check_radii(params)?;
         params.monitor.check()?;
         let c = kernel.components();
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
+        let plan = Plan::new(kernel, params, domain_width, depth, usage)?;
+        let (levels, sets) = (&plan.levels, &plan.sets);
         let grid = grid_size(params.order);
         let fft = Fft3d::new(grid);
         let blocks = fft.spectrum_len().div_ceil(FREQ_BLOCK);
@@ -377,9 +363,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             })
             .collect();
         let vectors = transfer_vectors();
-        // Without a cache file there is nothing to keep complete: compute
-        // only the used vectors (with one, `planned_sets` gives all 316).
-        let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
+        // Without a cache file there is nothing to keep complete: the plan
+        // has only the used vectors (with one, `planned_sets` gives all 316).
         let n_sets = sets.len();
         let cc = c * c;
         let slab_len = blocks * SLAB_VECTORS * cc * W;
@@ -408,36 +393,28 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             }
             Ok(slab)
         };
-        let complete = sets.iter().all(|w| w.len() == vectors.len());
-        let (slabs, cache_status) = if complete && params.cache_dir.is_some() {
+        let key = || {
             let mut key =
                 CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array())
                     .for_domain(domain_width, depth);
             key.scheme_config = format!("grid {grid}");
-            let layout = FftLayout {
-                blocks,
-                sets: n_sets,
-                components: c,
-            };
-            let compute = || -> Result<FftSlabs, FieldError> {
-                let slabs = sets
-                    .iter()
-                    .enumerate()
-                    .map(|(set, wanted)| compute_set(set, wanted))
-                    .collect::<Result<_, _>>()?;
-                Ok(FftSlabs { layout, slabs })
-            };
-            let (store, status) =
-                load_or_compute(params.cache_dir.as_deref(), &key, layout.accept(), compute)?;
-            (store.slabs, status)
-        } else {
+            key
+        };
+        let layout = FftLayout {
+            blocks,
+            sets: n_sets,
+            components: c,
+        };
+        let compute = || -> Result<FftSlabs, FieldError> {
             let slabs = sets
                 .iter()
                 .enumerate()
                 .map(|(set, wanted)| compute_set(set, wanted))
-                .collect::<Result<Vec<_>, _>>()?;
-            (slabs, CacheStatus::Disabled)
+                .collect::<Result<_, _>>()?;
+            Ok(FftSlabs { layout, slabs })
         };
+        let (store, cache_status) = plan.load_or_compute(params, key, layout.accept(), compute)?;
+        let slabs = store.slabs;
         let present = sets
             .iter()
             .map(|wanted| {
@@ -452,7 +429,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             n: n_surface_points(params.order),
             components: c,
             order: params.order,
-            levels,
+            levels: plan.levels,
             fft,
             lattice,
             blocks,
@@ -476,7 +453,6 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let m: usize = sets.iter().map(Vec::len).sum();
         let grid = grid_size(params.order) as f64;
         let spectrum = grid * grid * (grid / 2.0 + 1.0);
-        let threads = effective_threads() as f64;
         // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
         let flops = cc * m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
         // The slabs hold every vector of a used set; each computed spectrum
@@ -487,7 +463,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             peak_bytes: ((used_sets * SLAB_VECTORS as f64 + m as f64) * cc * spectrum * 16.0)
                 as u64,
             flops,
-            seconds: flops / (crate::precompute::FLOPS_PER_THREAD * threads),
+            seconds: seconds_for(flops),
         }
     }
 

@@ -59,8 +59,16 @@
 //! What is not split: a chain of points whose spacings grow geometrically
 //! by less than `ratio` per step (1, 100, 10^4, ...) has no valid gap; such
 //! a set still gets one tree, as deep as its extent demands.
+//!
+//! The modules: `cutting` (the histogram, the stack scan, the best axis),
+//! `checking` (the 3D separation test and the merging); both measure with
+//! the bounding boxes of `crate::bounds`.
 
-use rayon::prelude::*;
+mod checking;
+mod cutting;
+
+use checking::{coupling_work, merge_close};
+use cutting::split_once;
 
 /// The separation ratio used by the FMM driver: a group is cut off when
 /// its gap to its neighbour is at least 16 times the larger one's size
@@ -182,286 +190,11 @@ fn whole(n_src: usize, n_tgt: usize, separate_targets: bool) -> Cluster {
     Cluster { sources, targets }
 }
 
-/// Merges groups until every two are apart along some axis by at least
-/// `separation` times the wider one's width. Each pass joins every pair
-/// that fails (union-find over the `O(C^2)` pairs of `C <= MAX_PIECES`
-/// groups) and repeats while a pass joined anything.
-fn merge_close(
-    mut groups: Vec<Vec<usize>>,
-    point: &(impl Fn(usize) -> [f64; 3] + Sync),
-    separation: f64,
-) -> Vec<Vec<usize>> {
-    let mut boxes: Vec<([f64; 3], [f64; 3])> =
-        groups.par_iter().map(|g| bounds(g, point)).collect();
-    loop {
-        let c = groups.len();
-        let mut root: Vec<usize> = (0..c).collect();
-        fn find(root: &mut [usize], mut i: usize) -> usize {
-            while root[i] != i {
-                root[i] = root[root[i]];
-                i = root[i];
-            }
-            i
-        }
-        let close: Vec<(usize, usize)> = (0..c)
-            .into_par_iter()
-            .flat_map_iter(|i| {
-                let boxes = &boxes;
-                (i + 1..c)
-                    .filter(move |&j| !separated(&boxes[i], &boxes[j], separation))
-                    .map(move |j| (i, j))
-            })
-            .collect();
-        if close.is_empty() {
-            return groups;
-        }
-        for (i, j) in close {
-            let (ri, rj) = (find(&mut root, i), find(&mut root, j));
-            if ri != rj {
-                root[ri.max(rj)] = ri.min(rj);
-            }
-        }
-        let mut merged: Vec<Vec<usize>> = Vec::new();
-        let mut merged_boxes = Vec::new();
-        let mut slot = vec![usize::MAX; c];
-        for (i, (g, b)) in groups.into_iter().zip(boxes).enumerate() {
-            let r = find(&mut root, i);
-            if slot[r] == usize::MAX {
-                slot[r] = merged.len();
-                merged.push(g);
-                merged_boxes.push(b);
-            } else {
-                let k = slot[r];
-                merged[k].extend(g);
-                let m: &mut ([f64; 3], [f64; 3]) = &mut merged_boxes[k];
-                for a in 0..3 {
-                    m.0[a] = m.0[a].min(b.0[a]);
-                    m.1[a] = m.1[a].max(b.1[a]);
-                }
-            }
-        }
-        groups = merged;
-        boxes = merged_boxes;
-    }
-}
-
-/// Cost of coupling the clusters pairwise, in units of point-pair
-/// interactions: `(sum_i min(n_i, 512))^2`, a cluster interacting through
-/// at most about 512 points or expansion-surface points.
-fn coupling_work(groups: &[Vec<usize>]) -> f64 {
-    let s: usize = groups.iter().map(|g| g.len().min(512)).sum();
-    (s as f64).powi(2)
-}
-
-/// Whether two boxes are apart along some axis by at least `separation`
-/// times the wider box's largest extent.
-fn separated(a: &([f64; 3], [f64; 3]), b: &([f64; 3], [f64; 3]), separation: f64) -> bool {
-    let wider = width(&a.0, &a.1).max(width(&b.0, &b.1));
-    let gap = (0..3)
-        .map(|k| (b.0[k] - a.1[k]).max(a.0[k] - b.1[k]))
-        .fold(f64::NEG_INFINITY, f64::max);
-    gap >= separation * wider
-}
-
-/// Bounding box of `items`.
-fn bounds(items: &[usize], point: &(impl Fn(usize) -> [f64; 3] + Sync)) -> ([f64; 3], [f64; 3]) {
-    let fold = |(mut lo, mut hi): ([f64; 3], [f64; 3]), p: [f64; 3]| {
-        for a in 0..3 {
-            lo[a] = lo[a].min(p[a]);
-            hi[a] = hi[a].max(p[a]);
-        }
-        (lo, hi)
-    };
-    let empty = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
-    items
-        .par_iter()
-        .with_min_len(1 << 14)
-        .fold(|| empty, |acc, &i| fold(acc, point(i)))
-        .reduce(
-            || empty,
-            |a, b| {
-                let mut out = a;
-                for k in 0..3 {
-                    out.0[k] = out.0[k].min(b.0[k]);
-                    out.1[k] = out.1[k].max(b.1[k]);
-                }
-                out
-            },
-        )
-}
-
-/// Largest extent of a box over the three axes.
-fn width(lo: &[f64; 3], hi: &[f64; 3]) -> f64 {
-    (0..3).map(|a| hi[a] - lo[a]).fold(0.0, f64::max)
-}
-
-/// Cells of the histogram along an axis.
-const CELLS: usize = 256;
-
-/// A run of points along an axis: extent along the axis and bounding box.
-#[derive(Clone, Copy)]
-struct Group {
-    lo: [f64; 3],
-    hi: [f64; 3],
-}
-
-impl Group {
-    const EMPTY: Group = Group {
-        lo: [f64::INFINITY; 3],
-        hi: [f64::NEG_INFINITY; 3],
-    };
-
-    fn add(&mut self, p: [f64; 3]) {
-        for (a, &x) in p.iter().enumerate() {
-            self.lo[a] = self.lo[a].min(x);
-            self.hi[a] = self.hi[a].max(x);
-        }
-    }
-
-    fn merge(&mut self, other: &Group) {
-        for a in 0..3 {
-            self.lo[a] = self.lo[a].min(other.lo[a]);
-            self.hi[a] = self.hi[a].max(other.hi[a]);
-        }
-    }
-
-    fn is_empty(&self) -> bool {
-        self.lo[0] > self.hi[0]
-    }
-
-    fn width(&self) -> f64 {
-        width(&self.lo, &self.hi)
-    }
-}
-
-/// The pieces of `set` cut at every cut that holds on the best axis, or
-/// `None` when no axis has one (see the [module documentation](self)).
-fn split_once(
-    set: &[usize],
-    point: &(impl Fn(usize) -> [f64; 3] + Sync),
-    ratio: f64,
-) -> Option<Vec<Vec<usize>>> {
-    if set.len() < 2 {
-        return None;
-    }
-    let (lo, hi) = bounds(set, point);
-    let mut best: Option<(f64, usize, Vec<usize>)> = None;
-    for axis in 0..3 {
-        let extent = hi[axis] - lo[axis];
-        if !(extent > 0.0 && extent.is_finite()) {
-            continue;
-        }
-        let cell = |p: [f64; 3]| -> usize {
-            let c = ((p[axis] - lo[axis]) / extent * CELLS as f64) as usize;
-            c.min(CELLS - 1)
-        };
-        let cells = set
-            .par_iter()
-            .with_min_len(1 << 14)
-            .fold(
-                || vec![Group::EMPTY; CELLS],
-                |mut cells, &i| {
-                    let p = point(i);
-                    cells[cell(p)].add(p);
-                    cells
-                },
-            )
-            .reduce(
-                || vec![Group::EMPTY; CELLS],
-                |mut a, b| {
-                    for (x, y) in a.iter_mut().zip(&b) {
-                        x.merge(y);
-                    }
-                    a
-                },
-            );
-        let spacing = extent / set.len() as f64;
-        if let Some((score, piece_of_cell)) = cut_cells(&cells, axis, ratio, spacing)
-            && best.as_ref().is_none_or(|(s, _, _)| score > *s)
-        {
-            best = Some((score, axis, piece_of_cell));
-        }
-    }
-    let (_, axis, piece_of_cell) = best?;
-    let extent = hi[axis] - lo[axis];
-    let n_pieces = piece_of_cell.iter().max().map_or(0, |&m| m + 1);
-    let mut pieces = vec![Vec::new(); n_pieces];
-    for &i in set {
-        let c = ((point(i)[axis] - lo[axis]) / extent * CELLS as f64) as usize;
-        pieces[piece_of_cell[c.min(CELLS - 1)]].push(i);
-    }
-    Some(pieces)
-}
-
-/// The largest set of cuts that hold between the runs of occupied `cells`
-/// along `axis`: the piece of each cell and the best cut's score
-/// `g / max(w(A), w(B))`, or `None` when no cut holds. `spacing` is the
-/// piece's mean point spacing along `axis` (its extent over its count).
-fn cut_cells(cells: &[Group], axis: usize, ratio: f64, spacing: f64) -> Option<(f64, Vec<usize>)> {
-    // A group's size along the cut, at least `1 / (2 ratio)` of its width
-    // and the mean spacing.
-    let size = |g: &Group| -> f64 {
-        (g.hi[axis] - g.lo[axis])
-            .max(g.width() / (2.0 * ratio))
-            .max(spacing)
-    };
-    let holds = |a: &Group, b: &Group| -> bool {
-        let gap = b.lo[axis] - a.hi[axis];
-        gap > 0.0 && gap >= ratio * size(a).max(size(b))
-    };
-    // Runs of occupied cells, each with its first cell.
-    let mut runs: Vec<(usize, Group)> = Vec::new();
-    let mut previous_empty = true;
-    for (c, g) in cells.iter().enumerate() {
-        if g.is_empty() {
-            previous_empty = true;
-            continue;
-        }
-        match runs.last_mut() {
-            Some((_, run)) if !previous_empty => run.merge(g),
-            _ => runs.push((c, *g)),
-        }
-        previous_empty = false;
-    }
-    // Stack scan: merge while the cut below the top fails.
-    let mut stack: Vec<(usize, Group)> = Vec::with_capacity(runs.len());
-    for run in runs {
-        stack.push(run);
-        while stack.len() >= 2 {
-            let (top, below) = (stack[stack.len() - 1].1, stack[stack.len() - 2].1);
-            if holds(&below, &top) {
-                break;
-            }
-            let (_, top) = stack.pop().expect("two entries");
-            stack.last_mut().expect("one entry").1.merge(&top);
-        }
-    }
-    if stack.len() < 2 {
-        return None;
-    }
-    let score = stack
-        .windows(2)
-        .map(|w| {
-            let gap = w[1].1.lo[axis] - w[0].1.hi[axis];
-            let wider = w[0].1.width().max(w[1].1.width());
-            if wider > 0.0 {
-                gap / wider
-            } else {
-                f64::INFINITY
-            }
-        })
-        .fold(0.0, f64::max);
-    let mut piece_of_cell = vec![0; cells.len()];
-    for (piece, w) in stack.iter().enumerate() {
-        let end = stack.get(piece + 1).map_or(cells.len(), |next| next.0);
-        piece_of_cell[w.0..end].fill(piece);
-    }
-    Some((score, piece_of_cell))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::bounds::{Bounds, bounds};
+    use checking::separated;
 
     fn cloud(n: usize, offset: [f64; 3], size: f64, seed: u64) -> Vec<f64> {
         let mut s = seed.wrapping_mul(6364136223846793005).wrapping_add(1);
@@ -515,7 +248,7 @@ mod tests {
         assert_eq!(c[1].targets, (0..50).collect::<Vec<_>>());
     }
 
-    fn boxes_of(c: &[Cluster], p: &[f64]) -> Vec<([f64; 3], [f64; 3])> {
+    fn boxes_of(c: &[Cluster], p: &[f64]) -> Vec<Bounds> {
         c.iter()
             .map(|c| bounds(&c.sources, &|i| [p[3 * i], p[3 * i + 1], p[3 * i + 2]]))
             .collect()
