@@ -29,7 +29,7 @@
 use std::str::FromStr;
 
 use ferrofmm_field::M2lCostShape;
-use ferrofmm_kernels::{AutoScheme, EvalMode, KernelChoice, Precision};
+use ferrofmm_kernels::{AutoScheme, EvalMode, Kernel, KernelChoice, Precision};
 use serde::{Deserialize, Serialize};
 
 use crate::FmmError;
@@ -116,6 +116,18 @@ impl SchemeChoice {
                 Ok(SchemeChoice::of_shape(shape))
             }
             _ => Ok(SchemeChoice::Svd),
+        }
+    }
+
+    /// Whether `auto` is FFT for `kernel` whatever the points (rule 1 of the
+    /// [module docs](self)): what its registry description says, and for a
+    /// kernel outside the registry, whether it has several components or no
+    /// homogeneity (operators per level), the two reasons the built-in
+    /// kernels have.
+    pub fn auto_is_fft<K: Kernel>(kernel: &K) -> bool {
+        match KernelChoice::of(kernel) {
+            Some(choice) => choice.description().auto_scheme == AutoScheme::Fft,
+            None => kernel.components() > 1 || kernel.homogeneity().is_none(),
         }
     }
 

@@ -36,6 +36,7 @@
 //! `k w` values per rank, and `N k / R` kernel evaluations on each.
 
 use ferrofmm_field::M2lCostShape;
+use ferrofmm_fmm::SchemeChoice;
 use ferrofmm_fmm::tuning::{ChosenParameters, Occupancy, Tuner, default_model};
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, SourceKind, direct_sum_sources};
 use ferrofmm_tree::DEEPEST_LEVEL;
@@ -71,8 +72,8 @@ pub struct DistChoice {
 /// Chooses order, leaf size and SVD tolerance for the relative L2 error
 /// `eps` of `kernel` in float type `precision` (a collective; see the
 /// [module docs](self)). `shape`: the M2L scheme to choose for, or `None`
-/// to choose between the SVD and FFT schemes by predicted time (FFT for
-/// kernels with several components, as on one machine); `svd_cached`:
+/// to choose between the SVD and FFT schemes by predicted time (FFT where
+/// [`SchemeChoice::auto_is_fft`], as on one machine); `svd_cached`:
 /// whether the SVD scheme's operators come from a cache (its precomputation
 /// is then not counted).
 ///
@@ -97,7 +98,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
             Occupancy::new(sample, None, None, DEEPEST_LEVEL).map_err(|e| e.to_string())?;
         let width = occupancy_width(sample);
         let shape = match shape {
-            None if kernel.components() > 1 => Some(M2lCostShape::Fft),
+            None if SchemeChoice::auto_is_fft(kernel) => Some(M2lCostShape::Fft),
             s => s,
         };
         let tuner = Tuner::from_model(

@@ -7,9 +7,9 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use ferrofmm_field::{DenseM2l, FftM2l, M2lCostShape, M2lScheme, SvdConfig, SvdM2l};
+use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdConfig, SvdM2l};
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError};
+use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice};
 use ferrofmm_kernels::{
     EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
 };
@@ -77,9 +77,9 @@ pub struct EvalArgs {
     /// trusts the prediction.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     pub(crate) verify: String,
-    /// M2L scheme: auto, svd, dense or fft. auto: fft for helmholtz:K and
-    /// stokes; with --tolerance the faster predicted of svd and fft; else
-    /// svd.
+    /// M2L scheme: auto, svd, dense or fft. auto: fft for yukawa:K,
+    /// helmholtz:K and stokes (the kernel registry's rule); with
+    /// --tolerance the faster predicted of svd and fft; else svd.
     #[arg(long, default_value = "auto", value_parser = ["auto", "svd", "dense", "fft"])]
     pub(crate) scheme: String,
     /// Float type of the run: f64 or f32 (inputs are read as f64 and
@@ -336,14 +336,11 @@ impl KernelVisitor for WithKernel<'_> {
         } else {
             Precision::F64
         };
+        // clap checked the name.
+        let scheme = SchemeChoice::parse(&a.scheme)?;
         let plan = match a.tolerance {
             Some(eps) => {
-                let shape = match a.scheme.as_str() {
-                    "svd" => Some(M2lCostShape::Compressed),
-                    "fft" => Some(M2lCostShape::Fft),
-                    "dense" => Some(M2lCostShape::Dense),
-                    _ => None,
-                };
+                let shape = scheme.shape();
                 let choice = choose_parameters(
                     world,
                     &input.points,
@@ -358,11 +355,7 @@ impl KernelVisitor for WithKernel<'_> {
                 Plan {
                     order: choice.order,
                     leaf_size: choice.leaf_size,
-                    scheme: match choice.shape {
-                        M2lCostShape::Fft => "fft",
-                        M2lCostShape::Dense => "dense",
-                        _ => "svd",
-                    },
+                    scheme: SchemeChoice::of_shape(choice.shape).name(),
                     svd_tolerance: Some(choice.svd_tolerance),
                     choice: Some(choice),
                 }
@@ -370,11 +363,10 @@ impl KernelVisitor for WithKernel<'_> {
             None => Plan {
                 order: a.order.unwrap_or(DEFAULT_ORDER),
                 leaf_size: a.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
-                scheme: match a.scheme.as_str() {
-                    "auto" if c > 1 => "fft",
-                    "auto" | "svd" => "svd",
-                    "dense" => "dense",
-                    _ => "fft",
+                scheme: match scheme {
+                    SchemeChoice::Auto if SchemeChoice::auto_is_fft(&kernel) => "fft",
+                    SchemeChoice::Auto => "svd",
+                    s => s.name(),
                 },
                 svd_tolerance: None,
                 choice: None,
