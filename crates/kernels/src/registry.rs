@@ -35,7 +35,7 @@
 //! assert!("yukawa".parse::<KernelChoice>().is_err()); // no wavenumber
 //! // Every built-in kernel, for help texts and bindings:
 //! let names: Vec<&str> = KernelChoice::registered().iter().map(|d| d.name).collect();
-//! assert_eq!(names, ["laplace", "yukawa", "helmholtz", "stokes"]);
+//! assert!(names.starts_with(&["laplace", "yukawa", "helmholtz", "stokes"]));
 //! ```
 //!
 //! # Registering a kernel
@@ -544,10 +544,9 @@ mod tests {
         let e = KernelChoice::parse("yukawa").unwrap_err();
         assert!(e.why.contains("yukawa:2.5"), "{e}");
         let e = KernelChoice::parse("coulomb").unwrap_err();
-        assert!(
-            e.why.contains("laplace, yukawa:K, helmholtz:K or stokes"),
-            "{e}"
-        );
+        for d in KernelChoice::registered() {
+            assert!(e.why.contains(d.name), "{e} does not name {}", d.name);
+        }
     }
 
     #[test]
