@@ -380,12 +380,8 @@ impl RunReport {
             (true, false) => "potential + gradient",
             (false, false) => "potential",
         };
-        let kernel = match self.kernel.split_once(':') {
-            Some(("yukawa", k)) => format!("modified Helmholtz exp(-{k} r)/(4 pi r)"),
-            Some(("helmholtz", k)) => format!("Helmholtz exp(i {k} r)/(4 pi r), complex"),
-            _ if self.kernel == "stokes" => "Stokeslet (viscosity 1), 3 components".to_string(),
-            _ => "Laplace 1/(4 pi r)".to_string(),
-        };
+        let kernel = ferrofmm_kernels::KernelChoice::parse(&self.kernel)
+            .map_or_else(|_| self.kernel.clone(), |k| k.title());
         let sources = match self.sources.as_str() {
             "charge" => String::new(),
             s => format!(", {s} sources"),

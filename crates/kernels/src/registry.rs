@@ -61,6 +61,10 @@ pub struct KernelDescription {
     pub aliases: &'static [&'static str],
     /// One line for help texts: the formula and what goes in and out.
     pub summary: &'static str,
+    /// The kernel as a report's header names it, `{}` standing for the
+    /// parameter's value (`modified Helmholtz exp(-{} r)/(4 pi r)`); see
+    /// [`KernelChoice::title`].
+    pub title: &'static str,
     /// The kernel's one parameter, when it has one (`name:VALUE`).
     pub parameter: Option<ParameterDescription>,
     /// Suffixes of one quantity's columns: none for a scalar kernel, `re,
@@ -279,6 +283,17 @@ impl KernelChoice {
         entries.join(", ")
     }
 
+    /// The kernel as a report names it: the description's
+    /// [title](KernelDescription::title) with the parameter's value
+    /// (`modified Helmholtz exp(-2.5 r)/(4 pi r)`).
+    pub fn title(self) -> String {
+        let title = self.description().title;
+        match self.parameter {
+            Some(p) => title.replace("{}", &p.to_string()),
+            None => title.to_string(),
+        }
+    }
+
     /// Its description.
     pub fn description(self) -> &'static KernelDescription {
         &DESCRIPTIONS[self.index]
@@ -386,6 +401,7 @@ impl BuiltinKernel for Laplace3d {
         name: "laplace",
         aliases: &[],
         summary: "1/(4 pi r), the default",
+        title: "Laplace 1/(4 pi r)",
         parameter: None,
         component_names: &[],
         complex: false,
@@ -409,6 +425,7 @@ impl BuiltinKernel for ModifiedHelmholtz3d {
         name: "yukawa",
         aliases: &["modified-helmholtz"],
         summary: "modified Helmholtz exp(-K r)/(4 pi r), K >= 0 in inverse units of the coordinates",
+        title: "modified Helmholtz exp(-{} r)/(4 pi r)",
         parameter: Some(WAVENUMBER),
         component_names: &[],
         complex: false,
@@ -432,6 +449,7 @@ impl BuiltinKernel for Helmholtz3d {
         name: "helmholtz",
         aliases: &[],
         summary: "exp(iKr)/(4 pi r): complex charges and outputs as re, im columns",
+        title: "Helmholtz exp(i {} r)/(4 pi r), complex",
         parameter: Some(WAVENUMBER),
         component_names: &["re", "im"],
         complex: true,
@@ -455,6 +473,7 @@ impl BuiltinKernel for Stokes3d {
         name: "stokes",
         aliases: &[],
         summary: "the Stokeslet, viscosity 1: forces fx, fy, fz in, velocities out",
+        title: "Stokeslet (viscosity 1), 3 components",
         parameter: None,
         component_names: &["x", "y", "z"],
         complex: false,
@@ -612,5 +631,12 @@ mod tests {
                 .contains("forces")
         );
         assert!(choice("laplace").check_dipoles().is_ok());
+        assert_eq!(
+            choice("yukawa:2.5").title(),
+            "modified Helmholtz exp(-2.5 r)/(4 pi r)"
+        );
+        for d in KernelChoice::registered() {
+            assert_eq!(d.parameter.is_some(), d.title.contains("{}"), "{}", d.name);
+        }
     }
 }
