@@ -73,6 +73,25 @@ impl SchemeChoice {
         }
     }
 
+    /// Help text of a front end's `--scheme` (the CLI and the MPI
+    /// command); the kernels whose `auto` is FFT come from the kernel
+    /// registry.
+    pub fn help() -> String {
+        let fft: Vec<String> = KernelChoice::registered()
+            .iter()
+            .filter(|d| d.auto_scheme == AutoScheme::Fft)
+            .map(|d| d.spelling())
+            .collect();
+        format!(
+            "M2L translation scheme: svd (truncated SVD of the stacked operators, Fong-Darve), \
+             dense (one full matrix per transfer vector: the reference), fft (convolution on the \
+             surface lattice, precomputed in milliseconds) or auto (fft for {}; otherwise, with \
+             --tolerance, svd or fft, whichever the cost model predicts faster for these points, \
+             the SVD precomputation counted unless --cache-dir is given; else svd)",
+            fft.join(", ")
+        )
+    }
+
     /// Parses a name of [`SchemeChoice::name`].
     ///
     /// # Errors

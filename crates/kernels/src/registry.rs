@@ -85,6 +85,28 @@ pub struct KernelDescription {
     pub tuning: TuningFamily,
 }
 
+impl KernelDescription {
+    /// How the name is written with a placeholder for its parameter:
+    /// `laplace`, `yukawa:K`.
+    pub fn spelling(&self) -> String {
+        match self.parameter {
+            Some(p) => format!("{}:{}", self.name, p.name.to_uppercase()),
+            None => self.name.to_string(),
+        }
+    }
+
+    /// The kernel with its example parameter (`yukawa:2.5`), for examples
+    /// and for tests that run every registered kernel.
+    pub fn example(&self) -> KernelChoice {
+        let name = match self.parameter {
+            Some(p) => format!("{}:{}", self.name, p.example),
+            None => self.name.to_string(),
+        };
+        KernelChoice::parse(&name)
+            .unwrap_or_else(|e| unreachable!("a registered example parses: {e}"))
+    }
+}
+
 /// A kernel's one real parameter (`yukawa:K`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParameterDescription {
@@ -256,10 +278,7 @@ impl KernelChoice {
     pub fn usage() -> String {
         let names: Vec<String> = DESCRIPTIONS
             .iter()
-            .map(|d| match d.parameter {
-                Some(p) => format!("{}:{}", d.name, p.name.to_uppercase()),
-                None => d.name.to_string(),
-            })
+            .map(KernelDescription::spelling)
             .collect();
         match names.split_last() {
             Some((last, [])) => last.clone(),
@@ -272,13 +291,7 @@ impl KernelChoice {
     pub fn help() -> String {
         let entries: Vec<String> = DESCRIPTIONS
             .iter()
-            .map(|d| {
-                let name = match d.parameter {
-                    Some(p) => format!("{}:{}", d.name, p.name.to_uppercase()),
-                    None => d.name.to_string(),
-                };
-                format!("`{name}` ({})", d.summary)
-            })
+            .map(|d| format!("`{}` ({})", d.spelling(), d.summary))
             .collect();
         entries.join(", ")
     }
@@ -611,11 +624,8 @@ mod tests {
             }
         }
         for d in KernelChoice::registered() {
-            let name = match d.parameter {
-                Some(p) => format!("{}:{}", d.name, p.example),
-                None => d.name.to_string(),
-            };
-            let k = choice(&name);
+            let k = d.example();
+            let name = k.name();
             assert_eq!(
                 k.visit(Components),
                 d.component_names.len().max(1),

@@ -56,8 +56,8 @@ pub struct EvalArgs {
     /// Number of points with --generate (all ranks together).
     #[arg(long, default_value_t = 1_000_000)]
     pub(crate) n: usize,
-    /// Kernel: laplace, yukawa:K, helmholtz:K (complex) or stokes.
-    #[arg(long, default_value = "laplace")]
+    /// Kernel (see `KernelChoice::help`).
+    #[arg(long, default_value = "laplace", help = format!("Kernel: {}", KernelChoice::help()))]
     pub(crate) kernel: String,
     /// Expansion order p (default 6; not with --tolerance).
     #[arg(long, short = 'p', conflicts_with = "tolerance")]
@@ -77,10 +77,8 @@ pub struct EvalArgs {
     /// trusts the prediction.
     #[arg(long, default_value = "on", value_parser = ["on", "off"])]
     pub(crate) verify: String,
-    /// M2L scheme: auto, svd, dense or fft. auto: fft for yukawa:K,
-    /// helmholtz:K and stokes (the kernel registry's rule); with
-    /// --tolerance the faster predicted of svd and fft; else svd.
-    #[arg(long, default_value = "auto", value_parser = ["auto", "svd", "dense", "fft"])]
+    /// M2L scheme (see `SchemeChoice::help`).
+    #[arg(long, default_value = "auto", value_parser = ["auto", "svd", "dense", "fft"], help = SchemeChoice::help())]
     pub(crate) scheme: String,
     /// Float type of the run: f64 or f32 (inputs are read as f64 and
     /// rounded; the output is written as float64 either way).

@@ -64,27 +64,6 @@ pub fn scheme_parser() -> impl clap::builder::TypedValueParser<Value = SchemeArg
     })
 }
 
-/// Help text of `--scheme`; the kernels whose `auto` is fft come from
-/// the kernel registry.
-pub fn scheme_help() -> String {
-    let fft: Vec<String> = KernelArg::registered()
-        .iter()
-        .filter(|d| d.auto_scheme == ferrofmm_kernels::AutoScheme::Fft)
-        .map(|d| match d.parameter {
-            Some(p) => format!("{}:{}", d.name, p.name.to_uppercase()),
-            None => d.name.to_string(),
-        })
-        .collect();
-    format!(
-        "M2L translation scheme: svd (truncated SVD of the stacked operators, Fong-Darve), \
-         dense (one full matrix per transfer vector: the reference), fft (convolution on the \
-         surface lattice, precomputed in milliseconds) or auto (fft for {}; otherwise, with \
-         --tolerance, svd or fft, whichever the cost model predicts faster for these points, \
-         the SVD precomputation counted unless --cache-dir is given; else svd)",
-        fft.join(", ")
-    )
-}
-
 /// The kernel of `--kernel`: the kernels crate's [`KernelChoice`](ferrofmm_kernels::KernelChoice), whose
 /// parse errors are bad input here (exit status 1).
 pub use ferrofmm_kernels::KernelChoice as KernelArg;
@@ -192,7 +171,7 @@ pub struct FmmArgs {
     #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
     pub leaf_size: usize,
     /// M2L translation scheme.
-    #[arg(long, default_value_t = SchemeArg::Auto, value_parser = scheme_parser(), help = scheme_help())]
+    #[arg(long, default_value_t = SchemeArg::Auto, value_parser = scheme_parser(), help = SchemeArg::help())]
     pub scheme: SchemeArg,
     /// Float type of the whole computation.
     #[arg(long, value_enum, default_value_t = PrecisionArg::F64)]

@@ -116,7 +116,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
     let mode = settings.mode();
     // The points, made once, for the automatic choices (only with a
     // tolerance and an `auto` setting that needs them).
-    let needs_points = settings.tolerance.is_some() && settings.precision == Auto
+    let needs_points = (settings.tolerance.is_some() && settings.precision == Auto)
         || settings
             .scheme
             .needs_points(settings.kernel, settings.tolerance);

@@ -229,10 +229,7 @@ fn demo_tolerance_chooses_parameters_that_meet_it() {
 #[test]
 fn every_registered_kernel_runs_by_name() {
     for d in ferrofmm_kernels::KernelChoice::registered() {
-        let name = match d.parameter {
-            Some(p) => format!("{}:{}", d.name, p.example),
-            None => d.name.to_string(),
-        };
+        let name = d.example().name();
         let out = ferrofmm(&[
             "demo",
             "--n",
@@ -251,7 +248,7 @@ fn every_registered_kernel_runs_by_name() {
         assert!(achieved <= 1e-4, "{name}: asked 1e-4, got {achieved}");
         let expected = ferrofmm_fmm::SchemeChoice::Auto
             .resolve(
-                ferrofmm_kernels::KernelChoice::parse(&name).unwrap(),
+                d.example(),
                 None,
                 None,
                 ferrofmm_kernels::EvalMode::Potential,

@@ -14,13 +14,7 @@ use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, Precision,
 fn registered() -> Vec<KernelChoice> {
     KernelChoice::registered()
         .iter()
-        .map(|d| {
-            let name = match d.parameter {
-                Some(p) => format!("{}:{}", d.name, p.example),
-                None => d.name.to_string(),
-            };
-            KernelChoice::parse(&name).expect("the example parameter parses")
-        })
+        .map(|d| d.example())
         .collect()
 }
 
