@@ -69,6 +69,18 @@ pub struct RunReport {
     pub verification: Option<ferrofmm_fmm::Verification>,
     /// M2L scheme as run (`svd`, `dense` or `fft`; never `auto`).
     pub scheme: SchemeArg,
+    /// `"direct"` when the cost model chose a direct sum (one leaf holding
+    /// every point: no expansions), else `"fmm"`.
+    #[serde(default = "fmm_method")]
+    pub method: String,
+    /// Predicted seconds of the direct sum, when it was a candidate.
+    #[serde(default)]
+    pub direct_predicted_s: Option<f64>,
+    /// Predicted seconds of the cheapest FMM setting (tree, one
+    /// evaluation and the operators' precomputation from nothing), when
+    /// the parameters were chosen.
+    #[serde(default)]
+    pub fmm_predicted_s: Option<f64>,
     /// Float type as run (`f32` or `f64`; never `auto`).
     pub precision: PrecisionArg,
     /// Whether gradients were evaluated.
@@ -368,6 +380,11 @@ pub fn cache_summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<Strin
     }
 }
 
+/// The method of reports written before direct sums were a candidate.
+fn fmm_method() -> String {
+    "fmm".to_string()
+}
+
 impl RunReport {
     /// The human-readable table.
     pub fn table(&self) -> String {
@@ -405,18 +422,34 @@ impl RunReport {
             row(&mut o, "charges", what.to_string());
         }
         row(&mut o, "targets", thousands(self.n_targets));
-        row(
-            &mut o,
-            "expansion",
-            format!(
-                "order {} ({} points per surface), {} M2L ({:.1} MiB), leaf size {}",
-                self.order,
-                self.tree.n_surface,
-                self.scheme,
-                self.tree.m2l_bytes as f64 / (1024.0 * 1024.0),
-                self.leaf_size
-            ),
-        );
+        if self.method == "direct" {
+            let predicted = match (self.direct_predicted_s, self.fmm_predicted_s) {
+                (Some(d), Some(f)) => format!(
+                    " (predicted {} against {} for the fastest FMM with its operators)",
+                    seconds(d),
+                    seconds(f)
+                ),
+                _ => String::new(),
+            };
+            row(
+                &mut o,
+                "method",
+                format!("direct sum, exact to rounding{predicted}"),
+            );
+        } else {
+            row(
+                &mut o,
+                "expansion",
+                format!(
+                    "order {} ({} points per surface), {} M2L ({:.1} MiB), leaf size {}",
+                    self.order,
+                    self.tree.n_surface,
+                    self.scheme,
+                    self.tree.m2l_bytes as f64 / (1024.0 * 1024.0),
+                    self.leaf_size
+                ),
+            );
+        }
         row(
             &mut o,
             "tree",

@@ -8,7 +8,7 @@ use ferrofmm_field::{
     DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
     SvdM2l,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Precision, Real, SourceKind};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
 use crate::coordinates::Coordinates;
@@ -17,11 +17,62 @@ use crate::tuning::{ChosenParameters, TuningModel};
 use crate::{Fmm, FmmError, validate};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
-/// Default points per leaf: measured best for Laplace in f64 around p = 6 on
-/// a 2-core AVX-512 machine (docs/performance.md).
+/// Points per leaf of a tree built with an order and without a leaf size
+/// when the leaf size cannot be chosen (the distributed tree); measured
+/// best for Laplace in f64 around p = 6 with the SVD scheme on a 2-core
+/// AVX-512 machine (docs/performance.md). [`FmmBuilder`] itself chooses
+/// the leaf size from the cost model when none is given.
 pub const DEFAULT_LEAF_SIZE: usize = 150;
-/// Default expansion order.
+/// Expansion order where one is needed and none is given nor chosen (the
+/// distributed tree without a tolerance).
 pub const DEFAULT_ORDER: usize = 6;
+/// The accuracy asked for when the caller gives neither a tolerance nor an
+/// order, in `f64`: a relative L2 error of `1e-6` of the potential (and of
+/// the gradient when evaluated), about six digits, what the peers' default
+/// settings deliver. [`FmmBuilder`], `ferrofmm demo` / `eval`,
+/// `ferrofmm-mpi` and the Python module all use it ([`effective_tolerance`]).
+pub const DEFAULT_TOLERANCE: f64 = 1e-6;
+
+/// [`DEFAULT_TOLERANCE`] in `f32`, whose rounding floor lies near `4e-6`
+/// ([`crate::tuning::f32_reaches`]): `1e-4`.
+pub const DEFAULT_F32_TOLERANCE: f64 = 1e-4;
+
+/// The default tolerance of float type `precision`
+/// ([`DEFAULT_TOLERANCE`], [`DEFAULT_F32_TOLERANCE`]).
+pub fn default_tolerance(precision: Precision) -> f64 {
+    match precision {
+        Precision::F32 => DEFAULT_F32_TOLERANCE,
+        _ => DEFAULT_TOLERANCE,
+    }
+}
+
+/// The tolerance a run is chosen for, the one rule of every front end:
+/// the caller's `tolerance` when given; else the
+/// [default](default_tolerance) of `precision` unless the caller fixed the
+/// `order` (then no tolerance: the order is used as given, the leaf size
+/// and scheme chosen for it).
+///
+/// ```
+/// use ferrofmm_fmm::{DEFAULT_TOLERANCE, effective_tolerance};
+/// use ferrofmm_kernels::Precision::{F32, F64};
+/// assert_eq!(effective_tolerance(None, None, F64), Some(DEFAULT_TOLERANCE));
+/// assert_eq!(effective_tolerance(None, None, F32), Some(1e-4));
+/// assert_eq!(effective_tolerance(Some(1e-3), None, F64), Some(1e-3));
+/// assert_eq!(effective_tolerance(None, Some(8), F64), None);
+/// assert_eq!(effective_tolerance(Some(1e-9), Some(8), F64), Some(1e-9));
+/// ```
+pub fn effective_tolerance(
+    tolerance: Option<f64>,
+    order: Option<usize>,
+    precision: Precision,
+) -> Option<f64> {
+    match (tolerance, order) {
+        (Some(eps), _) => Some(eps),
+        (None, Some(_)) => None,
+        (None, None) => Some(default_tolerance(precision)),
+    }
+}
+
 /// Largest `k W` (wavenumber times the width of a tree's cube) the FMM
 /// accepts for an oscillatory kernel ([`Kernel::wavenumber`]): the
 /// equivalent surfaces of the kernel-independent method sample the field
@@ -55,6 +106,10 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) kernel: K,
     pub(crate) order: usize,
     pub(crate) leaf_size: usize,
+    /// Whether the caller gave the order ([`FmmBuilder::order`]).
+    pub(crate) order_given: bool,
+    /// Whether the caller gave the leaf size ([`FmmBuilder::leaf_size`]).
+    pub(crate) leaf_given: bool,
     pub(crate) mode: EvalMode,
     pub(crate) source_kind: SourceKind,
     pub(crate) radii: SurfaceRadii,
@@ -111,6 +166,8 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             kernel: Laplace3d,
             order: DEFAULT_ORDER,
             leaf_size: DEFAULT_LEAF_SIZE,
+            order_given: false,
+            leaf_given: false,
             mode: EvalMode::Potential,
             source_kind: SourceKind::Charge,
             radii: SurfaceRadii::default(),
@@ -136,6 +193,8 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             kernel,
             order: self.order,
             leaf_size: self.leaf_size,
+            order_given: self.order_given,
+            leaf_given: self.leaf_given,
             mode: self.mode,
             source_kind: self.source_kind,
             radii: self.radii,
@@ -158,9 +217,17 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// chosen from `eps`, the float type and the points, as the cheapest
     /// setting the measured error model admits (see [`crate::tuning`]; the
     /// choice is reported by [`Fmm::chosen_parameters`] and in
-    /// [`Fmm::summary`]). It replaces [`FmmBuilder::order`] and
-    /// [`FmmBuilder::leaf_size`]; [`FmmBuilder::build_with`] keeps the M2L
-    /// configuration it is given.
+    /// [`Fmm::summary`]). An order or a leaf size the caller gives is kept
+    /// and only the rest chosen; with no leaf size given, a direct sum is
+    /// one of the candidates (exact to rounding, taken where the cost model
+    /// predicts it cheaper than the tree and its operators: few points, few
+    /// targets, a kernel with costly operators). [`FmmBuilder::build_with`]
+    /// keeps the M2L configuration it is given.
+    ///
+    /// Without a tolerance and without an order, the builder chooses for
+    /// [`DEFAULT_TOLERANCE`] (`1e-4` in `f32`):
+    /// `FmmBuilder::new(&points).build_svd()` is the right-sized run, not a
+    /// fixed order and leaf size.
     ///
     /// `eps` must lie in `(0, 1)` ([`FmmError::InvalidTolerance`]) and be
     /// reachable in the float type ([`FmmError::ToleranceBeyondPrecision`]:
@@ -229,14 +296,25 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 
     /// Expansion order `p`: each box carries `6 (p - 1)^2 + 2` equivalent
     /// densities. The error falls roughly 7-10x per order.
+    ///
+    /// Without a [`FmmBuilder::tolerance`] the order is used as given and
+    /// the leaf size, unless given too, is the one the cost model predicts
+    /// fastest for it (or a direct sum, when that is predicted faster
+    /// still: [`crate::tuning::Tuner::prefer_direct`]). With a tolerance,
+    /// the order is fixed and verification may still raise it.
     pub fn order(mut self, order: usize) -> Self {
         self.order = order;
+        self.order_given = true;
         self
     }
 
-    /// Largest number of points in a leaf before it is split.
+    /// Largest number of points in a leaf before it is split. A given leaf
+    /// size is always used (never a direct sum); the order is then chosen
+    /// for it (for the [`FmmBuilder::tolerance`] or
+    /// [`DEFAULT_TOLERANCE`]) unless given too.
     pub fn leaf_size(mut self, leaf_size: usize) -> Self {
         self.leaf_size = leaf_size;
+        self.leaf_given = true;
         self
     }
 

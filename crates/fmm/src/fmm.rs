@@ -4,7 +4,7 @@
 use std::time::Instant;
 
 use ferrofmm_field::{M2lScheme, OperatorParams, Operators, surface_points};
-use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real, SourceKind};
 use ferrofmm_tree::{Domain, Octree};
 
 use crate::builder::FmmBuilder;
@@ -137,64 +137,102 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let src64 = b.sources.to_f64();
         let tgt64 = b.targets.map(Coordinates::to_f64);
         let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());
-        let main = &clusters[0];
         let mut error_model = None;
-        let chosen = match b.tolerance {
-            Some(eps) => {
-                let t = Instant::now();
-                let (s, tg) = match (&clusters.len(), &tgt64) {
-                    (1, _) => (None, None),
-                    (_, Some(t)) => (
-                        Some(gather(&src64, &main.sources)),
-                        Some(gather(t, &main.targets)),
-                    ),
-                    (_, None) => (Some(gather(&src64, &main.sources)), None),
-                };
-                let model = match &b.tuning_model {
-                    Some(m) => m.clone(),
-                    None => {
-                        let width = match (b.domain, &tgt64) {
-                            (Some(d), _) => d.width,
-                            (None, Some(t)) => Domain::from_points(&[&src64[..], t])?.width,
-                            (None, None) => Domain::from_points(&[&src64[..]])?.width,
-                        };
-                        // The build's own checks first: the model has no
-                        // order for a domain beyond the float type or a
-                        // wavenumber beyond the low-frequency limit, and
-                        // would only say "no order reaches eps".
-                        check_domain_width(width, T::PRECISION, 0)?;
-                        check_wavenumber(&b.kernel, width)?;
-                        tuning::default_model(&b.kernel, width)
-                    }
-                };
-                // A dipole's potential is a derivative of a charge's: its
-                // error follows the gradient's (measured, see
-                // `examples/sources_sweep.rs`), so dipoles are modelled
-                // with the gradient's table at least.
-                let model_mode = match (b.source_kind.has_dipoles(), b.mode) {
-                    (true, EvalMode::Potential) => EvalMode::PotentialGradient,
-                    (_, mode) => mode,
-                };
-                let tuner = Tuner::from_model(model, T::PRECISION, model_mode, S::COST_SHAPE);
-                error_model = Some(tuner.error.clone());
-                let c = tuner.choose(
-                    eps,
-                    s.as_deref().unwrap_or(&src64),
-                    if clusters.len() == 1 {
-                        tgt64.as_deref()
-                    } else {
-                        tg.as_deref()
-                    },
-                    b.domain,
-                    b.max_level,
-                )?;
-                b.order = c.order;
-                b.leaf_size = c.leaf_size;
-                setup.tuning = t.elapsed();
-                Some(c)
+        // What is chosen: nothing when the caller gave both the order and
+        // the leaf size without a tolerance; else the rest, for the
+        // tolerance (or the default one, unless the order is given).
+        let eps = crate::builder::effective_tolerance(
+            b.tolerance,
+            b.order_given.then_some(b.order),
+            T::PRECISION,
+        );
+        let tune = !(b.order_given && b.leaf_given && b.tolerance.is_none());
+        let chosen = if tune {
+            let main = &clusters[0];
+            let t = Instant::now();
+            let (s, tg) = match (&clusters.len(), &tgt64) {
+                (1, _) => (None, None),
+                (_, Some(t)) => (
+                    Some(gather(&src64, &main.sources)),
+                    Some(gather(t, &main.targets)),
+                ),
+                (_, None) => (Some(gather(&src64, &main.sources)), None),
+            };
+            let model = match &b.tuning_model {
+                Some(m) => m.clone(),
+                None => {
+                    let width = match (b.domain, &tgt64) {
+                        (Some(d), _) => d.width,
+                        (None, Some(t)) => Domain::from_points(&[&src64[..], t])?.width,
+                        (None, None) => Domain::from_points(&[&src64[..]])?.width,
+                    };
+                    // The build's own checks first: the model has no
+                    // order for a domain beyond the float type or a
+                    // wavenumber beyond the low-frequency limit, and
+                    // would only say "no order reaches eps".
+                    check_domain_width(width, T::PRECISION, 0)?;
+                    check_wavenumber(&b.kernel, width)?;
+                    tuning::default_model(&b.kernel, width)
+                }
+            };
+            // A dipole's potential is a derivative of a charge's: its
+            // error follows the gradient's (measured, see
+            // `examples/sources_sweep.rs`), so dipoles are modelled
+            // with the gradient's table at least.
+            let model_mode = match (b.source_kind.has_dipoles(), b.mode) {
+                (true, EvalMode::Potential) => EvalMode::PotentialGradient,
+                (_, mode) => mode,
+            };
+            let mut tuner = Tuner::from_model(model, T::PRECISION, model_mode, S::COST_SHAPE);
+            if b.order_given {
+                tuner = tuner.with_order(b.order);
             }
-            None => None,
+            if b.leaf_given {
+                tuner = tuner.with_leaf_size(b.leaf_size);
+            }
+            error_model = Some(tuner.error.clone());
+            let occupancy = tuning::Occupancy::new(
+                s.as_deref().unwrap_or(&src64),
+                if clusters.len() == 1 {
+                    tgt64.as_deref()
+                } else {
+                    tg.as_deref()
+                },
+                b.domain,
+                b.max_level,
+            )?;
+            let mut c = tuner.choose_for(eps, &occupancy)?;
+            // A direct sum is a candidate when the leaf size is ours to
+            // choose, the points are one cluster (far clusters keep their
+            // own trees and coordinate origins) and the float type is
+            // f64 (an f32 sum over every pair of a large set rounds more
+            // than the FMM's near field does). The operators of a
+            // homogeneous kernel are counted unless a cache keeps them
+            // (one set serves every domain); a kernel with operators per
+            // level and domain width pays them on every new set of points.
+            if !b.leaf_given && clusters.len() == 1 && T::PRECISION == Precision::F64 {
+                let cached = b.cache_dir.is_some() && b.kernel.homogeneity().is_some();
+                let precompute = if cached {
+                    0.0
+                } else {
+                    tuning::precompute_seconds(&b.kernel, S::COST_SHAPE, &c)
+                };
+                c = tuner.prefer_direct(
+                    c,
+                    b.sources.len() / 3,
+                    b.targets.map_or(b.sources.len(), |t| t.len()) / 3,
+                    precompute,
+                );
+            }
+            b.order = c.order;
+            b.leaf_size = c.leaf_size;
+            setup.tuning = t.elapsed();
+            Some(c)
+        } else {
+            None
         };
+        // Verification checks a tolerance: none to check with an order alone.
+        b.verify &= eps.is_some();
         let config = match (&chosen, &from_chosen) {
             (Some(c), Some(f)) => (f.config)(c),
             _ => config,

@@ -51,7 +51,8 @@ pub use accuracy::{
     sample_indices,
 };
 pub use builder::{
-    DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmBuilder, MAX_ORDER, MAX_WAVENUMBER_WIDTH, MIN_ORDER,
+    DEFAULT_F32_TOLERANCE, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, DEFAULT_TOLERANCE, FmmBuilder,
+    MAX_ORDER, MAX_WAVENUMBER_WIDTH, MIN_ORDER, default_tolerance, effective_tolerance,
 };
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;

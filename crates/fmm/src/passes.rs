@@ -443,15 +443,37 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     timings.m2p += t.elapsed();
 
     let t = Instant::now();
-    slices.par_iter_mut().for_each(|(b, out)| {
-        let y = targets_of(*b);
-        for &a in tree.u_list(*b) {
+    // Few leaves for the threads (a shallow tree, a direct sum: one leaf
+    // holding every point) are split into blocks of targets, so that
+    // every thread has work; a target's sum is the same either way.
+    let split = slices.len() < 4 * rayon::current_num_threads();
+    let blocks: Vec<(usize, usize, &mut [T])> = slices
+        .iter_mut()
+        .flat_map(|(b, out)| {
+            let rows = if split {
+                P2P_SPLIT_TARGETS
+            } else {
+                out.len() / w.max(1)
+            };
+            out.chunks_mut(w * rows.max(1))
+                .enumerate()
+                .map(move |(k, chunk)| (*b, k * rows.max(1), chunk))
+        })
+        .collect();
+    blocks.into_par_iter().for_each(|(b, first, out)| {
+        let y = targets_of(b);
+        let y = &y[3 * first..3 * first + 3 * (out.len() / w)];
+        for &a in tree.u_list(b) {
             let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
             cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
         }
     });
     timings.p2p += t.elapsed();
 }
+
+/// Targets per P2P task when a tree has too few leaves to keep the
+/// threads busy (as [`ferrofmm_kernels::DIRECT_SUM_BLOCK`]).
+const P2P_SPLIT_TARGETS: usize = ferrofmm_kernels::DIRECT_SUM_BLOCK;
 
 /// Disjoint output slices, one per leaf that holds targets.
 fn leaf_output_slices<'a, T: Real>(

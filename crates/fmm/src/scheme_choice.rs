@@ -8,9 +8,10 @@
 //!    [`AutoScheme::Fft`] (kernels with several components or operators per
 //!    level, whose SVD precomputation costs tens of seconds where FFT's takes
 //!    well under one);
-//! 2. with a tolerance and the points, to whichever of SVD and FFT the cost
-//!    model predicts faster, the SVD precomputation counted unless the
-//!    operators are cached ([`choose_scheme`]);
+//! 2. with a tolerance or an order, and the points, to whichever of SVD
+//!    and FFT the cost model predicts faster (for that order, when one is
+//!    fixed), the SVD precomputation counted unless the operators are
+//!    cached ([`choose_scheme_for`]);
 //! 3. otherwise to SVD.
 //!
 //! ```
@@ -19,7 +20,7 @@
 //! let auto: SchemeChoice = "auto".parse().unwrap();
 //! let stokes = KernelChoice::parse("stokes").unwrap();
 //! let resolved = auto
-//!     .resolve(stokes, None, None, EvalMode::Potential, Precision::F64, false)
+//!     .resolve(stokes, None, None, None, EvalMode::Potential, Precision::F64, false)
 //!     .unwrap();
 //! assert_eq!(resolved, SchemeChoice::Fft);
 //! assert_eq!(SchemeChoice::Svd.name(), "svd");
@@ -33,7 +34,7 @@ use ferrofmm_kernels::{AutoScheme, EvalMode, Kernel, KernelChoice, Precision};
 use serde::{Deserialize, Serialize};
 
 use crate::FmmError;
-use crate::tuning::choose_scheme;
+use crate::tuning::choose_scheme_for;
 
 /// An M2L translation scheme by name, or `auto`.
 #[derive(
@@ -85,9 +86,9 @@ impl SchemeChoice {
         format!(
             "M2L translation scheme: svd (truncated SVD of the stacked operators, Fong-Darve), \
              dense (one full matrix per transfer vector: the reference), fft (convolution on the \
-             surface lattice, precomputed in milliseconds) or auto (fft for {}; otherwise, with \
-             --tolerance, svd or fft, whichever the cost model predicts faster for these points, \
-             the SVD precomputation counted unless --cache-dir is given; else svd)",
+             surface lattice, precomputed in milliseconds) or auto (fft for {}; otherwise svd or \
+             fft, whichever the cost model predicts faster for these points and the tolerance or \
+             order, the SVD precomputation counted unless --cache-dir is given)",
             fft.join(", ")
         )
     }
@@ -106,18 +107,22 @@ impl SchemeChoice {
     }
 
     /// The scheme to run: itself unless `auto`, which resolves by the rule
-    /// of the [module docs](self) for `kernel`, the tolerance `eps` and the
-    /// points (`(sources, targets)`; the targets `None` when they are the
-    /// sources) in float type `precision`; `cached` when the operators come
-    /// from a cache (the SVD precomputation is then free).
+    /// of the [module docs](self) for `kernel`, the tolerance `eps` (the
+    /// front end's [`effective_tolerance`](crate::effective_tolerance)),
+    /// a fixed `order` and the points (`(sources, targets)`; the targets
+    /// `None` when they are the sources) in float type `precision`;
+    /// `cached` when the operators come from a cache (the SVD
+    /// precomputation is then free).
     ///
     /// # Errors
-    /// What [`choose_scheme`] reports for unreachable tolerances or bad
+    /// What [`choose_scheme_for`] reports for unreachable tolerances or bad
     /// points.
+    #[allow(clippy::too_many_arguments)]
     pub fn resolve(
         self,
         kernel: KernelChoice,
         eps: Option<f64>,
+        order: Option<usize>,
         points: Option<(&[f64], Option<&[f64]>)>,
         mode: EvalMode,
         precision: Precision,
@@ -129,12 +134,13 @@ impl SchemeChoice {
         if kernel.description().auto_scheme == AutoScheme::Fft {
             return Ok(SchemeChoice::Fft);
         }
-        match (eps, points) {
-            (Some(eps), Some((sources, targets))) => {
-                let (shape, _) = choose_scheme(eps, mode, precision, sources, targets, cached)?;
+        match (eps, order, points) {
+            (None, None, _) | (_, _, None) => Ok(SchemeChoice::Svd),
+            (eps, order, Some((sources, targets))) => {
+                let (shape, _) =
+                    choose_scheme_for(eps, order, mode, precision, sources, targets, cached)?;
                 Ok(SchemeChoice::of_shape(shape))
             }
-            _ => Ok(SchemeChoice::Svd),
         }
     }
 
@@ -152,9 +158,14 @@ impl SchemeChoice {
 
     /// Whether `auto` needs the points to resolve for `kernel` (so a front
     /// end makes them only then).
-    pub fn needs_points(self, kernel: KernelChoice, eps: Option<f64>) -> bool {
+    pub fn needs_points(
+        self,
+        kernel: KernelChoice,
+        eps: Option<f64>,
+        order: Option<usize>,
+    ) -> bool {
         self == SchemeChoice::Auto
-            && eps.is_some()
+            && (eps.is_some() || order.is_some())
             && kernel.description().auto_scheme == AutoScheme::CostModel
     }
 
@@ -202,6 +213,7 @@ mod tests {
             .resolve(
                 KernelChoice::parse(kernel).unwrap(),
                 eps,
+                None,
                 points.map(|p| (p, None)),
                 EvalMode::PotentialGradient,
                 Precision::F64,
@@ -237,15 +249,31 @@ mod tests {
                 stokes,
                 None,
                 None,
+                None,
                 EvalMode::Potential,
                 Precision::F64,
                 false,
             )
             .unwrap();
         assert_eq!(svd, SchemeChoice::Svd);
-        assert!(
-            SchemeChoice::Auto.needs_points(KernelChoice::parse("laplace").unwrap(), Some(1e-3))
-        );
-        assert!(!SchemeChoice::Auto.needs_points(stokes, Some(1e-3)));
+        let laplace = KernelChoice::parse("laplace").unwrap();
+        assert!(SchemeChoice::Auto.needs_points(laplace, Some(1e-3), None));
+        assert!(SchemeChoice::Auto.needs_points(laplace, None, Some(8)));
+        assert!(!SchemeChoice::Auto.needs_points(laplace, None, None));
+        assert!(!SchemeChoice::Auto.needs_points(stokes, Some(1e-3), None));
+        // An order alone: the scheme the cost model prefers at that order
+        // (FFT at a high order on many points).
+        let high = SchemeChoice::Auto
+            .resolve(
+                laplace,
+                None,
+                Some(10),
+                Some((&points, None)),
+                EvalMode::Potential,
+                Precision::F64,
+                false,
+            )
+            .unwrap();
+        assert_eq!(high, SchemeChoice::Fft);
     }
 }

@@ -292,8 +292,10 @@ mod tests {
         let n = 6000;
         let points: Vec<f64> = Geometry::Cube.points(n, 5);
         let q: Vec<f64> = charges(n, 6);
+        // A leaf size given: a tree (6000 points would be a direct sum).
         let mut fmm = FmmBuilder::new(&points)
             .tolerance(1e-6)
+            .leaf_size(64)
             .mode(EvalMode::PotentialGradient)
             .build_svd()
             .unwrap();

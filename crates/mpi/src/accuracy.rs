@@ -70,8 +70,8 @@ pub struct DistChoice {
 }
 
 /// Chooses order, leaf size and SVD tolerance for the relative L2 error
-/// `eps` of `kernel` in float type `precision` (a collective; see the
-/// [module docs](self)). `shape`: the M2L scheme to choose for, or `None`
+/// `eps` of `kernel` in float type `precision`, or the leaf size (and
+/// scheme) for a fixed `order` (a collective; see the [module docs](self)). `shape`: the M2L scheme to choose for, or `None`
 /// to choose between the SVD and FFT schemes by predicted time (FFT where
 /// [`SchemeChoice::auto_is_fft`], as on one machine); `svd_cached`:
 /// whether the SVD scheme's operators come from a cache (its precomputation
@@ -85,7 +85,8 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
     comm: &C,
     points: &[f64],
     kernel: &K,
-    eps: f64,
+    eps: Option<f64>,
+    order: Option<usize>,
     precision: Precision,
     mode: EvalMode,
     shape: Option<M2lCostShape>,
@@ -93,7 +94,9 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
 ) -> Result<DistChoice, DistError> {
     // The single-machine chooser on the gathered sample (rank 0).
     let choose_on = |sample: &[f64]| -> Result<(M2lCostShape, ChosenParameters), String> {
-        ferrofmm_fmm::tuning::validate_tolerance(eps, precision).map_err(|e| e.to_string())?;
+        if let Some(eps) = eps {
+            ferrofmm_fmm::tuning::validate_tolerance(eps, precision).map_err(|e| e.to_string())?;
+        }
         let occupancy =
             Occupancy::new(sample, None, None, DEEPEST_LEVEL).map_err(|e| e.to_string())?;
         let width = occupancy_width(sample);
@@ -101,15 +104,18 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
             None if SchemeChoice::auto_is_fft(kernel) => Some(M2lCostShape::Fft),
             s => s,
         };
-        let tuner = Tuner::from_model(
+        let mut tuner = Tuner::from_model(
             default_model(kernel, width),
             precision,
             mode,
             shape.unwrap_or(M2lCostShape::Compressed),
         );
+        if let Some(p) = order {
+            tuner = tuner.with_order(p);
+        }
         match shape {
-            Some(s) => tuner.choose_with(eps, &occupancy).map(|c| (s, c)),
-            None => tuner.choose_scheme_with(eps, &occupancy, svd_cached),
+            Some(s) => tuner.choose_for(eps, &occupancy).map(|c| (s, c)),
+            None => tuner.choose_scheme_for(eps, &occupancy, svd_cached),
         }
         .map_err(|e| e.to_string())
     };

@@ -9,7 +9,7 @@ use std::path::PathBuf;
 use clap::Args;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdConfig, SvdM2l};
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice};
+use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice, effective_tolerance};
 use ferrofmm_kernels::{
     EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
 };
@@ -59,14 +59,18 @@ pub struct EvalArgs {
     /// Kernel (see `KernelChoice::help`).
     #[arg(long, default_value = "laplace", help = format!("Kernel: {}", KernelChoice::help()))]
     pub(crate) kernel: String,
-    /// Expansion order p (default 6; not with --tolerance).
+    /// Expansion order p (not with --tolerance). Alone, the leaf size and
+    /// the scheme (with --scheme auto) are chosen for it from a sample of
+    /// the points; without --order and --tolerance the run is chosen for
+    /// the default tolerance (1e-6; 1e-4 in f32) and verified.
     #[arg(long, short = 'p', conflicts_with = "tolerance")]
     pub(crate) order: Option<usize>,
-    /// Largest number of points in a leaf box (default 150; not with
-    /// --tolerance).
+    /// Largest number of points in a leaf box (not with --tolerance;
+    /// alone, with order 6).
     #[arg(long, conflicts_with = "tolerance")]
     pub(crate) leaf_size: Option<usize>,
-    /// Requested relative L2 error: order, leaf size and SVD tolerance
+    /// Requested relative L2 error (default 1e-6, 1e-4 in f32, unless
+    /// --order or --leaf-size is given): order, leaf size and SVD tolerance
     /// chosen from a sample of the points (at most 200,000, gathered on
     /// rank 0), and the error checked afterwards (see --verify).
     #[arg(long, value_name = "EPS")]
@@ -304,6 +308,9 @@ struct Plan {
     pub(crate) scheme: &'static str,
     pub(crate) svd_tolerance: Option<f64>,
     pub(crate) choice: Option<DistChoice>,
+    /// The tolerance asked for or the default one (`None`: an order, or an
+    /// order and a leaf size, given without one).
+    pub(crate) tolerance: Option<f64>,
 }
 
 impl KernelVisitor for WithKernel<'_> {
@@ -336,14 +343,35 @@ impl KernelVisitor for WithKernel<'_> {
         };
         // clap checked the name.
         let scheme = SchemeChoice::parse(&a.scheme)?;
-        let plan = match a.tolerance {
-            Some(eps) => {
+        // The one default rule: no order and no tolerance means the
+        // default tolerance; an order alone gets its leaf size and scheme
+        // from the cost model; an order and a leaf size are used as given.
+        let eps = effective_tolerance(
+            a.tolerance,
+            a.order.or(a.leaf_size.map(|_| DEFAULT_ORDER)),
+            precision,
+        );
+        let plan = match (eps, a.order, a.leaf_size) {
+            (None, Some(_), Some(_)) | (None, None, _) => Plan {
+                order: a.order.unwrap_or(DEFAULT_ORDER),
+                leaf_size: a.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
+                scheme: match scheme {
+                    SchemeChoice::Auto if SchemeChoice::auto_is_fft(&kernel) => "fft",
+                    SchemeChoice::Auto => "svd",
+                    s => s.name(),
+                },
+                svd_tolerance: None,
+                choice: None,
+                tolerance: None,
+            },
+            (eps, order, _) => {
                 let shape = scheme.shape();
                 let choice = choose_parameters(
                     world,
                     &input.points,
                     &kernel,
                     eps,
+                    order,
                     precision,
                     mode,
                     shape,
@@ -356,19 +384,9 @@ impl KernelVisitor for WithKernel<'_> {
                     scheme: SchemeChoice::of_shape(choice.shape).name(),
                     svd_tolerance: Some(choice.svd_tolerance),
                     choice: Some(choice),
+                    tolerance: eps,
                 }
             }
-            None => Plan {
-                order: a.order.unwrap_or(DEFAULT_ORDER),
-                leaf_size: a.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
-                scheme: match scheme {
-                    SchemeChoice::Auto if SchemeChoice::auto_is_fft(&kernel) => "fft",
-                    SchemeChoice::Auto => "svd",
-                    s => s.name(),
-                },
-                svd_tolerance: None,
-                choice: None,
-            },
         };
         let run = Run {
             world,
@@ -492,7 +510,7 @@ impl<K: Kernel> Run<'_, K> {
             DistributedTree::build(world, &input.points, &DistOptions::adaptive(plan.leaf_size))
                 .map_err(|e| e.to_string())?;
         let q_t: Vec<T> = input.densities.iter().map(|&x| T::from_f64(x)).collect();
-        let verify = a.tolerance.filter(|_| a.verify == "on");
+        let verify = plan.tolerance.filter(|_| a.verify == "on");
         // At most every point (the report names the number compared).
         let total_points: u64 = dtree.input_counts.iter().sum();
         let samples = if a.check > 0 {
@@ -598,7 +616,7 @@ impl<K: Kernel> Run<'_, K> {
                     precision: &a.precision,
                     gradients: a.gradients,
                     input: a.generate.as_deref(),
-                    tolerance: a.tolerance,
+                    tolerance: plan.tolerance,
                     order: plan.order,
                     leaf_size: plan.leaf_size,
                     scheme: plan.scheme,

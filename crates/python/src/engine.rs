@@ -293,7 +293,8 @@ fn build_with<T: Float, K: Kernel>(
     let cached = o.cache_dir.is_some();
     let scheme = o.scheme.resolve(
         o.kernel,
-        o.eps,
+        ferrofmm_fmm::effective_tolerance(o.eps, o.order, T::PRECISION),
+        o.order,
         Some((sources, targets)),
         o.mode,
         T::PRECISION,

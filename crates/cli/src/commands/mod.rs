@@ -6,7 +6,7 @@ pub mod run;
 pub mod sweep;
 
 use clap::{Args, ValueEnum};
-use ferrofmm_fmm::{Charges, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, Geometry};
+use ferrofmm_fmm::{Charges, Geometry};
 use serde::{Deserialize, Serialize};
 
 use crate::error::CliError;
@@ -164,12 +164,18 @@ impl ChargesArg {
 #[derive(Args, Clone, Debug)]
 pub struct FmmArgs {
     /// Expansion order p (2..=20): the potential error falls roughly 7-10x
-    /// per order (p = 6: about 1e-6).
-    #[arg(long, short = 'p', default_value_t = DEFAULT_ORDER)]
-    pub order: usize,
-    /// Largest number of points in a leaf box.
-    #[arg(long, default_value_t = DEFAULT_LEAF_SIZE)]
-    pub leaf_size: usize,
+    /// per order (p = 6: about 1e-6). Alone (without --tolerance), the
+    /// leaf size and the scheme (with --scheme auto) are chosen for it by
+    /// the cost model, or a direct sum where that is faster. Without
+    /// --order and --tolerance, the run is chosen for the default
+    /// tolerance 1e-6 (and verified).
+    #[arg(long, short = 'p')]
+    pub order: Option<usize>,
+    /// Largest number of points in a leaf box (default: chosen by the cost
+    /// model for the order or tolerance; a given leaf size always builds a
+    /// tree, never a direct sum).
+    #[arg(long)]
+    pub leaf_size: Option<usize>,
     /// M2L translation scheme.
     #[arg(long, default_value_t = SchemeArg::Auto, value_parser = scheme_parser(), help = SchemeArg::help())]
     pub scheme: SchemeArg,
@@ -182,8 +188,9 @@ pub struct FmmArgs {
     #[arg(long, default_value = "laplace", value_name = "NAME[:K]", help = kernel_help())]
     pub kernel: String,
     /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
-    /// gradients) of the gradient: the order, leaf size and SVD rank are
-    /// then chosen for these points (overriding --order and --leaf-size),
+    /// gradients) of the gradient (default 1e-6 unless --order is given):
+    /// the order, leaf size, scheme and SVD rank (or a direct sum) are then
+    /// chosen for these points (an --order or --leaf-size given is kept),
     /// reported, and checked after evaluation (see --verify).
     #[arg(long, value_name = "EPS")]
     pub tolerance: Option<f64>,

@@ -10,8 +10,8 @@ use std::time::Instant;
 use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
-    Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, relative_errors_sources,
-    sample_indices,
+    Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, effective_tolerance,
+    relative_errors_sources, sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor, Verification};
 use ferrofmm_kernels::{EvalMode, Kernel, KernelVisitor, Precision, Real, SourceKind};
@@ -78,10 +78,10 @@ pub fn densities(
 pub struct Settings {
     /// `"demo"` or `"eval"`, for the report.
     pub command: &'static str,
-    /// Expansion order.
-    pub order: usize,
-    /// Points per leaf at most.
-    pub leaf_size: usize,
+    /// Expansion order (`None`: chosen).
+    pub order: Option<usize>,
+    /// Points per leaf at most (`None`: chosen).
+    pub leaf_size: Option<usize>,
     /// M2L scheme.
     pub scheme: SchemeArg,
     /// Float type.
@@ -98,7 +98,8 @@ pub struct Settings {
     pub check: usize,
     /// Operator cache directory.
     pub cache_dir: Option<PathBuf>,
-    /// Requested accuracy: parameters chosen by the library.
+    /// Requested accuracy: parameters chosen by the library (`None` with
+    /// no order either: [`ferrofmm_fmm::DEFAULT_TOLERANCE`]).
     pub tolerance: Option<f64>,
     /// Check the tolerance after evaluating.
     pub verify: bool,
@@ -114,12 +115,25 @@ pub struct Settings {
 pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<RunReport> {
     use PrecisionArg::{Auto, F64};
     let mode = settings.mode();
+    // The one default rule of every front end: no order and no tolerance
+    // means the default tolerance.
+    let settings = &Settings {
+        tolerance: effective_tolerance(
+            settings.tolerance,
+            settings.order,
+            match settings.precision {
+                PrecisionArg::F32 => Precision::F32,
+                _ => Precision::F64,
+            },
+        ),
+        ..settings.clone()
+    };
     // The points, made once, for the automatic choices (only with a
     // tolerance and an `auto` setting that needs them).
     let needs_points = (settings.tolerance.is_some() && settings.precision == Auto)
         || settings
             .scheme
-            .needs_points(settings.kernel, settings.tolerance);
+            .needs_points(settings.kernel, settings.tolerance, settings.order);
     let points = needs_points.then(|| points_of(&input));
     let precision = match (settings.precision, settings.tolerance, &points) {
         (Auto, Some(eps), Some((s, t))) => auto_precision(s, *t, eps, mode)?,
@@ -129,6 +143,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
     let scheme = settings.scheme.resolve(
         settings.kernel,
         settings.tolerance,
+        settings.order,
         points.as_ref().map(|(s, t)| (s.as_ref(), *t)),
         mode,
         match precision {
@@ -360,8 +375,6 @@ where
         let mut builder = FmmBuilder::<T, _>::from_f64(&sources)
             .kernel(kernel.clone())
             .source_kind(kind)
-            .order(settings.order)
-            .leaf_size(settings.leaf_size)
             .mode(mode)
             .monitor(monitor)
             .memory_limit(if settings.force {
@@ -371,6 +384,12 @@ where
             });
         if let Some(t) = &targets {
             builder = builder.targets_f64(t);
+        }
+        if let Some(p) = settings.order {
+            builder = builder.order(p);
+        }
+        if let Some(s) = settings.leaf_size {
+            builder = builder.leaf_size(s);
         }
         if let Some(dir) = &settings.cache_dir {
             builder = builder.cache_dir(dir);
@@ -470,6 +489,16 @@ where
         .to_string(),
         verification,
         scheme: settings.scheme,
+        method: if fmm.chosen_parameters().is_some_and(|c| c.direct) {
+            "direct"
+        } else {
+            "fmm"
+        }
+        .to_string(),
+        direct_predicted_s: fmm.chosen_parameters().and_then(|c| c.direct_seconds),
+        fmm_predicted_s: fmm
+            .chosen_parameters()
+            .map(|c| c.predicted_seconds + c.precompute_seconds),
         precision: settings.precision,
         gradients: mode.has_gradient(),
         hessians: mode.has_hessian(),

@@ -44,7 +44,10 @@ pub struct ChosenParameters {
     /// Predicted relative L2 potential error (`S` times this is at most the
     /// tolerance).
     pub predicted_error: f64,
-    /// Predicted seconds for the tree and one evaluation.
+    /// Predicted seconds for the tree and one evaluation (for a direct
+    /// sum: of the FMM setting it was weighed against, whose order the
+    /// verification raises from should the sum miss; see
+    /// [`ChosenParameters::direct_seconds`]).
     pub predicted_seconds: f64,
     /// The M2L cost shape the prediction assumed (`"compressed"` for the
     /// SVD scheme, `"fft"`, `"dense"`).
@@ -56,6 +59,18 @@ pub struct ChosenParameters {
     pub model_measured: bool,
     /// Estimated work of the chosen tree.
     pub estimated_work: WorkCounts,
+    /// Whether the run is a direct sum (one leaf holding every point, no
+    /// far field: exact to rounding) because the cost model predicts it
+    /// cheaper than any tree and its operators ([`Tuner::prefer_direct`]).
+    pub direct: bool,
+    /// Predicted seconds of the direct sum of every source on every
+    /// target (`None` when it was not a candidate: a leaf size given by
+    /// the caller, or far-separated clusters).
+    pub direct_seconds: Option<f64>,
+    /// Predicted seconds of precomputing the chosen tree's operators and
+    /// M2L scheme from nothing (0 when they are known to come from the
+    /// cache; see [`precompute_seconds`]).
+    pub precompute_seconds: f64,
 }
 
 /// One `(order, leaf size)` the chooser weighed.
@@ -101,6 +116,10 @@ pub struct Tuner {
     pub leaf_sizes: Vec<usize>,
     /// How many admissible orders to consider, from the smallest up.
     pub orders: usize,
+    /// An order the caller fixed ([`Tuner::with_order`]): the only one
+    /// considered, admissible or not; the search is then for the leaf
+    /// size (and, with [`Tuner::choose_scheme_with`], the scheme).
+    pub fixed_order: Option<usize>,
 }
 
 /// An admissible order for a tolerance, with what goes with it.
@@ -150,6 +169,7 @@ impl Tuner {
             scheme,
             leaf_sizes: LEAF_SIZE_CANDIDATES.to_vec(),
             orders: 3,
+            fixed_order: None,
         }
     }
 
@@ -158,8 +178,25 @@ impl Tuner {
         Self {
             leaf_sizes: self.leaf_sizes,
             orders: self.orders,
+            fixed_order: self.fixed_order,
             ..Self::from_model(model, self.precision, self.mode, self.scheme)
         }
+    }
+
+    /// The same tuner with the order fixed to `order` (a caller's
+    /// `--order` without `--leaf-size`): only the leaf size (and the
+    /// scheme, or a direct sum) is chosen, whatever the error model says
+    /// of that order.
+    pub fn with_order(mut self, order: usize) -> Self {
+        self.fixed_order = Some(order);
+        self
+    }
+
+    /// The same tuner with the leaf size fixed to `leaf_size` (a caller's
+    /// `--leaf-size`): only the order (and SVD tolerance) is chosen.
+    pub fn with_leaf_size(mut self, leaf_size: usize) -> Self {
+        self.leaf_sizes = vec![leaf_size.max(1)];
+        self
     }
 
     /// The same tuner for an M2L scheme that scales as `shape`
@@ -186,10 +223,35 @@ impl Tuner {
     }
 
     /// The admissible orders for `eps` on a tree with rounding ratio
-    /// `ratio`: the smallest and the next `orders - 1`. Only the SVD
-    /// scheme has a compression tolerance to loosen; the others keep the
-    /// base one (unused by them).
-    pub(super) fn orders_for(&self, eps: f64, ratio: f64) -> Vec<OrderChoice> {
+    /// `ratio`: the smallest and the next `orders - 1`, or the fixed order
+    /// alone ([`Tuner::with_order`]; without `eps` only a fixed order has
+    /// candidates). Only the SVD scheme has a compression tolerance to
+    /// loosen; the others keep the base one (unused by them).
+    pub(super) fn orders_for(&self, eps: Option<f64>, ratio: f64) -> Vec<OrderChoice> {
+        let choice = |p: usize, tau: f64| OrderChoice {
+            order: p,
+            svd_tolerance: tau,
+            estimated_rank: estimated_svd_rank(p, tau),
+            predicted_error: self
+                .error
+                .predicted_error(p, tau, ratio)
+                .unwrap_or(f64::NAN),
+        };
+        if let Some(p) = self.fixed_order {
+            let tau = match eps {
+                Some(e)
+                    if self.scheme == M2lCostShape::Compressed
+                        && self.error.admissible(p, e, ratio) =>
+                {
+                    self.error.svd_tolerance(p, e, ratio)
+                }
+                _ => self.error.base_svd_tolerance(p),
+            };
+            return vec![choice(p, tau)];
+        }
+        let Some(eps) = eps else {
+            return Vec::new();
+        };
         let Some(p0) = self.error.smallest_order(eps, ratio) else {
             return Vec::new();
         };
@@ -200,15 +262,7 @@ impl Tuner {
                     M2lCostShape::Compressed => self.error.svd_tolerance(p, eps, ratio),
                     _ => self.error.base_svd_tolerance(p),
                 };
-                OrderChoice {
-                    order: p,
-                    svd_tolerance: tau,
-                    estimated_rank: estimated_svd_rank(p, tau),
-                    predicted_error: self
-                        .error
-                        .predicted_error(p, tau, ratio)
-                        .expect("admissible order"),
-                }
+                choice(p, tau)
             })
             .collect()
     }
@@ -228,7 +282,19 @@ impl Tuner {
     /// [`CHOICE_BUDGET`] of the best predicted time (or
     /// [`MIN_CHOICE_SECONDS`], whichever is larger).
     pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
-        validate_tolerance(eps, self.error.precision)?;
+        self.candidates_for(Some(eps), occupancy)
+    }
+
+    /// [`Tuner::candidates`] for a tolerance or none (then only a fixed
+    /// order, [`Tuner::with_order`], has candidates).
+    pub fn candidates_for(
+        &self,
+        eps: Option<f64>,
+        occupancy: &Occupancy,
+    ) -> Result<Vec<Candidate>, FmmError> {
+        if let Some(eps) = eps {
+            validate_tolerance(eps, self.error.precision)?;
+        }
         let permissive = self.orders_for(eps, 0.0);
         let cost_of = |w: &WorkCounts| {
             self.orders_for(eps, w.rounding_ratio)
@@ -360,16 +426,36 @@ impl Tuner {
         eps: f64,
         occupancy: &Occupancy,
     ) -> Result<ChosenParameters, FmmError> {
+        self.choose_for(Some(eps), occupancy)
+    }
+
+    /// [`Tuner::choose_with`] for a tolerance or, with a fixed order
+    /// ([`Tuner::with_order`]), none: then the cheapest leaf size for that
+    /// order (`tolerance` is reported as NaN).
+    ///
+    /// # Errors
+    /// As [`Tuner::choose_with`]; [`FmmError::InvalidParameter`] without
+    /// a tolerance and without a fixed order.
+    pub fn choose_for(
+        &self,
+        eps: Option<f64>,
+        occupancy: &Occupancy,
+    ) -> Result<ChosenParameters, FmmError> {
+        if eps.is_none() && self.fixed_order.is_none() {
+            return Err(FmmError::InvalidParameter(
+                "the chooser needs a tolerance or a fixed order".to_string(),
+            ));
+        }
         // A domain the float type cannot resolve has no order: say so
         // (the build's message), not "no order reaches eps".
         check_domain_width(occupancy.domain().width, self.error.precision, 0)?;
-        let candidates = self.candidates(eps, occupancy)?;
+        let candidates = self.candidates_for(eps, occupancy)?;
         let Some(p_min) = candidates.iter().map(|c| c.order).min() else {
             // No leaf size works: report the limit at the finest resolution
             // the points need (the coarsest tree considered).
             let w = occupancy.work(*self.leaf_sizes.iter().max().unwrap_or(&1));
             return Err(FmmError::ToleranceBeyondPrecision {
-                tolerance: eps,
+                tolerance: eps.unwrap_or(f64::NAN),
                 precision: self.error.precision.name(),
                 limit: self.error.smallest_reachable(w.rounding_ratio),
             });
@@ -390,7 +476,7 @@ impl Tuner {
             }
         }
         Ok(ChosenParameters {
-            tolerance: eps,
+            tolerance: eps.unwrap_or(f64::NAN),
             precision: self.error.precision.name().to_string(),
             order: best.order,
             leaf_size: best.leaf_size,
@@ -403,7 +489,54 @@ impl Tuner {
             model: self.model.name(),
             model_measured: self.model.measured(),
             estimated_work: best.work,
+            direct: false,
+            direct_seconds: None,
+            precompute_seconds: 0.0,
         })
+    }
+
+    /// Predicted seconds of summing every source on every target directly
+    /// (the P2P rate of the cost model, on the same threads):
+    /// `p2p_pair N_s N_t + p2p_entry`.
+    pub fn direct_seconds(&self, n_sources: usize, n_targets: usize) -> f64 {
+        self.cost.p2p_pair * n_sources as f64 * n_targets as f64 + self.cost.p2p_entry
+    }
+
+    /// Turn `chosen` into a direct sum when that is predicted cheaper than
+    /// its tree, its evaluation and `precompute` seconds of operators
+    /// (what [`precompute_seconds`] predicts, 0 when they are cached).
+    /// A direct sum is one leaf holding every point: no far field, no
+    /// operators beyond the lowest order's (built at
+    /// [`MIN_ORDER`](ferrofmm_field::MIN_ORDER)), exact to rounding
+    /// (`predicted_error` 0).
+    pub fn prefer_direct(
+        &self,
+        mut chosen: ChosenParameters,
+        n_sources: usize,
+        n_targets: usize,
+        precompute: f64,
+    ) -> ChosenParameters {
+        let direct = self.direct_seconds(n_sources, n_targets);
+        chosen.direct_seconds = Some(direct);
+        chosen.precompute_seconds = precompute;
+        if direct < chosen.predicted_seconds + precompute {
+            chosen.direct = true;
+            chosen.order = ferrofmm_field::MIN_ORDER;
+            chosen.leaf_size = n_sources.max(n_targets).max(1);
+            chosen.svd_tolerance = self.error.base_svd_tolerance(chosen.order);
+            chosen.estimated_svd_rank = estimated_svd_rank(chosen.order, chosen.svd_tolerance);
+            chosen.predicted_error = 0.0;
+            chosen.estimated_work = WorkCounts {
+                n_sources,
+                n_targets,
+                n_boxes: 1,
+                n_leaves: 1,
+                p2p_pairs: n_sources as f64 * n_targets as f64,
+                u_entries: 1.0,
+                ..WorkCounts::default()
+            };
+        }
+        chosen
     }
 
     /// Pick the M2L scheme too: the chooser runs for the SVD scheme and for
@@ -423,14 +556,28 @@ impl Tuner {
         occupancy: &Occupancy,
         svd_cached: bool,
     ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
+        self.choose_scheme_for(Some(eps), occupancy, svd_cached)
+    }
+
+    /// [`Tuner::choose_scheme_with`] for a tolerance or, with a fixed
+    /// order ([`Tuner::with_order`]), none.
+    ///
+    /// # Errors
+    /// As [`Tuner::choose_for`].
+    pub fn choose_scheme_for(
+        &self,
+        eps: Option<f64>,
+        occupancy: &Occupancy,
+        svd_cached: bool,
+    ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
         let svd = self
             .clone()
             .for_scheme(M2lCostShape::Compressed)
-            .choose_with(eps, occupancy)?;
+            .choose_for(eps, occupancy)?;
         let fft = self
             .clone()
             .for_scheme(M2lCostShape::Fft)
-            .choose_with(eps, occupancy)?;
+            .choose_for(eps, occupancy)?;
         let svd_total = svd.predicted_seconds
             + if svd_cached {
                 0.0
@@ -533,10 +680,54 @@ pub fn choose_scheme(
     targets: Option<&[f64]>,
     svd_cached: bool,
 ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
-    let occupancy = checked_occupancy(eps, precision, sources, targets)?;
-    Tuner::new(precision)
-        .for_mode(mode)
-        .choose_scheme_with(eps, &occupancy, svd_cached)
+    choose_scheme_for(
+        Some(eps),
+        None,
+        mode,
+        precision,
+        sources,
+        targets,
+        svd_cached,
+    )
+}
+
+/// [`choose_scheme`] for a tolerance, a fixed order, or both (the order
+/// then wins and the tolerance only sets the SVD tolerance): with an
+/// order alone (`--order` without `--tolerance`), the scheme and leaf size
+/// that evaluate that order fastest.
+///
+/// ```
+/// use ferrofmm_fmm::{Geometry, tuning::{choose_scheme_for, M2lCostShape}};
+/// use ferrofmm_kernels::{EvalMode, Precision};
+/// let points: Vec<f64> = Geometry::Cube.points(20_000, 3);
+/// let (shape, c) = choose_scheme_for(
+///     None, Some(10), EvalMode::Potential, Precision::F64, &points, None, false,
+/// ).unwrap();
+/// assert_eq!((shape, c.order), (M2lCostShape::Fft, 10));
+/// ```
+///
+/// # Errors
+/// As [`Tuner::choose_for`]; [`FmmError::InvalidParameter`] with neither
+/// a tolerance nor an order.
+pub fn choose_scheme_for(
+    eps: Option<f64>,
+    order: Option<usize>,
+    mode: EvalMode,
+    precision: Precision,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    svd_cached: bool,
+) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
+    if let Some(eps) = eps {
+        validate_tolerance(eps, precision)?;
+    }
+    check_sources_and_targets(sources, targets)?;
+    let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
+    let mut tuner = Tuner::new(precision).for_mode(mode);
+    if let Some(p) = order {
+        tuner = tuner.with_order(p);
+    }
+    tuner.choose_scheme_for(eps, &occupancy, svd_cached)
 }
 
 /// The float type to use for `eps` on these points (`--precision auto`):

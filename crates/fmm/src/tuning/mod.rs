@@ -115,12 +115,13 @@ mod cost;
 mod error_model;
 mod model;
 mod occupancy;
+mod precompute_cost;
 mod work;
 
 pub use crate::validate::validate_tolerance;
 pub use chooser::{
     Candidate, ChosenParameters, Tuner, choose_parameters, choose_precision, choose_scheme,
-    svd_precompute_seconds,
+    choose_scheme_for, svd_precompute_seconds,
 };
 pub use cost::{CostModel, CostPrediction, CostSample, GRADIENT_COST_FACTOR, HESSIAN_COST_FACTOR};
 pub use error_model::{
@@ -136,4 +137,8 @@ pub use model::{
     helmholtz_error_factor,
 };
 pub use occupancy::Occupancy;
+pub use precompute_cost::{
+    DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_SET_SECONDS, SVD_ESTIMATE_SHARE,
+    precompute_seconds,
+};
 pub use work::WorkCounts;

@@ -5,6 +5,7 @@
 mod accuracy;
 mod components;
 mod concurrency;
+mod defaults;
 mod determinism;
 mod errors;
 mod fft_scheme;

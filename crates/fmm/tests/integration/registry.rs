@@ -40,6 +40,8 @@ impl KernelVisitor for Run {
         let builder = FmmBuilder::new(&points)
             .kernel(kernel.clone())
             .tolerance(self.eps)
+            // A tree, not the direct sum 3000 points would get.
+            .leaf_size(64)
             .mode(mode)
             .source_kind(self.kind);
         let values = match self.scheme {
@@ -75,6 +77,7 @@ fn every_registered_kernel_meets_a_tolerance_through_its_auto_scheme() {
         let scheme = SchemeChoice::Auto
             .resolve(
                 choice,
+                None,
                 None,
                 None,
                 EvalMode::PotentialGradient,

@@ -215,11 +215,12 @@ fn unreachable_or_invalid_tolerances_are_refused() {
 
 #[test]
 fn chosen_parameters_reproduce_the_result() {
+    // A leaf size given: a tree (8000 points would be a direct sum) whose
+    // order and SVD tolerance are chosen.
     let points: Vec<f64> = Geometry::Plummer.points(8000, 3);
     let q: Vec<f64> = charges(8000, 4);
     let tuned = FmmBuilder::new(&points)
-        .order(14) // replaced by the tolerance
-        .leaf_size(3)
+        .leaf_size(96)
         .tolerance(1e-6)
         .cache_dir(cache())
         .build_svd()
@@ -241,9 +242,24 @@ fn chosen_parameters_reproduce_the_result() {
     assert!(manual.summary().chosen.is_none());
     assert_eq!(tuned.evaluate(&q).unwrap(), manual.evaluate(&q).unwrap());
     // The choice needs no build.
-    let direct = tuning::choose_parameters(1e-6, &points, None).unwrap();
+    let direct = tuning::Tuner::new(ferrofmm_kernels::Precision::F64)
+        .with_leaf_size(96)
+        .choose(1e-6, &points, None, None, ferrofmm_tree::DEEPEST_LEVEL)
+        .unwrap();
     assert_eq!((direct.order, direct.leaf_size), (c.order, c.leaf_size));
     assert_eq!(direct.svd_tolerance, c.svd_tolerance);
+    assert!(!c.direct);
+    // An order and a leaf size given with the tolerance are kept; only the
+    // SVD tolerance is chosen (and verification may raise the order).
+    let fixed = FmmBuilder::new(&points)
+        .order(5)
+        .leaf_size(96)
+        .tolerance(1e-3)
+        .cache_dir(cache())
+        .build_svd()
+        .unwrap();
+    assert_eq!((fixed.order(), fixed.leaf_size()), (5, 96));
+    assert_eq!(fixed.chosen_parameters().unwrap().order, 5);
 }
 
 #[test]
@@ -356,7 +372,13 @@ fn models_are_keyed_on_the_kernel_and_can_be_replaced() {
     let eps = 1e-5;
 
     // Laplace: the measured model.
-    let laplace = FmmBuilder::new(&points).tolerance(eps).build_svd().unwrap();
+    // Leaf sizes given throughout: trees whose order the models choose
+    // (6000 points would otherwise be a direct sum).
+    let laplace = FmmBuilder::new(&points)
+        .tolerance(eps)
+        .leaf_size(64)
+        .build_svd()
+        .unwrap();
     let c = laplace.chosen_parameters().unwrap();
     assert_eq!(c.model, "laplace");
     assert!(c.model_measured);
@@ -367,6 +389,7 @@ fn models_are_keyed_on_the_kernel_and_can_be_replaced() {
     let fmm = FmmBuilder::new(&points)
         .kernel(yukawa)
         .tolerance(eps)
+        .leaf_size(64)
         .build_svd()
         .unwrap();
     let c = fmm.chosen_parameters().unwrap();
@@ -377,6 +400,7 @@ fn models_are_keyed_on_the_kernel_and_can_be_replaced() {
     let mut fmm = FmmBuilder::new(&points)
         .kernel(TwiceLaplace)
         .tolerance(eps)
+        .leaf_size(64)
         .build_svd()
         .unwrap();
     let c = fmm.chosen_parameters().unwrap().clone();
@@ -415,6 +439,7 @@ fn models_are_keyed_on_the_kernel_and_can_be_replaced() {
     }
     let fmm = FmmBuilder::new(&points)
         .tolerance(eps)
+        .leaf_size(64)
         .tuning_model(Tenfold)
         .verify(false)
         .build_svd()
