@@ -14,6 +14,7 @@ use super::error_model::{
 };
 use super::model::{LaplaceModel, TuningModel};
 use super::occupancy::Occupancy;
+use super::scene::Scene;
 use super::work::WorkCounts;
 use crate::FmmError;
 use crate::validate::{check_domain_width, check_sources_and_targets, validate_tolerance};
@@ -189,23 +190,22 @@ impl Tuner {
     /// `ratio`: the smallest and the next `orders - 1`. Only the SVD
     /// scheme has a compression tolerance to loosen; the others keep the
     /// base one (unused by them).
-    pub(super) fn orders_for(&self, eps: f64, ratio: f64) -> Vec<OrderChoice> {
-        let Some(p0) = self.error.smallest_order(eps, ratio) else {
+    pub(super) fn orders_for(&self, error: &ErrorModel, eps: f64, ratio: f64) -> Vec<OrderChoice> {
+        let Some(p0) = error.smallest_order(eps, ratio) else {
             return Vec::new();
         };
         (p0..p0 + self.orders.max(1))
-            .filter(|&p| self.error.admissible(p, eps, ratio))
+            .filter(|&p| error.admissible(p, eps, ratio))
             .map(|p| {
                 let tau = match self.scheme {
-                    M2lCostShape::Compressed => self.error.svd_tolerance(p, eps, ratio),
-                    _ => self.error.base_svd_tolerance(p),
+                    M2lCostShape::Compressed => error.svd_tolerance(p, eps, ratio),
+                    _ => error.base_svd_tolerance(p),
                 };
                 OrderChoice {
                     order: p,
                     svd_tolerance: tau,
                     estimated_rank: estimated_svd_rank(p, tau),
-                    predicted_error: self
-                        .error
+                    predicted_error: error
                         .predicted_error(p, tau, ratio)
                         .expect("admissible order"),
                 }
@@ -229,9 +229,12 @@ impl Tuner {
     /// [`MIN_CHOICE_SECONDS`], whichever is larger).
     pub fn candidates(&self, eps: f64, occupancy: &Occupancy) -> Result<Vec<Candidate>, FmmError> {
         validate_tolerance(eps, self.error.precision)?;
-        let permissive = self.orders_for(eps, 0.0);
+        // The error model fitted to these points (volume, surface or
+        // curve, and how many): `ErrorModel::in_scene`.
+        let error = self.error.in_scene(&Scene::of(occupancy));
+        let permissive = self.orders_for(&error, eps, 0.0);
         let cost_of = |w: &WorkCounts| {
-            self.orders_for(eps, w.rounding_ratio)
+            self.orders_for(&error, eps, w.rounding_ratio)
                 .iter()
                 .map(|o| self.predict(w, o.order, o.estimated_rank).total)
                 .fold(f64::INFINITY, f64::min)
@@ -332,7 +335,7 @@ impl Tuner {
         trees.sort_by_key(|t| t.leaf_size);
         let mut out = Vec::new();
         for t in &trees {
-            for o in self.orders_for(eps, t.work.rounding_ratio) {
+            for o in self.orders_for(&error, eps, t.work.rounding_ratio) {
                 out.push(Candidate {
                     order: o.order,
                     leaf_size: t.leaf_size,
@@ -371,7 +374,10 @@ impl Tuner {
             return Err(FmmError::ToleranceBeyondPrecision {
                 tolerance: eps,
                 precision: self.error.precision.name(),
-                limit: self.error.smallest_reachable(w.rounding_ratio),
+                limit: self
+                    .error
+                    .in_scene(&Scene::of(occupancy))
+                    .smallest_reachable(w.rounding_ratio),
             });
         };
         let best_of = |p: usize| {
@@ -471,7 +477,7 @@ impl Tuner {
 /// let points: Vec<f64> = Geometry::Sphere.points(10_000, 3);
 /// let c = choose_parameters(1e-7, &points, None).unwrap();
 /// assert!(c.order >= 6);
-/// assert!(tuning::SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
+/// assert!(tuning::SCENE_SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
 /// let points32: Vec<f32> = points.iter().map(|&x| x as f32).collect();
 /// assert!(choose_parameters(1e-7, &points32, None).is_err());
 /// ```

@@ -115,6 +115,7 @@ mod cost;
 mod error_model;
 mod model;
 mod occupancy;
+mod scene;
 mod work;
 
 pub use crate::validate::validate_tolerance;
@@ -124,10 +125,12 @@ pub use chooser::{
 };
 pub use cost::{CostModel, CostPrediction, CostSample, GRADIENT_COST_FACTOR, HESSIAN_COST_FACTOR};
 pub use error_model::{
-    CHOICE_BUDGET, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR, HESSIAN_ERROR_FACTOR,
-    HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER, MAX_SVD_TOLERANCE, MAX_TUNED_ORDER,
-    MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR, SAFETY_FACTOR, SECONDS_PER_SIMULATED_BOX,
-    estimated_svd_rank, f32_reaches, smallest_tolerance,
+    CHOICE_BUDGET, CURVE_DIMENSION, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR,
+    HESSIAN_ERROR_FACTOR, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER,
+    MAX_SVD_TOLERANCE, MAX_TUNED_ORDER, MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR,
+    SAFETY_FACTOR, SCENE_POTENTIAL_GROWTH, SCENE_REFERENCE_POINTS, SCENE_SAFETY_FACTOR,
+    SECONDS_PER_SIMULATED_BOX, SURFACE_DIMENSIONS, VOLUME_DIMENSION, estimated_svd_rank,
+    f32_reaches, smallest_tolerance,
 };
 pub use model::{
     BorrowedModel, HELMHOLTZ_P2P_FACTOR, HelmholtzModel, LaplaceModel, STOKES_ERROR_FACTOR,
@@ -136,4 +139,5 @@ pub use model::{
     helmholtz_error_factor,
 };
 pub use occupancy::Occupancy;
+pub use scene::{SCENE_LEAF_SIZE, Scene};
 pub use work::WorkCounts;
