@@ -14,6 +14,7 @@ use super::error_model::{
 };
 use super::model::{LaplaceModel, TuningModel};
 use super::occupancy::Occupancy;
+use super::scene::Scene;
 use super::work::WorkCounts;
 use crate::FmmError;
 use crate::validate::{check_domain_width, check_sources_and_targets, validate_tolerance};
@@ -223,44 +224,47 @@ impl Tuner {
     }
 
     /// The admissible orders for `eps` on a tree with rounding ratio
-    /// `ratio`: the smallest and the next `orders - 1`, or the fixed order
-    /// alone ([`Tuner::with_order`]; without `eps` only a fixed order has
-    /// candidates). Only the SVD scheme has a compression tolerance to
-    /// loosen; the others keep the base one (unused by them).
-    pub(super) fn orders_for(&self, eps: Option<f64>, ratio: f64) -> Vec<OrderChoice> {
+    /// `ratio` under the fitted `error` model: the smallest and the next
+    /// `orders - 1`, or the fixed order alone ([`Tuner::with_order`];
+    /// without `eps` only a fixed order has candidates). Only the SVD
+    /// scheme has a compression tolerance to loosen; the others keep the
+    /// base one (unused by them).
+    pub(super) fn orders_for(
+        &self,
+        error: &ErrorModel,
+        eps: Option<f64>,
+        ratio: f64,
+    ) -> Vec<OrderChoice> {
         let choice = |p: usize, tau: f64| OrderChoice {
             order: p,
             svd_tolerance: tau,
             estimated_rank: estimated_svd_rank(p, tau),
-            predicted_error: self
-                .error
-                .predicted_error(p, tau, ratio)
-                .unwrap_or(f64::NAN),
+            predicted_error: error.predicted_error(p, tau, ratio).unwrap_or(f64::NAN),
         };
         if let Some(p) = self.fixed_order {
             let tau = match eps {
                 Some(e)
                     if self.scheme == M2lCostShape::Compressed
-                        && self.error.admissible(p, e, ratio) =>
+                        && error.admissible(p, e, ratio) =>
                 {
-                    self.error.svd_tolerance(p, e, ratio)
+                    error.svd_tolerance(p, e, ratio)
                 }
-                _ => self.error.base_svd_tolerance(p),
+                _ => error.base_svd_tolerance(p),
             };
             return vec![choice(p, tau)];
         }
         let Some(eps) = eps else {
             return Vec::new();
         };
-        let Some(p0) = self.error.smallest_order(eps, ratio) else {
+        let Some(p0) = error.smallest_order(eps, ratio) else {
             return Vec::new();
         };
         (p0..p0 + self.orders.max(1))
-            .filter(|&p| self.error.admissible(p, eps, ratio))
+            .filter(|&p| error.admissible(p, eps, ratio))
             .map(|p| {
                 let tau = match self.scheme {
-                    M2lCostShape::Compressed => self.error.svd_tolerance(p, eps, ratio),
-                    _ => self.error.base_svd_tolerance(p),
+                    M2lCostShape::Compressed => error.svd_tolerance(p, eps, ratio),
+                    _ => error.base_svd_tolerance(p),
                 };
                 choice(p, tau)
             })
@@ -295,9 +299,12 @@ impl Tuner {
         if let Some(eps) = eps {
             validate_tolerance(eps, self.error.precision)?;
         }
-        let permissive = self.orders_for(eps, 0.0);
+        // The error model fitted to these points (volume, surface or
+        // curve, and how many): `ErrorModel::in_scene`.
+        let error = self.error.in_scene(&Scene::of(occupancy));
+        let permissive = self.orders_for(&error, eps, 0.0);
         let cost_of = |w: &WorkCounts| {
-            self.orders_for(eps, w.rounding_ratio)
+            self.orders_for(&error, eps, w.rounding_ratio)
                 .iter()
                 .map(|o| self.predict(w, o.order, o.estimated_rank).total)
                 .fold(f64::INFINITY, f64::min)
@@ -398,7 +405,7 @@ impl Tuner {
         trees.sort_by_key(|t| t.leaf_size);
         let mut out = Vec::new();
         for t in &trees {
-            for o in self.orders_for(eps, t.work.rounding_ratio) {
+            for o in self.orders_for(&error, eps, t.work.rounding_ratio) {
                 out.push(Candidate {
                     order: o.order,
                     leaf_size: t.leaf_size,
@@ -457,7 +464,10 @@ impl Tuner {
             return Err(FmmError::ToleranceBeyondPrecision {
                 tolerance: eps.unwrap_or(f64::NAN),
                 precision: self.error.precision.name(),
-                limit: self.error.smallest_reachable(w.rounding_ratio),
+                limit: self
+                    .error
+                    .in_scene(&Scene::of(occupancy))
+                    .smallest_reachable(w.rounding_ratio),
             });
         };
         let best_of = |p: usize| {
@@ -618,7 +628,7 @@ impl Tuner {
 /// let points: Vec<f64> = Geometry::Sphere.points(10_000, 3);
 /// let c = choose_parameters(1e-7, &points, None).unwrap();
 /// assert!(c.order >= 6);
-/// assert!(tuning::SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
+/// assert!(tuning::SCENE_SAFETY_FACTOR * c.predicted_error <= 1e-7 * (1.0 + 1e-9));
 /// let points32: Vec<f32> = points.iter().map(|&x| x as f32).collect();
 /// assert!(choose_parameters(1e-7, &points32, None).is_err());
 /// ```

@@ -4,13 +4,45 @@
 use ferrofmm_field::{default_svd_tolerance, n_surface_points};
 use ferrofmm_kernels::{EvalMode, Precision};
 
+use super::scene::Scene;
+
 /// Safety factor `S` between the measured worst error of an order and the
-/// tolerance it is used for. The table is already the worst of 42 settings
+/// tolerance it is used for, for a model that knows nothing of the scene
+/// (the worst-case tables, e.g. [`StokesModel`](super::StokesModel)'s and
+/// [`HelmholtzModel`](super::HelmholtzModel)'s, or any model before
+/// [`ErrorModel::in_scene`]). The table is already the worst of 42 settings
 /// per order (seven geometries, two kinds of charges, three leaf sizes);
 /// `S` covers larger N (errors grow about 1.5x from 2e4 to 1e6 points)
 /// and inputs not measured, and the after-the-fact verification
 /// ([`crate::verify`]) catches what it does not.
 pub const SAFETY_FACTOR: f64 = 1.6;
+
+/// Safety factor `S` of a model fitted to the scene
+/// ([`ErrorModel::in_scene`]): its tables are the typical error of the
+/// scene's kind (the cube and two clusters for volumes, not the Plummer
+/// sphere, which measures 2-3x higher), so that the median workload gets
+/// the smallest order that meets `eps`; `S` leaves room for the
+/// verification's noise margin ([`crate::verify::VERIFY_NOISE`]: an
+/// estimate is accepted when `(1 + 4 / sqrt(s))` times it is at most
+/// `eps`, 1.13 to 1.7 for the 32 to 1000 targets sampled, a larger sample
+/// deciding within the band), and the
+/// verification raises the order for the inputs above the typical error
+/// (the Plummer sphere; all-positive charges in volumes, whose gradient is
+/// 1-4x that of zero-mean charges).
+pub const SCENE_SAFETY_FACTOR: f64 = 1.5;
+
+/// Number of points the scene tables were measured at
+/// ([`ErrorModel::in_scene`]).
+pub const SCENE_REFERENCE_POINTS: f64 = 2e4;
+
+/// The potential's error grows with the number of points as
+/// `(N / 2e4)^SCENE_POTENTIAL_GROWTH` (never below the table): uniform
+/// cube, zero-mean charges, order 6, leaf 150: 1.8e-6 at 2e4, 3.6e-6 at
+/// 1e6 (2.0x; `0.2` gives 2.2x); 1.2e-5 at 1e5 and order 5 against 1.7e-5
+/// at 2e4 (the growth is not monotone: it follows the tree's depth). The
+/// gradient's error does not grow (zero-mean charges, order 6: 6.0e-6 at
+/// 2e4, 1.3e-6 at 1e6), and is kept at its table.
+pub const SCENE_POTENTIAL_GROWTH: f64 = 0.2;
 
 /// Error `f32` rounding adds at every order (measured worst over the four
 /// test geometries: about `1e-6` on uniform points, `2.4e-6` on two
@@ -119,6 +151,128 @@ pub(super) const F64_GRADIENT_ERRORS: [f64; MAX_TUNED_ORDER - MIN_TUNED_ORDER + 
     5.2e-10, // p = 12
 ];
 
+/// Typical errors per kind of scene, orders 2..=12: relative L2 error of
+/// the potential and of the gradient, f64, SVD M2L at the default
+/// tolerance, N = 2e4, leaf sizes 150 and 400 (what the chooser takes in
+/// practice), raw data `docs/data/error_model_f64_2e4.md`. **Volumes**: the
+/// worse of the uniform cube and the two clusters, zero-mean charges (the
+/// Plummer sphere measures 2-3x higher; all-positive charges have a
+/// gradient 1-4x higher at orders up to 6: the verification raises the
+/// order for them). **Surfaces**: the worst of the sphere, the plane and
+/// the torus, both kinds of charges. **Curves**: the trefoil, both kinds of
+/// charges (all-positive charges 10-50x above zero-mean ones at low order).
+/// Surfaces and curves have far smaller gradient errors than potential
+/// errors: their gradients are dominated by close neighbours.
+pub(super) const VOLUME_POTENTIAL_ERRORS: [f64; 11] = [
+    2.7e-2, 1.5e-3, 1.9e-4, 1.7e-5, 1.9e-6, 2.8e-7, 3.8e-8, 5.0e-9, 8.0e-10, 1.1e-10, 4.9e-11,
+];
+
+/// See [`VOLUME_POTENTIAL_ERRORS`].
+pub(super) const VOLUME_GRADIENT_ERRORS: [f64; 11] = [
+    2.0e-2, 2.3e-3, 3.7e-4, 4.5e-5, 6.7e-6, 1.0e-6, 1.8e-7, 2.7e-8, 5.2e-9, 8.2e-10, 3.1e-10,
+];
+
+/// See [`VOLUME_POTENTIAL_ERRORS`].
+pub(super) const SURFACE_POTENTIAL_ERRORS: [f64; 11] = [
+    2.1e-2, 7.5e-4, 8.9e-5, 9.2e-6, 1.2e-6, 1.2e-7, 2.9e-8, 3.6e-9, 3.7e-10, 8.3e-11, 2.4e-11,
+];
+
+/// See [`VOLUME_POTENTIAL_ERRORS`].
+pub(super) const SURFACE_GRADIENT_ERRORS: [f64; 11] = [
+    7.7e-4, 4.2e-5, 1.2e-5, 6.7e-7, 1.4e-7, 1.0e-8, 1.9e-9, 2.8e-10, 3.0e-11, 8.3e-12, 9.3e-13,
+];
+
+/// See [`VOLUME_POTENTIAL_ERRORS`] (orders 11 and 12 stop at the rounding
+/// floor of the curve's potential, 1.5e-12).
+pub(super) const CURVE_POTENTIAL_ERRORS: [f64; 11] = [
+    1.7e-3, 2.2e-5, 4.6e-6, 2.4e-7, 2.2e-8, 2.1e-9, 2.1e-10, 2.3e-11, 2.7e-12, 1.5e-12, 1.5e-12,
+];
+
+/// See [`VOLUME_POTENTIAL_ERRORS`] (at the rounding floor from order 7).
+pub(super) const CURVE_GRADIENT_ERRORS: [f64; 11] = [
+    1.1e-9, 7.8e-11, 2.1e-11, 1.5e-12, 2.4e-13, 1.1e-13, 1.1e-13, 1.1e-13, 1.1e-13, 1.1e-13,
+    1.1e-13,
+];
+
+/// Dimensions ([`Scene::dimension`]) at which the scene tables apply: the
+/// curve's up to `CURVE_DIMENSION`, the surfaces' from `SURFACE_DIMENSIONS.0`
+/// to `.1`, the volumes' from `VOLUME_DIMENSION`; in between the errors are
+/// interpolated in `log`. Measured dimensions: trefoil 1.51, plane 2.00,
+/// sphere and torus 2.24-2.55, cube, Plummer and two clusters 2.79-3.00
+/// (`Scene`). A dimension read too high costs an order too many; too low,
+/// a retry of the verification.
+pub const CURVE_DIMENSION: f64 = 1.6;
+
+/// See [`CURVE_DIMENSION`].
+pub const SURFACE_DIMENSIONS: (f64, f64) = (2.0, 2.6);
+
+/// See [`CURVE_DIMENSION`].
+pub const VOLUME_DIMENSION: f64 = 2.8;
+
+/// Typical Laplace error of order `order` (index `i` into the tables) for
+/// `mode` in a scene of dimension `d` and `n` sources: potential and
+/// gradient from the scene tables, interpolated in `d`, the potential
+/// grown with `n` ([`SCENE_POTENTIAL_GROWTH`]).
+fn scene_error(i: usize, mode: EvalMode, scene: &Scene) -> f64 {
+    let d = scene.dimension;
+    let (s0, s1) = SURFACE_DIMENSIONS;
+    let interp = |curve: &[f64; 11], surface: &[f64; 11], volume: &[f64; 11]| -> f64 {
+        let mix = |a: f64, b: f64, t: f64| (a.ln() * (1.0 - t) + b.ln() * t).exp();
+        if d <= CURVE_DIMENSION {
+            curve[i]
+        } else if d < s0 {
+            mix(
+                curve[i],
+                surface[i],
+                (d - CURVE_DIMENSION) / (s0 - CURVE_DIMENSION),
+            )
+        } else if d <= s1 {
+            surface[i]
+        } else if d < VOLUME_DIMENSION {
+            mix(surface[i], volume[i], (d - s1) / (VOLUME_DIMENSION - s1))
+        } else {
+            volume[i]
+        }
+    };
+    let growth = (scene.n_sources as f64 / SCENE_REFERENCE_POINTS)
+        .max(1.0)
+        .powf(SCENE_POTENTIAL_GROWTH);
+    let pot = growth
+        * interp(
+            &CURVE_POTENTIAL_ERRORS,
+            &SURFACE_POTENTIAL_ERRORS,
+            &VOLUME_POTENTIAL_ERRORS,
+        );
+    if mode.values_per_target() == 1 {
+        return pot;
+    }
+    let hessian = if mode.has_hessian() {
+        HESSIAN_ERROR_FACTOR
+    } else {
+        1.0
+    };
+    let grad = hessian
+        * interp(
+            &CURVE_GRADIENT_ERRORS,
+            &SURFACE_GRADIENT_ERRORS,
+            &VOLUME_GRADIENT_ERRORS,
+        );
+    pot.max(grad)
+}
+
+/// The worst-case Laplace table entry (index `i`) for `mode`.
+fn worst_error(i: usize, mode: EvalMode) -> f64 {
+    if mode.values_per_target() == 1 {
+        return F64_POTENTIAL_ERRORS[i];
+    }
+    let hessian = if mode.has_hessian() {
+        HESSIAN_ERROR_FACTOR
+    } else {
+        1.0
+    };
+    F64_POTENTIAL_ERRORS[i].max(F64_GRADIENT_ERRORS[i] * hessian)
+}
+
 /// The Hessian's error against the gradient's at the same order: at most
 /// 2.14 measured (Laplace and modified Helmholtz, f64, SVD M2L, cube and
 /// Plummer, zero-mean and positive charges, orders 4..10, N = 2e4,
@@ -156,6 +310,13 @@ pub struct ErrorModel {
     pub floor: f64,
     /// Safety factor `S`.
     pub safety: f64,
+    /// `Some(mode)` when `order_errors` are the Laplace worst-case tables
+    /// for `mode` (or a multiple of them, order by order) and
+    /// [`ErrorModel::in_scene`] may fit them to a scene; `None` for tables
+    /// of another shape and for a model already fitted.
+    pub scalable: Option<EvalMode>,
+    /// The scene the model was fitted to ([`ErrorModel::in_scene`]).
+    pub scene: Option<Scene>,
 }
 
 impl ErrorModel {
@@ -208,6 +369,58 @@ impl ErrorModel {
             m.floor = F32_GRADIENT_FLOOR;
         }
         m.rounding_factor = 3.0 * hessian * ROUNDING_FACTOR;
+        m.scalable = Some(mode);
+        m
+    }
+
+    /// The model fitted to `scene`: each order's error times the ratio of
+    /// the typical Laplace error in such a scene to the worst-case one,
+    ///
+    /// ```text
+    /// E'_p = E_p * T_p(d, N) / W_p,   S' = SCENE_SAFETY_FACTOR
+    /// ```
+    ///
+    /// with `W_p` the worst-case table ([`ErrorModel::laplace_for`]) and
+    /// `T_p(d, N)` the typical error of a scene of dimension `d` (the
+    /// tables of volumes, surfaces and curves, interpolated in `log`
+    /// between [`CURVE_DIMENSION`], [`SURFACE_DIMENSIONS`] and
+    /// [`VOLUME_DIMENSION`]) and `N` sources (the potential's grown by
+    /// `(N / 2e4)^`[`SCENE_POTENTIAL_GROWTH`]); with gradients the larger
+    /// of the potential's and the gradient's. Only `f64` models are fitted
+    /// (`f32`'s floor is a worst case and its orders stop at
+    /// [`MAX_F32_ORDER`], beyond the verification's reach). A model scaled from the
+    /// Laplace tables (`E_p = c_p W_p`, as a kernel author's may be) keeps
+    /// its factors. A model that is not [`ErrorModel::scalable`] is
+    /// returned as it is.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::{ErrorModel, Scene};
+    /// use ferrofmm_kernels::{EvalMode, Precision};
+    /// let worst = ErrorModel::laplace_for(Precision::F64, EvalMode::PotentialGradient);
+    /// let cube = Scene { dimension: 3.0, n_sources: 20_000 };
+    /// let sphere = Scene { dimension: 2.3, n_sources: 20_000 };
+    /// let (v, s) = (worst.in_scene(&cube), worst.in_scene(&sphere));
+    /// // A volume's typical error is below the worst case, a surface's far below.
+    /// assert!(v.order_error(6).unwrap() < worst.order_error(6).unwrap());
+    /// assert!(s.order_error(6).unwrap() < 0.5 * v.order_error(6).unwrap());
+    /// assert!(v.smallest_order(2e-5, 0.0) < worst.smallest_order(2e-5, 0.0));
+    /// ```
+    pub fn in_scene(&self, scene: &Scene) -> ErrorModel {
+        // f32's floor is a worst case over its measurements, and its orders
+        // stop at MAX_F32_ORDER, where the verification cannot raise them:
+        // it keeps the worst-case model.
+        let (Some(mode), Precision::F64) = (self.scalable, self.precision) else {
+            return self.clone();
+        };
+        let mut m = self.clone();
+        for (p, e) in m.order_errors.iter_mut() {
+            if let Some(i) = p.checked_sub(MIN_TUNED_ORDER).filter(|&i| i < 11) {
+                *e *= scene_error(i, mode, scene) / worst_error(i, mode);
+            }
+        }
+        m.safety = SCENE_SAFETY_FACTOR;
+        m.scalable = None;
+        m.scene = Some(*scene);
         m
     }
 
@@ -228,6 +441,8 @@ impl ErrorModel {
             rounding_factor: ROUNDING_FACTOR,
             floor,
             safety: SAFETY_FACTOR,
+            scalable: Some(EvalMode::Potential),
+            scene: None,
         }
     }
 

@@ -116,6 +116,7 @@ mod error_model;
 mod model;
 mod occupancy;
 mod precompute_cost;
+mod scene;
 mod work;
 
 pub use crate::validate::validate_tolerance;
@@ -125,10 +126,12 @@ pub use chooser::{
 };
 pub use cost::{CostModel, CostPrediction, CostSample, GRADIENT_COST_FACTOR, HESSIAN_COST_FACTOR};
 pub use error_model::{
-    CHOICE_BUDGET, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR, HESSIAN_ERROR_FACTOR,
-    HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER, MAX_SVD_TOLERANCE, MAX_TUNED_ORDER,
-    MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR, SAFETY_FACTOR, SECONDS_PER_SIMULATED_BOX,
-    estimated_svd_rank, f32_reaches, smallest_tolerance,
+    CHOICE_BUDGET, CURVE_DIMENSION, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR,
+    HESSIAN_ERROR_FACTOR, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER,
+    MAX_SVD_TOLERANCE, MAX_TUNED_ORDER, MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR,
+    SAFETY_FACTOR, SCENE_POTENTIAL_GROWTH, SCENE_REFERENCE_POINTS, SCENE_SAFETY_FACTOR,
+    SECONDS_PER_SIMULATED_BOX, SURFACE_DIMENSIONS, VOLUME_DIMENSION, estimated_svd_rank,
+    f32_reaches, smallest_tolerance,
 };
 pub use model::{
     BorrowedModel, HELMHOLTZ_P2P_FACTOR, HelmholtzModel, LaplaceModel, STOKES_ERROR_FACTOR,
@@ -141,4 +144,5 @@ pub use precompute_cost::{
     DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_SET_SECONDS, SVD_ESTIMATE_SHARE,
     precompute_seconds,
 };
+pub use scene::{SCENE_LEAF_SIZE, Scene};
 pub use work::WorkCounts;

@@ -222,6 +222,9 @@ impl TuningModel for HelmholtzModel {
         for (p, e) in m.order_errors.iter_mut() {
             *e *= helmholtz_error_factor(*p, self.k_width);
         }
+        // The wavelength factor was measured on the cube only: keep the
+        // worst case (and its safety factor) rather than fit to a scene.
+        m.scalable = None;
         m
     }
 
@@ -278,6 +281,8 @@ impl TuningModel for StokesModel {
         for (_, e) in m.order_errors.iter_mut() {
             *e *= STOKES_ERROR_FACTOR;
         }
+        // The factor is a worst ratio over two scenes: no scene fit.
+        m.scalable = None;
         if scheme != M2lCostShape::Compressed {
             let at4 = m.order_errors.iter().find(|(p, _)| *p == 4).map(|x| x.1);
             if let (Some(at4), Some(at5)) = (at4, m.order_errors.iter_mut().find(|(p, _)| *p == 5))
@@ -327,7 +332,11 @@ impl TuningModel for BorrowedModel {
         mode: EvalMode,
         scheme: M2lCostShape,
     ) -> ErrorModel {
-        self.from.error_model(precision, mode, scheme)
+        // Nobody measured this kernel: the worst case, not a scene's
+        // typical error, backs the first choice.
+        let mut m = self.from.error_model(precision, mode, scheme);
+        m.scalable = None;
+        m
     }
 
     fn cost_model(&self, mode: EvalMode, scheme: M2lCostShape) -> CostModel {

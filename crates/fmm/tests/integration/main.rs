@@ -14,6 +14,7 @@ mod memory;
 mod outliers;
 mod proptest_fmm;
 mod registry;
+mod right_sized;
 mod sources;
 mod stability_cache;
 mod stability_common;
