@@ -110,6 +110,8 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) order_given: bool,
     /// Whether the caller gave the leaf size ([`FmmBuilder::leaf_size`]).
     pub(crate) leaf_given: bool,
+    /// Whether a direct sum may be chosen ([`FmmBuilder::allow_direct`]).
+    pub(crate) allow_direct: bool,
     pub(crate) mode: EvalMode,
     pub(crate) source_kind: SourceKind,
     pub(crate) radii: SurfaceRadii,
@@ -168,6 +170,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             leaf_size: DEFAULT_LEAF_SIZE,
             order_given: false,
             leaf_given: false,
+            allow_direct: true,
             mode: EvalMode::Potential,
             source_kind: SourceKind::Charge,
             radii: SurfaceRadii::default(),
@@ -195,6 +198,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             leaf_size: self.leaf_size,
             order_given: self.order_given,
             leaf_given: self.leaf_given,
+            allow_direct: self.allow_direct,
             mode: self.mode,
             source_kind: self.source_kind,
             radii: self.radii,
@@ -305,6 +309,15 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     pub fn order(mut self, order: usize) -> Self {
         self.order = order;
         self.order_given = true;
+        self
+    }
+
+    /// Whether the chooser may make the run a direct sum where the cost
+    /// model predicts that cheaper (default `true`; see
+    /// [`FmmBuilder::tolerance`]). `false` always builds a tree with
+    /// expansions: for benchmarks and tests of the FMM itself.
+    pub fn allow_direct(mut self, allowed: bool) -> Self {
+        self.allow_direct = allowed;
         self
     }
 

@@ -210,7 +210,11 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             // homogeneous kernel are counted unless a cache keeps them
             // (one set serves every domain); a kernel with operators per
             // level and domain width pays them on every new set of points.
-            if !b.leaf_given && clusters.len() == 1 && T::PRECISION == Precision::F64 {
+            if b.allow_direct
+                && !b.leaf_given
+                && clusters.len() == 1
+                && T::PRECISION == Precision::F64
+            {
                 let cached = b.cache_dir.is_some() && b.kernel.homogeneity().is_some();
                 let precompute = if cached {
                     0.0

@@ -244,8 +244,7 @@ impl Tuner {
         if let Some(p) = self.fixed_order {
             let tau = match eps {
                 Some(e)
-                    if self.scheme == M2lCostShape::Compressed
-                        && error.admissible(p, e, ratio) =>
+                    if self.scheme == M2lCostShape::Compressed && error.admissible(p, e, ratio) =>
                 {
                     error.svd_tolerance(p, e, ratio)
                 }

@@ -124,10 +124,12 @@ class Fmm:
         targets and raises the order (at most twice) when it falls short.
         Default: 1e-6 in float64, 1e-4 in float32, unless ``order`` is given.
     order : int, optional
-        Expansion order instead of ``eps`` (``MIN_ORDER..=MAX_ORDER``).
+        Expansion order instead of ``eps`` (``MIN_ORDER..=MAX_ORDER``): the
+        leaf size and (``scheme="auto"``) the scheme are chosen for it by
+        the cost model, or a direct sum where that is faster.
     leaf_size : int, optional
-        Points per leaf at most (only with ``order``; default
-        ``DEFAULT_LEAF_SIZE``).
+        Points per leaf at most (default: chosen by the cost model; a given
+        leaf size always builds a tree, never a direct sum).
     gradient : bool
         Also compute gradients.
     hessian : bool
@@ -459,7 +461,7 @@ def laplace(
     threads : int, optional
         Number of threads (default: one per core).
     leaf_size : int, optional
-        Points per leaf (only with ``order``).
+        Points per leaf (default: chosen by the cost model).
     scheme : {"auto", "svd", "dense", "fft"}
         M2L translation scheme. ``"auto"`` (default): with ``eps``, the
         SVD or the FFT scheme, whichever the cost model predicts faster for
