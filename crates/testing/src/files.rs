@@ -254,3 +254,36 @@ pub fn malformed(dir: &Path) -> Vec<Malformed> {
         })
         .collect()
 }
+
+/// Potentials at the points themselves (each excluding itself) by direct
+/// summation, the reference of the file tests: Laplace `1 / (4 pi r)` for
+/// `k = None` (`q` one real charge per point), Helmholtz `exp(i k r) / (4
+/// pi r)` for `Some(k)` (`q` and the result `re, im` pairs).
+pub fn direct(points: &[f64], q: &[f64], k: Option<f64>) -> Vec<f64> {
+    let n = points.len() / 3;
+    let mut out = Vec::with_capacity(2 * n);
+    for j in 0..n {
+        let (mut re, mut im) = (0.0, 0.0);
+        for i in (0..n).filter(|&i| i != j) {
+            let d: f64 = (0..3)
+                .map(|c| (points[3 * i + c] - points[3 * j + c]).powi(2))
+                .sum::<f64>()
+                .sqrt();
+            let g = 1.0 / (4.0 * std::f64::consts::PI * d);
+            match k {
+                None => re += q[i] * g,
+                Some(k) => {
+                    let (s, c) = (k * d).sin_cos();
+                    let (qr, qi) = (q[2 * i], q[2 * i + 1]);
+                    re += g * (qr * c - qi * s);
+                    im += g * (qr * s + qi * c);
+                }
+            }
+        }
+        match k {
+            None => out.push(re),
+            Some(_) => out.extend([re, im]),
+        }
+    }
+    out
+}

@@ -11,42 +11,10 @@ use crate::common;
 use std::path::Path;
 
 use common::{ferrofmm, scratch, texts};
-use ferrofmm_testing::files::{Table, f32_exact, malformed, write_forms};
+use ferrofmm_testing::files::{Table, direct, f32_exact, malformed, write_forms};
 
 const N: usize = 240;
 const WAVENUMBER: f64 = 2.0;
-
-/// Potentials at the sources (each excluding itself) by direct summation,
-/// as `re, im` pairs: `q` holds `re, im` pairs too; `k` is the Helmholtz
-/// wavenumber (`None`: Laplace, real `q`, one value per source).
-fn direct(points: &[f64], q: &[f64], k: Option<f64>) -> Vec<f64> {
-    let n = points.len() / 3;
-    let mut out = Vec::with_capacity(2 * n);
-    for j in 0..n {
-        let (mut re, mut im) = (0.0, 0.0);
-        for i in (0..n).filter(|&i| i != j) {
-            let d: f64 = (0..3)
-                .map(|c| (points[3 * i + c] - points[3 * j + c]).powi(2))
-                .sum::<f64>()
-                .sqrt();
-            let g = 1.0 / (4.0 * std::f64::consts::PI * d);
-            match k {
-                None => re += q[i] * g,
-                Some(k) => {
-                    let (s, c) = (k * d).sin_cos();
-                    let (qr, qi) = (q[2 * i], q[2 * i + 1]);
-                    re += g * (qr * c - qi * s);
-                    im += g * (qr * s + qi * c);
-                }
-            }
-        }
-        out.extend([re, im]);
-    }
-    if k.is_none() {
-        out = out.into_iter().step_by(2).collect();
-    }
-    out
-}
 
 fn relative(a: &[f64], b: &[f64]) -> f64 {
     ferrofmm_testing::errors::relative_l2(a, b)
