@@ -137,9 +137,9 @@ pub fn read_table(
     let per_row = columns / element.parts();
     let real_parts = contents.real_parts().filter(|_| element.parts() == 1);
     let fits = |c: u64| c == per_row as u64 || Some(c) == real_parts.map(|r| r as u64);
-    let (rows, file_columns) = match shape.as_slice() {
-        &[n] if fits(1) => (n, 1),
-        &[n, c] if fits(c) => (n, c as usize),
+    let (rows, file_columns) = match *shape.as_slice() {
+        [n] if fits(1) => (n, 1),
+        [n, c] if fits(c) => (n, c as usize),
         _ => return Err(bad(expected_shape(contents, element, &shape_text))),
     };
     let widen = file_columns * element.parts() != columns;
