@@ -249,14 +249,13 @@ fn expected_shape(contents: Contents, element: Element, found: &str) -> String {
         Contents::Charges(1) => "an (N,) array of charges".to_string(),
         Contents::ComplexCharges if complex => "an (N,) array of complex charges".to_string(),
         Contents::ComplexCharges => {
-            "an (N,) array of charges (complex, or real parts alone) or an (N, 2) array of \
-             their re, im"
+            "an (N, 2) array of charges (re, im) or an (N,) array (complex, or real parts alone)"
                 .to_string()
         }
         Contents::ComplexDipoles if complex => "an (N, 3) array of complex dipoles".to_string(),
         Contents::ComplexDipoles => {
-            "an (N, 3) array of dipoles (complex, or real parts alone) or an (N, 6) array of \
-             their re, im"
+            "an (N, 6) array of dipoles (nx_re, nx_im, ny_re, ny_im, nz_re, nz_im) or an \
+             (N, 3) array (complex, or real parts alone)"
                 .to_string()
         }
         _ => format!(
