@@ -10,7 +10,11 @@
 //!   fields is a number (`x,y,z`, `charge`); any other line that is not
 //!   all numbers is an error naming the line;
 //! * every record must have exactly the expected number of fields, and
-//!   every value must be finite.
+//!   every value must be finite;
+//! * complex charges ([`Contents::ComplexCharges`]) are records of two
+//!   values (`re, im`) or of one (a real charge: the imaginary part is
+//!   zero), complex dipoles records of six or three; the first record
+//!   decides, and every other record must have as many fields.
 //!
 //! Writing: a header line (`potential` or `potential,grad_x,grad_y,grad_z`),
 //! then one record per line, each value in Rust's shortest round-trip
@@ -104,6 +108,9 @@ pub fn parse_reader(
     limit: Option<u64>,
 ) -> Result<Vec<f64>, (usize, ParseError)> {
     let columns = contents.columns();
+    // Fields per record: fixed, except for complex contents, where the
+    // first record chooses both parts or the real parts alone.
+    let mut width: Option<usize> = None;
     let limit_bytes = limit.unwrap_or(u64::MAX);
     let mut values: Vec<f64> = Vec::new();
     let mut first_record = true;
@@ -156,24 +163,43 @@ pub fn parse_reader(
                 continue; // header
             }
         }
-        if fields.len() != columns {
-            let expected = match contents {
-                Contents::Points => "3 values (x, y, z)".to_string(),
-                Contents::Charges(1) => "1 value (the charge)".to_string(),
-                Contents::Charges(c) => format!("{c} values (the charge's components)"),
-                Contents::Dipoles(1) => "3 values (the dipole's nx, ny, nz)".to_string(),
-                Contents::Dipoles(c) => {
+        let real_parts = contents.real_parts();
+        let fits = match width {
+            Some(w) => fields.len() == w,
+            None => fields.len() == columns || Some(fields.len()) == real_parts,
+        };
+        if !fits {
+            let expected = match (contents, width) {
+                (Contents::Points, _) => "3 values (x, y, z)".to_string(),
+                (Contents::Charges(1), _) => "1 value (the charge)".to_string(),
+                (Contents::Charges(c), _) => format!("{c} values (the charge's components)"),
+                (Contents::Dipoles(1), _) => "3 values (the dipole's nx, ny, nz)".to_string(),
+                (Contents::Dipoles(c), _) => {
                     format!(
                         "{} values (the dipole's nx, ny, nz, {c} components each)",
                         3 * c
                     )
                 }
+                (Contents::ComplexCharges, None) => {
+                    "2 values (the charge's re, im) or 1 (a real charge)".to_string()
+                }
+                (Contents::ComplexDipoles, None) => {
+                    "6 values (the dipole's nx_re, nx_im, ny_re, ny_im, nz_re, nz_im) or 3 \
+                     (a real dipole's nx, ny, nz)"
+                        .to_string()
+                }
+                (_, Some(w)) => format!(
+                    "{w} value{} per record, as in the first one",
+                    if w == 1 { "" } else { "s" }
+                ),
             };
             return Err((
                 line_no,
                 ParseError::Message(format!("expected {expected}, found {}", fields.len())),
             ));
         }
+        let widen = fields.len() != columns;
+        width = Some(fields.len());
         for (column, (field, value)) in fields.iter().zip(&parsed).enumerate() {
             match value {
                 None if field.is_empty() => {
@@ -197,7 +223,12 @@ pub fn parse_reader(
                         },
                     ));
                 }
-                Some(v) => values.push(*v),
+                Some(v) => {
+                    values.push(*v);
+                    if widen {
+                        values.push(0.0); // a real value: no imaginary part
+                    }
+                }
             }
         }
         if 8 * values.len() as u64 > limit_bytes {
@@ -270,6 +301,37 @@ mod tests {
         assert_eq!(
             parse("q\n\n", Contents::Charges(1)).unwrap(),
             Vec::<f64>::new()
+        );
+    }
+
+    #[test]
+    fn complex_records_take_both_parts_or_the_real_part() {
+        assert_eq!(
+            parse("re,im\n1,2\n3,-4\n", Contents::ComplexCharges).unwrap(),
+            vec![1.0, 2.0, 3.0, -4.0]
+        );
+        assert_eq!(
+            parse("charge\n1\n3\n", Contents::ComplexCharges).unwrap(),
+            vec![1.0, 0.0, 3.0, 0.0]
+        );
+        assert_eq!(
+            parse("1 2 3\n", Contents::ComplexDipoles).unwrap(),
+            vec![1.0, 0.0, 2.0, 0.0, 3.0, 0.0]
+        );
+        let e = parse("1\n2,3\n", Contents::ComplexCharges).unwrap_err();
+        assert_eq!(
+            e,
+            (
+                2,
+                ParseError::Message(
+                    "expected 1 value per record, as in the first one, found 2".into()
+                )
+            )
+        );
+        let e = parse("1,2,3\n", Contents::ComplexCharges).unwrap_err();
+        assert!(
+            matches!(&e, (1, ParseError::Message(m)) if m.contains("or 1 (a real charge)")),
+            "{e:?}"
         );
     }
 

@@ -69,9 +69,32 @@ pub enum FileError {
         /// The limit in bytes.
         limit: u64,
     },
-    /// A file name whose extension is neither `.csv` nor `.npy`.
-    #[error("{}: unknown file type (use a .csv or .npy file)", .0.display())]
+    /// An input file name whose extension is not `.csv`, `.npy` or `.f64`.
+    #[error(
+        "{}: unknown file type (use a .csv or .npy file, or .f64 for raw little-endian float64)",
+        .0.display()
+    )]
     UnknownExtension(PathBuf),
+    /// An output file name whose extension is neither `.csv` nor `.npy`.
+    #[error("{}: unknown file type for an output (write a .csv or .npy file)", .0.display())]
+    UnknownOutputType(PathBuf),
+    /// A raw `.f64` file whose length or contents do not fit.
+    #[error("{}: {message}", path.display())]
+    Raw {
+        /// The file.
+        path: PathBuf,
+        /// What is wrong with the file.
+        message: String,
+    },
+    /// Values to write that do not fill the records their column names
+    /// describe.
+    #[error("cannot write {}: {message}", path.display())]
+    Shape {
+        /// The output file.
+        path: PathBuf,
+        /// What does not fit.
+        message: String,
+    },
     /// The output names one of the input files (also through a link).
     #[error("--out {} is the same file as {option} {}: refusing to overwrite an input", out.display(), input.display())]
     OutputIsInput {

@@ -9,8 +9,16 @@
 //! * `.csv`: text, one record per line — see [`csv`] for the exact rules
 //!   (optional header line, `#` comments, blank lines ignored, a UTF-8
 //!   byte order mark skipped).
-//! * `.npy`: NumPy arrays, `float64` or `float32`, either byte order,
-//!   C or Fortran order — see [`npy`].
+//! * `.npy`: NumPy arrays, `float64`, `float32`, `complex128` or
+//!   `complex64` (complex values for a complex kernel's densities), either
+//!   byte order, C or Fortran order — see [`npy`].
+//! * `.f64`: raw little-endian `float64` values, one record after the
+//!   other, without a header (3 values per point) — see [`raw`].
+//!
+//! The densities of a complex kernel (Helmholtz) are read as `re, im`
+//! pairs ([`Contents::ComplexCharges`], [`Contents::ComplexDipoles`]): from
+//! a complex `.npy` array, from real arrays or CSV records holding both
+//! parts, or from real values alone (the imaginary parts are then zero).
 //!
 //! Points are returned interleaved (`x0, y0, z0, x1, ...`) as `f64`; every
 //! value is checked to be finite, and an empty file is an error. A
@@ -27,6 +35,7 @@ pub mod csv;
 mod error;
 pub mod npy;
 pub mod output;
+pub mod raw;
 pub mod threads;
 
 pub use error::{FileError, Result, human_bytes};
@@ -43,28 +52,87 @@ pub enum Contents {
     /// Stokes).
     Charges(usize),
     /// Dipole vectors: three values per record for a scalar kernel, `3 c`
-    /// for one with `c` components (`nx_re, nx_im, ny_re, ...`).
+    /// for one with `c` real components.
     Dipoles(usize),
+    /// Complex charges, read as `re, im` per record: from a complex `.npy`
+    /// array `(N,)` or `(N, 1)`, a real `(N, 2)` array or CSV records of
+    /// two values, or real charges alone (`(N,)`, `(N, 1)`, one value per
+    /// CSV record), whose imaginary parts are then zero.
+    ComplexCharges,
+    /// Complex dipole vectors, read as `nx_re, nx_im, ny_re, ny_im, nz_re,
+    /// nz_im` per record: from a complex `(N, 3)` `.npy` array, a real
+    /// `(N, 6)` array or CSV records of six values, or real vectors alone
+    /// (`(N, 3)`, three values per CSV record) with zero imaginary parts.
+    ComplexDipoles,
 }
 
 impl Contents {
-    /// Values per record.
+    /// The charges of a kernel with `components` components per value,
+    /// complex (`re, im`) when `complex` (see `KernelDescription::complex`
+    /// in ferrofmm-kernels).
+    pub fn charges(components: usize, complex: bool) -> Contents {
+        if complex {
+            Contents::ComplexCharges
+        } else {
+            Contents::Charges(components)
+        }
+    }
+
+    /// The dipole vectors of a kernel with `components` components per
+    /// value, complex when `complex`.
+    pub fn dipoles(components: usize, complex: bool) -> Contents {
+        if complex {
+            Contents::ComplexDipoles
+        } else {
+            Contents::Dipoles(components)
+        }
+    }
+
+    /// Values per record (as read: a complex value is two, `re, im`).
     pub fn columns(self) -> usize {
         match self {
             Contents::Points => 3,
             Contents::Dipoles(c) => 3 * c,
             Contents::Charges(c) => c,
+            Contents::ComplexCharges => 2,
+            Contents::ComplexDipoles => 6,
         }
+    }
+
+    /// Whether the records are complex values (`re, im` pairs).
+    pub fn is_complex(self) -> bool {
+        matches!(self, Contents::ComplexCharges | Contents::ComplexDipoles)
+    }
+
+    /// Real values per record in a file that holds only the real parts of
+    /// complex records (1 for charges, 3 for dipoles); `None` for real
+    /// contents.
+    pub fn real_parts(self) -> Option<usize> {
+        self.is_complex().then(|| self.columns() / 2)
     }
 
     /// Plural noun for messages.
     pub fn noun(self) -> &'static str {
         match self {
             Contents::Points => "points",
-            Contents::Charges(_) => "charges",
-            Contents::Dipoles(_) => "dipoles",
+            Contents::Charges(_) | Contents::ComplexCharges => "charges",
+            Contents::Dipoles(_) | Contents::ComplexDipoles => "dipoles",
         }
     }
+}
+
+/// What a read returned: the values, interleaved (`Contents::columns` per
+/// record; `re, im` pairs for complex contents), and what the file held.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Table {
+    /// The values of the rows asked for.
+    pub values: Vec<f64>,
+    /// Rows (records) in the whole file.
+    pub rows: u64,
+    /// The file held complex numbers (a `complex64` / `complex128` `.npy`
+    /// array): the output of a run on it is complex too
+    /// ([`write_complex`]).
+    pub complex: bool,
 }
 
 /// A file format, chosen by extension.
@@ -74,10 +142,13 @@ pub enum Format {
     Csv,
     /// NumPy `.npy`.
     Npy,
+    /// Raw little-endian `float64` values (`.f64`), read only.
+    Raw,
 }
 
 impl Format {
-    /// The format of `path` from its extension (`.csv` / `.npy`, any case).
+    /// The format of the input `path` from its extension (`.csv`, `.npy`
+    /// or `.f64`, any case).
     pub fn of(path: &Path) -> Result<Format> {
         let ext = path
             .extension()
@@ -86,7 +157,19 @@ impl Format {
         match ext.as_deref() {
             Some("csv") => Ok(Format::Csv),
             Some("npy") => Ok(Format::Npy),
+            Some("f64") => Ok(Format::Raw),
             _ => Err(FileError::UnknownExtension(path.to_path_buf())),
+        }
+    }
+
+    /// The format of the output `path`: `.csv` or `.npy` (any case); raw
+    /// `.f64` files are read, never written.
+    pub fn of_output(path: &Path) -> Result<Format> {
+        match Format::of(path) {
+            Ok(Format::Raw) | Err(FileError::UnknownExtension(_)) => {
+                Err(FileError::UnknownOutputType(path.to_path_buf()))
+            }
+            other => other,
         }
     }
 }
@@ -160,37 +243,55 @@ impl Reader {
 
     /// Read the rows `pick(n)` of `path`, whose `n` records are `contents`
     /// (`pick` gets the number of records and returns a range within
-    /// them); returns those rows' values and `n`. A C-order `.npy` regular
-    /// file is read only where the rows lie (and `n` may be 0 records for
-    /// a rank with none); a `.csv` file, a Fortran-order array or a stream
-    /// is read whole, keeping the rows asked for. Every value read is
-    /// checked to be finite, and a file without records is
-    /// [`FileError::Empty`].
+    /// them); returns those rows' values and `n`. See [`Reader::read_table`].
     pub fn read_rows(
         &self,
         path: &Path,
         contents: Contents,
         pick: impl FnOnce(u64) -> std::ops::Range<u64>,
     ) -> Result<(Vec<f64>, u64)> {
+        self.read_table(path, contents, pick)
+            .map(|t| (t.values, t.rows))
+    }
+
+    /// Read the rows `pick(n)` of `path`, whose `n` records are `contents`
+    /// (`pick` gets the number of records and returns a range within
+    /// them): those rows' values, `n`, and whether the file held complex
+    /// numbers. A C-order `.npy` or a raw `.f64` regular file is read only
+    /// where the rows lie (and `n` may be 0 records for a rank with none);
+    /// a `.csv` file, a Fortran-order array or a stream is read whole,
+    /// keeping the rows asked for. Every value read is checked to be
+    /// finite, and a file without records is [`FileError::Empty`].
+    pub fn read_table(
+        &self,
+        path: &Path,
+        contents: Contents,
+        pick: impl FnOnce(u64) -> std::ops::Range<u64>,
+    ) -> Result<Table> {
         let format = Format::of(path)?;
         if std::fs::metadata(path).is_ok_and(|m| m.is_dir()) {
             return Err(FileError::IsDirectory(path.to_path_buf()));
         }
-        let (values, n) = match format {
+        let table = match format {
             Format::Csv => {
                 let all = csv::read(path, contents, self.limit)?;
                 let n = (all.len() / contents.columns()) as u64;
-                (slice_rows(all, contents.columns(), pick(n), n), n)
+                Table {
+                    values: slice_rows(all, contents.columns(), pick(n), n),
+                    rows: n,
+                    complex: false,
+                }
             }
-            Format::Npy => npy::read_rows(path, contents, self.limit, pick)?,
+            Format::Npy => npy::read_table(path, contents, self.limit, pick)?,
+            Format::Raw => raw::read_table(path, contents, self.limit, pick)?,
         };
-        if n == 0 {
+        if table.rows == 0 {
             return Err(FileError::Empty {
                 path: path.to_path_buf(),
                 what: contents.noun(),
             });
         }
-        Ok((values, n))
+        Ok(table)
     }
 }
 
@@ -213,15 +314,51 @@ fn slice_rows(mut all: Vec<f64>, columns: usize, rows: std::ops::Range<u64>, n: 
 ///
 /// The file is written atomically ([`output::write_atomically`]): on
 /// failure nothing is left behind and an existing file is untouched.
+///
+/// # Errors
+/// [`FileError::UnknownOutputType`] for a name that is not `.csv` or
+/// `.npy`, [`FileError::Shape`] when `names` is empty or the values do not
+/// fill whole records, and the write's own failures.
 pub fn write(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
+    write_as(path, values, names, false)
+}
+
+/// [`write()`] for complex values: `values` hold `re, im` pairs and
+/// `names` name each real column (`potential_re, potential_im, ...`). A
+/// `.csv` file gets those columns; a `.npy` file gets a complex array
+/// (`complex128` for [`Values::F64`], `complex64` for [`Values::F32`]) of
+/// shape `(n,)` for one complex column and `(n, names.len() / 2)`
+/// otherwise.
+///
+/// # Errors
+/// As [`write()`]; also [`FileError::Shape`] for an odd number of columns.
+pub fn write_complex(path: &Path, values: Values<'_>, names: &[&str]) -> Result<()> {
+    write_as(path, values, names, true)
+}
+
+fn write_as(path: &Path, values: Values<'_>, names: &[&str], complex: bool) -> Result<()> {
     let columns = names.len();
-    assert!(
-        columns > 0 && values.len().is_multiple_of(columns),
-        "values do not fill whole records"
-    );
-    match Format::of(path)? {
+    let format = Format::of_output(path)?;
+    let shape_error = |message: String| FileError::Shape {
+        path: path.to_path_buf(),
+        message,
+    };
+    if columns == 0 || !values.len().is_multiple_of(columns) {
+        return Err(shape_error(format!(
+            "{} values do not fill records of {columns} columns",
+            values.len()
+        )));
+    }
+    if complex && !columns.is_multiple_of(2) {
+        return Err(shape_error(format!(
+            "{columns} columns are not re, im pairs"
+        )));
+    }
+    match format {
         Format::Csv => csv::write(path, values, names),
+        Format::Npy if complex => npy::write_complex(path, values, columns / 2),
         Format::Npy => npy::write(path, values, columns),
+        Format::Raw => Err(FileError::UnknownOutputType(path.to_path_buf())),
     }
 }
 
@@ -374,5 +511,12 @@ mod tests {
             Format::of(Path::new("npy")),
             Err(FileError::UnknownExtension(_))
         ));
+        assert_eq!(Format::of(Path::new("p.F64")).unwrap(), Format::Raw);
+        for out in ["p.f64", "p.txt"] {
+            assert!(matches!(
+                Format::of_output(Path::new(out)),
+                Err(FileError::UnknownOutputType(_))
+            ));
+        }
     }
 }

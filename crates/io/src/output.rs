@@ -42,7 +42,7 @@ pub fn check(out: &Path, inputs: &[(&'static str, &Path)]) -> Result<()> {
     if existing.as_ref().is_ok_and(|m| m.is_dir()) {
         return Err(unusable("is a directory (give a file name)".into()));
     }
-    crate::Format::of(out)?;
+    crate::Format::of_output(out)?;
     if let Ok(meta) = existing {
         for &(option, input) in inputs {
             if same_file(out, &meta, input) {

@@ -337,3 +337,256 @@ fn writes_read_back_and_parts_match() {
 fn npy_or_csv_rows(p: &Path, columns: usize) -> Vec<f64> {
     Reader::new().read(p, Contents::Charges(columns)).unwrap()
 }
+
+/// Points, real charges and complex charges in every form
+/// (`ferrofmm_testing::files`): each reads back exactly the numbers
+/// written, whole and by row ranges; a complex `.npy` array says so.
+#[test]
+fn every_form_reads_the_same_numbers() {
+    use ferrofmm_testing::files::{Table, f32_exact, write_forms};
+    let dir = Scratch::new("forms");
+    let n = 37;
+    let points = f32_exact(&ferrofmm_testing::points::uniform_cube(n, -1.0, 1.0, 3));
+    let charges = f32_exact(&ferrofmm_testing::charges::uniform_in(n, -0.5, 0.5, 4));
+    let complex = f32_exact(&ferrofmm_testing::charges::uniform_in(2 * n, -0.5, 0.5, 5));
+    let with_zero_im: Vec<f64> = complex
+        .iter()
+        .step_by(2)
+        .flat_map(|&re| [re, 0.0])
+        .collect();
+    let cases = [
+        ("p", &points, Table::Real(3), Contents::Points),
+        ("q", &charges, Table::Real(1), Contents::Charges(1)),
+        ("z", &complex, Table::Complex, Contents::ComplexCharges),
+    ];
+    let mut seen = std::collections::BTreeSet::new();
+    for (stem, values, table, contents) in cases {
+        let columns = contents.columns() as u64;
+        for (label, path) in write_forms(&dir.0, stem, values, table) {
+            seen.insert(label.clone());
+            let expected: &[f64] = if label.starts_with("real-") {
+                &with_zero_im
+            } else {
+                values
+            };
+            let t = Reader::new()
+                .read_table(&path, contents, |n| 0..n)
+                .unwrap_or_else(|e| panic!("{label}: {e}"));
+            assert_eq!(t.values, expected, "{stem} {label}");
+            assert_eq!(t.rows, n as u64, "{stem} {label}");
+            let complex_dtype = label.contains("c16") || label.contains("c8");
+            assert_eq!(t.complex, complex_dtype, "{stem} {label}");
+            // Rows 5..20 (a rank's share): the same rows.
+            let part = Reader::new()
+                .read_table(&path, contents, |_| 5..20)
+                .unwrap();
+            assert_eq!(
+                part.values,
+                &expected[(5 * columns) as usize..(20 * columns) as usize],
+                "{stem} {label} rows 5..20"
+            );
+        }
+    }
+    // What the issue lists: every form was written.
+    for form in [
+        "csv-header",
+        "csv-spaces",
+        "csv-tabs",
+        "csv-crlf",
+        "npy-lef8-c",
+        "npy-bef8-f",
+        "npy-lef4-f",
+        "npy-bef4-c",
+        "npy-lec16-c",
+        "npy-bec16-f",
+        "npy-lec8-c",
+        "npy-bec8-f",
+        "npy-re-im-f",
+        "real-npy-bef4",
+        "real-csv",
+        "raw",
+    ] {
+        assert!(seen.contains(form), "{form} not tried");
+    }
+}
+
+/// Complex dipoles: a complex (N, 3) array, a real (N, 6) one, real
+/// vectors alone (zero imaginary parts); real dipoles of a complex file
+/// are refused.
+#[test]
+fn complex_dipoles_and_real_contents_of_complex_files() {
+    use ferrofmm_testing::files::npy_bytes;
+    let dir = Scratch::new("dipoles");
+    let v: Vec<f64> = (0..12).map(|i| f64::from(i) - 5.0).collect();
+    let le: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let p = dir.path("d.npy");
+    std::fs::write(&p, npy_bytes("<c16", false, &[2, 3], &le)).unwrap();
+    assert_eq!(ferrofmm_io::read(&p, Contents::ComplexDipoles).unwrap(), v);
+    std::fs::write(&p, npy_bytes("<f8", false, &[2, 6], &le)).unwrap();
+    assert_eq!(ferrofmm_io::read(&p, Contents::ComplexDipoles).unwrap(), v);
+    std::fs::write(&p, npy_bytes("<f8", false, &[4, 3], &le)).unwrap();
+    let widened: Vec<f64> = v.iter().flat_map(|&x| [x, 0.0]).collect();
+    assert_eq!(
+        ferrofmm_io::read(&p, Contents::ComplexDipoles).unwrap(),
+        widened
+    );
+    std::fs::write(&p, npy_bytes("<c16", false, &[2, 3], &le)).unwrap();
+    let e = ferrofmm_io::read(&p, Contents::Dipoles(1))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("complex dtype '<c16': dipoles are real numbers"),
+        "{e}"
+    );
+    // A non-finite imaginary part is named by its element.
+    let mut bad = v.clone();
+    bad[3] = f64::INFINITY;
+    let le: Vec<u8> = bad.iter().flat_map(|x| x.to_le_bytes()).collect();
+    std::fs::write(&p, npy_bytes("<c16", false, &[6], &le)).unwrap();
+    let e = ferrofmm_io::read(&p, Contents::ComplexCharges)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("element [1] is not finite (inf)"), "{e}");
+}
+
+/// A complex output: `complex128` / `complex64` arrays of one complex
+/// value per quantity, read back as the pairs written; CSV keeps the re,
+/// im columns. Raw `.f64` is not an output.
+#[test]
+fn complex_outputs_and_no_raw_output() {
+    let dir = Scratch::new("complex-out");
+    let v: Vec<f64> = (0..16).map(|i| f64::from(i) * 0.5 - 3.0).collect();
+    let names = ferrofmm_io::column_names(4, &["re", "im"]);
+    let names: Vec<&str> = names.iter().map(String::as_str).collect();
+    let npy = dir.path("o.npy");
+    ferrofmm_io::write_complex(&npy, Values::F64(&v), &names).unwrap();
+    let file = npyz::NpyFile::new(std::fs::File::open(&npy).unwrap()).unwrap();
+    assert_eq!(file.shape(), &[2, 4]);
+    assert_eq!(file.dtype().descr(), "'<c16'");
+    assert_eq!(
+        ferrofmm_io::read(&npy, Contents::ComplexDipoles)
+            .unwrap_err()
+            .to_string(),
+        format!(
+            "{}: expected an (N, 3) array of complex dipoles, found shape (2, 4)",
+            npy.display()
+        )
+    );
+    let v32: Vec<f32> = v.iter().map(|&x| x as f32).collect();
+    ferrofmm_io::write_complex(&npy, Values::F32(&v32[..4]), &names[..2]).unwrap();
+    let file = npyz::NpyFile::new(std::fs::File::open(&npy).unwrap()).unwrap();
+    assert_eq!(file.shape(), &[2]);
+    assert_eq!(file.dtype().descr(), "'<c8'");
+    assert_eq!(
+        ferrofmm_io::read(&npy, Contents::ComplexCharges).unwrap(),
+        &v[..4]
+    );
+    // A complex output written in parts (MPI): its header, then the pairs.
+    let mut bytes = npy::complex_header_bytes(2, 4);
+    assert_eq!(bytes.len() % 64, 0);
+    bytes.extend(v.iter().flat_map(|x| x.to_le_bytes()));
+    std::fs::write(&npy, bytes).unwrap();
+    let file = npyz::NpyFile::new(std::fs::File::open(&npy).unwrap()).unwrap();
+    assert_eq!(file.shape(), &[2, 4]);
+    let pairs: Vec<f64> = file
+        .into_vec::<npyz::num_complex::Complex<f64>>()
+        .unwrap()
+        .iter()
+        .flat_map(|c| [c.re, c.im])
+        .collect();
+    assert_eq!(pairs, v);
+    let csv_path = dir.path("o.csv");
+    ferrofmm_io::write_complex(&csv_path, Values::F64(&v), &names).unwrap();
+    let text = std::fs::read_to_string(&csv_path).unwrap();
+    assert!(
+        text.starts_with("potential_re,potential_im,grad_x_re,"),
+        "{text}"
+    );
+    assert_eq!(npy_or_csv_rows(&csv_path, 8), v);
+    let e = ferrofmm_io::write(&dir.path("o.f64"), Values::F64(&v), &names)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown file type for an output"), "{e}");
+    let e = output::check(&dir.path("o.f64"), &[])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("unknown file type for an output"), "{e}");
+    let e = ferrofmm_io::write_complex(&npy, Values::F64(&v[..3]), &names[..3])
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("not re, im pairs"), "{e}");
+}
+
+/// Raw `.f64`: through a pipe too; a length that is not whole records, or
+/// a stream beyond the limit, is refused.
+#[cfg(unix)]
+#[test]
+fn raw_files_whole_and_through_a_pipe() {
+    let dir = Scratch::new("raw");
+    let v: Vec<f64> = (0..30).map(|i| f64::from(i) * 0.125).collect();
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let fifo = dir.path("pipe.f64");
+    assert!(
+        std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .unwrap()
+            .success()
+    );
+    let feeder = {
+        let (fifo, bytes) = (fifo.clone(), bytes.clone());
+        std::thread::spawn(move || {
+            let mut f = std::fs::OpenOptions::new().write(true).open(fifo).unwrap();
+            let _ = f.write_all(&bytes);
+        })
+    };
+    let got = Reader::new().read_rows(&fifo, Contents::Points, |_| 2..4);
+    feeder.join().unwrap();
+    assert_eq!(got.unwrap(), (v[6..12].to_vec(), 10));
+    let p = dir.path("q.f64");
+    std::fs::write(&p, &bytes[..8 * 29]).unwrap();
+    assert_eq!(
+        ferrofmm_io::read(&p, Contents::Charges(1)).unwrap(),
+        &v[..29]
+    );
+    let e = ferrofmm_io::read_points(&p).unwrap_err().to_string();
+    assert!(
+        e.contains("232 bytes are not a whole number of points"),
+        "{e}"
+    );
+    let e = Reader::new()
+        .memory_limit(Some(100))
+        .read(&p, Contents::Charges(1))
+        .unwrap_err();
+    assert!(matches!(e, FileError::TooLarge { limit: 100, .. }), "{e}");
+    let mut nan = bytes.clone();
+    nan[8 * 7..8 * 8].copy_from_slice(&f64::NAN.to_le_bytes());
+    std::fs::write(&p, &nan).unwrap();
+    let e = ferrofmm_io::read_points(&p).unwrap_err().to_string();
+    assert!(e.contains("record 2, value 1 is not finite (NaN)"), "{e}");
+}
+
+/// The shared table of malformed files: the reader's message holds the
+/// text every front end must print.
+#[test]
+fn malformed_files_get_the_shared_messages() {
+    let dir = Scratch::new("malformed");
+    let cases = ferrofmm_testing::files::malformed(&dir.0);
+    assert!(cases.len() >= 15);
+    for case in cases {
+        let complex = case.kernel.starts_with("helmholtz");
+        let contents = match case.what.as_str() {
+            "points" => Contents::Points,
+            _ => Contents::charges(if complex { 2 } else { 1 }, complex),
+        };
+        let e = Reader::new()
+            .read(&case.path, contents)
+            .expect_err(&case.message)
+            .to_string();
+        assert!(
+            e.starts_with(&case.path.display().to_string()) && e.contains(&case.message),
+            "{}: {e}",
+            case.path.display()
+        );
+    }
+}

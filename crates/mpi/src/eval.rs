@@ -30,21 +30,28 @@ const VERIFY_SAMPLE: usize = 200;
 /// Arguments of `eval`.
 #[derive(Args)]
 pub struct EvalArgs {
-    /// Source points (also the targets): .npy (N x 3, float64 or float32,
-    /// C order; each rank reads only its rows) or .csv (x,y,z per line;
-    /// every rank reads the file and keeps its rows).
+    /// Source points (also the targets): .npy (N x 3, float64 or float32;
+    /// of a C-order file each rank reads only its rows), raw .f64
+    /// (little-endian float64, x, y, z per point; each rank reads only
+    /// its rows) or .csv (x,y,z per line; every rank reads the file and
+    /// keeps its rows).
     #[arg(long, value_name = "FILE", required_unless_present = "generate")]
     pub(crate) sources: Option<PathBuf>,
     /// Charges, one per source: .npy (N, or N x c for a kernel with c
-    /// components: re, im for helmholtz:K; fx, fy, fz for stokes) or .csv.
+    /// components: re, im for helmholtz:K; fx, fy, fz for stokes), .csv
+    /// or raw .f64. For helmholtz:K also a complex .npy array (N,
+    /// complex128 or complex64: the .npy output is then complex128) or
+    /// real charges alone (zero imaginary parts).
     #[arg(long, value_name = "FILE", required_unless_present_any = ["generate", "dipoles"])]
     pub(crate) charges: Option<PathBuf>,
     /// Dipole vectors, one per source: .npy or .csv (N x 3, or N x 3c:
-    /// nx_re, nx_im, ny_re, ... for helmholtz:K); with --charges, both.
+    /// nx_re, nx_im, ny_re, ... for helmholtz:K, or complex N x 3, or real
+    /// vectors alone); with --charges, both.
     #[arg(long, value_name = "FILE")]
     pub(crate) dipoles: Option<PathBuf>,
     /// Output file, .npy or .csv: the potential (c columns), and the
-    /// gradient (3c more) with --gradients, float64, in the input order.
+    /// gradient (3c more) with --gradients, float64, in the input order
+    /// (complex128, one column per quantity, after a complex .npy input).
     /// Written to a temporary name and renamed once complete.
     #[arg(long, value_name = "FILE")]
     pub(crate) out: Option<PathBuf>,
@@ -120,6 +127,9 @@ struct Inputs {
     points: Vec<f64>,
     densities: Vec<f64>,
     kind: SourceKind,
+    /// The densities came as a complex `.npy` array: a `.npy` output is
+    /// complex too.
+    complex: bool,
 }
 
 fn inputs(
@@ -151,6 +161,7 @@ fn inputs(
             points: geom.points::<f64>(n, 1000 + me as u64),
             densities: ferrofmm_fmm::charges(c * n, 2000 + me as u64),
             kind: SourceKind::Charge,
+            complex: false,
         });
     }
     let Some(s) = &a.sources else {
@@ -159,10 +170,15 @@ fn inputs(
     let reader = agree_text(world, reader(world))?;
     // Each file is read, then its outcome agreed (a collective), so that a
     // file one rank cannot read is the same error on every rank.
-    let (points, n) = agree_text(world, read_slice(&reader, s, Contents::Points, me, size))?;
-    let read = |path: &Option<PathBuf>, contents: Contents| {
+    let (points, n, _) = agree_text(world, read_slice(&reader, s, Contents::Points, me, size))?;
+    // The densities of a complex kernel: complex .npy arrays, re, im
+    // pairs or real values alone (zero imaginary parts).
+    let complex = KernelChoice::parse(&a.kernel).is_ok_and(|k| k.description().complex);
+    let mut complex_file = false;
+    let mut read = |path: &Option<PathBuf>, contents: Contents| {
         let Some(p) = path else { return Ok(None) };
-        let (v, m) = agree_text(world, read_slice(&reader, p, contents, me, size))?;
+        let (v, m, is_complex) = agree_text(world, read_slice(&reader, p, contents, me, size))?;
+        complex_file |= is_complex;
         if m != n {
             return Err(format!(
                 "{} holds {m} {} for the {n} points of {}: give one per point",
@@ -173,8 +189,8 @@ fn inputs(
         }
         Ok(Some(v))
     };
-    let charges = read(&a.charges, Contents::Charges(c))?;
-    let dipoles = read(&a.dipoles, Contents::Dipoles(c))?;
+    let charges = read(&a.charges, Contents::charges(c, complex))?;
+    let dipoles = read(&a.dipoles, Contents::dipoles(c, complex))?;
     let (kind, densities) = match (charges, dipoles) {
         (Some(q), None) => (SourceKind::Charge, q),
         (None, Some(d)) => (SourceKind::Dipole, d),
@@ -191,6 +207,7 @@ fn inputs(
         points,
         densities,
         kind,
+        complex: complex_file,
     })
 }
 
@@ -602,7 +619,7 @@ impl<K: Kernel> Run<'_, K> {
                         dfmm.values_per_target()
                     ));
                 }
-                write_out(world, out, &values, &names, first, total)?;
+                write_out(world, out, &values, &names, (first, total), input.complex)?;
             }
             let mut mine = figures(&dtree, &dfmm, &stats);
             mine.push(stats.compute_cpu_seconds);

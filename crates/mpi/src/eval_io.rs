@@ -31,17 +31,18 @@ pub(crate) fn reader(world: &SimpleCommunicator) -> Result<Reader, String> {
     Ok(Reader::new().memory_limit(limit.map(|l| l / on_node)))
 }
 
-/// This rank's rows of `path` (`contents` per row) and the total number
-/// of rows.
+/// This rank's rows of `path` (`contents` per row), the total number of
+/// rows, and whether the file held complex numbers.
 pub(crate) fn read_slice(
     reader: &Reader,
     path: &Path,
     contents: Contents,
     me: usize,
     size: usize,
-) -> Result<(Vec<f64>, u64), String> {
+) -> Result<(Vec<f64>, u64, bool), String> {
     reader
-        .read_rows(path, contents, |n| my_rows(n, me, size))
+        .read_table(path, contents, |n| my_rows(n, me, size))
+        .map(|t| (t.values, t.rows, t.complex))
         .map_err(|e| e.to_string())
 }
 
@@ -61,7 +62,9 @@ fn broadcast_text(world: &SimpleCommunicator, root: i32, text: &str) -> String {
 }
 
 /// Writes the values (`names.len()` per point, this rank's input rows from
-/// `first_row`, of `total`) to `out` (a collective). Rank 0 creates the
+/// `rows.0`, of `rows.1`) to `out` (a collective); a `.npy` output holds
+/// complex numbers when `complex` (`re, im` pairs of values, `complex128`),
+/// else `float64`. Rank 0 creates the
 /// temporary file (a `.npy` header and room for the data, or the CSV
 /// header line); every rank writes its rows into it; only when every rank
 /// succeeded does rank 0 rename it onto `out`. On any failure, on any
@@ -72,12 +75,12 @@ pub(crate) fn write_out(
     out: &Path,
     values: &[f64],
     names: &[&str],
-    first_row: u64,
-    total: u64,
+    (first_row, total): (u64, u64),
+    complex: bool,
 ) -> Result<(), String> {
     let me = world.rank();
     let w = names.len();
-    let format = Format::of(out).map_err(|e| e.to_string())?;
+    let format = Format::of_output(out).map_err(|e| e.to_string())?;
     let failed = |e: std::io::Error| {
         ferrofmm_io::FileError::WriteFailed {
             path: out.to_path_buf(),
@@ -93,13 +96,17 @@ pub(crate) fn write_out(
             let f = t.file().map_err(|e| e.to_string())?;
             let start = match format {
                 Format::Npy => {
-                    let head = npy::header_bytes(total, w as u64);
+                    let head = if complex {
+                        npy::complex_header_bytes(total, w as u64 / 2)
+                    } else {
+                        npy::header_bytes(total, w as u64)
+                    };
                     f.write_all(&head)
                         .and_then(|()| f.set_len(head.len() as u64 + 8 * total * w as u64))
                         .map_err(failed)?;
                     head.len() as u64
                 }
-                Format::Csv => {
+                Format::Csv | Format::Raw => {
                     let mut b = std::io::BufWriter::new(&mut *f);
                     csv::write_header(&mut b, names)
                         .and_then(|()| b.flush())
@@ -130,7 +137,7 @@ pub(crate) fn write_out(
                 })
                 .map_err(failed)
         }
-        Format::Csv => {
+        Format::Csv | Format::Raw => {
             // Ranks append their rows in turn (a failure is agreed at the end;
             // a rank after a failed one still takes its turn).
             let mut r = Ok(());

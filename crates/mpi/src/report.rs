@@ -10,10 +10,11 @@ use mpi::traits::*;
 #[derive(Args)]
 pub struct TreeArgs {
     /// Points file, as `ferrofmm eval` reads it: .csv (x,y,z per line,
-    /// commas or spaces, optional header, `#` comments) or .npy (N x 3,
-    /// float64 or float32). Rank `r` of `R` takes the points
-    /// `r n / R .. (r + 1) n / R` (of a C-order .npy file it reads only
-    /// those).
+    /// commas or spaces, optional header, `#` comments), .npy (N x 3,
+    /// float64 or float32) or raw .f64 (little-endian float64, x, y, z
+    /// per point). Rank `r` of `R` takes the points
+    /// `r n / R .. (r + 1) n / R` (of a C-order .npy or a .f64 file it
+    /// reads only those).
     #[arg(long, conflicts_with = "generate")]
     points: Option<std::path::PathBuf>,
     /// Generate points instead: uniform, sphere, plummer, two-clusters
@@ -67,7 +68,7 @@ fn read_points(world: &SimpleCommunicator, path: &std::path::Path) -> Result<Vec
     let (me, size) = (world.rank() as usize, world.size() as usize);
     let reader = agree_text(world, crate::eval_io::reader(world))?;
     let local = crate::eval_io::read_slice(&reader, path, Contents::Points, me, size);
-    agree_text(world, local).map(|(points, _)| points)
+    agree_text(world, local).map(|(points, _, _)| points)
 }
 
 /// Runs `tree`; returns the exit status.

@@ -628,7 +628,17 @@ fn tree_reads_the_files_eval_reads() {
     std::fs::write(path("ragged.csv"), "0.1 0.2\n0.3 0.4 0.5 0.6\n").unwrap();
     std::fs::write(path("six.csv"), "0.1,0.2,0.3\n0.1,0.2,0.3,0.4,0.5,0.6\n").unwrap();
     let mut totals = Vec::new();
-    for file in ["p.npy", "p.csv"] {
+    // Raw little-endian f64 (what `tree --points` read before it took
+    // .csv and .npy): read again, the same tree.
+    std::fs::write(
+        path("p.f64"),
+        pts.iter()
+            .flat_map(|x| x.to_le_bytes())
+            .collect::<Vec<u8>>(),
+    )
+    .unwrap();
+    std::fs::write(path("short.f64"), [0u8; 40]).unwrap();
+    for file in ["p.npy", "p.csv", "p.f64"] {
         let (ok, text) = mpirun(2, &["tree", "--points", &path(file), "--leaf-size", "30"]);
         assert!(
             ok && text.contains(&format!("total {n} points")),
@@ -637,7 +647,7 @@ fn tree_reads_the_files_eval_reads() {
         let leaves: Vec<&str> = text.lines().filter(|l| l.contains("leaves")).collect();
         totals.push(leaves.len());
     }
-    assert_eq!(totals, [2, 2]);
+    assert_eq!(totals, [2, 2, 2]);
     for (file, needle) in [
         (
             "ragged.csv",
@@ -648,6 +658,10 @@ fn tree_reads_the_files_eval_reads() {
             "six.csv, line 2: expected 3 values (x, y, z), found 6",
         ),
         ("binary.csv", "not UTF-8"),
+        (
+            "short.f64",
+            "short.f64: 40 bytes are not a whole number of points (raw .f64: 24 bytes each",
+        ),
         ("d.csv", "is a directory"),
         ("missing.npy", "No such file"),
     ] {
@@ -658,4 +672,141 @@ fn tree_reads_the_files_eval_reads() {
         assert!(!text.contains("NaN"), "{file}: {text}");
     }
     std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// `ferrofmm-mpi eval` on every file form `ferrofmm eval` reads
+/// (`ferrofmm_testing::files`, as in the CLI's `file_forms` tests): on 1
+/// rank, each form of points and charges (real for Laplace, complex for
+/// Helmholtz) gives the same values, those of a direct sum; a complex
+/// `.npy` of charges gives a complex128 output; on 2 ranks, a big-endian
+/// Fortran-order complex64 file and raw points give the 1-rank values.
+/// Every malformed file of the shared table gets its message, once.
+#[test]
+fn eval_reads_every_file_form_as_ferrofmm_eval_does() {
+    use ferrofmm_testing::errors::relative_l2;
+    use ferrofmm_testing::files::{Table, direct, f32_exact, malformed, write_forms};
+    let scratch = ferrofmm_testing::TempDir::new("mpi-file-forms");
+    let dir: &std::path::Path = &scratch;
+    let n = 240;
+    let k = 2.0;
+    let points = f32_exact(&ferrofmm_testing::points::uniform_cube(n, 0.0, 1.0, 21));
+    let charges = f32_exact(&ferrofmm_testing::charges::uniform_in(n, -0.5, 0.5, 22));
+    let complex = f32_exact(&ferrofmm_testing::charges::uniform_in(2 * n, -0.5, 0.5, 23));
+    let point_forms = write_forms(dir, "p", &points, Table::Real(3));
+    let charge_forms = write_forms(dir, "q", &charges, Table::Real(1));
+    let complex_forms = write_forms(dir, "z", &complex, Table::Complex);
+    let out = dir.join("out.npy");
+    let cache = dir.join("cache");
+    let eval = |ranks: usize, p: &std::path::Path, q: &std::path::Path, kernel: &str| {
+        let _ = std::fs::remove_file(&out);
+        let args = [
+            "eval",
+            "--sources",
+            p.to_str().unwrap(),
+            "--charges",
+            q.to_str().unwrap(),
+            "--kernel",
+            kernel,
+            "--order",
+            "6",
+            "--leaf-size",
+            "40",
+            "--scheme",
+            "fft",
+            "--cache-dir",
+            cache.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let (ok, text) = mpirun(ranks, &args);
+        assert!(ok, "{args:?}: {text}");
+        let npy = npyz::NpyFile::new(std::fs::File::open(&out).unwrap()).unwrap();
+        let shape = npy.shape().to_vec();
+        let complex_output = npy.dtype().descr() == "'<c16'";
+        let values: Vec<f64> = if complex_output {
+            npy.into_vec::<npyz::num_complex::Complex<f64>>()
+                .unwrap()
+                .iter()
+                .flat_map(|c| [c.re, c.im])
+                .collect()
+        } else {
+            npy.into_vec::<f64>().unwrap()
+        };
+        (complex_output, shape, values)
+    };
+    let cycle = |forms: &[(String, std::path::PathBuf)], i: usize| forms[i % forms.len()].clone();
+
+    let reference = direct(&points, &charges, None);
+    for i in 0..point_forms.len().max(charge_forms.len()) {
+        let ((p_label, p), (q_label, q)) = (cycle(&point_forms, i), cycle(&charge_forms, i));
+        let (complex_output, shape, values) = eval(1, &p, &q, "laplace");
+        assert!(!complex_output && shape == [n as u64], "{shape:?}");
+        let e = relative_l2(&values, &reference);
+        assert!(e < 1e-4, "points {p_label}, charges {q_label}: {e:e}");
+    }
+    let kernel = format!("helmholtz:{k}");
+    let real_parts: Vec<f64> = complex.iter().step_by(2).flat_map(|&r| [r, 0.0]).collect();
+    let references = [
+        direct(&points, &complex, Some(k)),
+        direct(&points, &real_parts, Some(k)),
+    ];
+    let mut one_rank = None;
+    for (i, (label, q)) in complex_forms.iter().enumerate() {
+        let (p_label, p) = cycle(&point_forms, i);
+        let (complex_output, shape, values) = eval(1, &p, q, &kernel);
+        let complex_dtype = label.contains("c16") || label.contains("c8");
+        assert_eq!(complex_output, complex_dtype, "{label}");
+        let rows = if complex_dtype {
+            vec![n as u64]
+        } else {
+            vec![n as u64, 2]
+        };
+        assert_eq!(shape, rows, "{label}");
+        let which = usize::from(label.starts_with("real-"));
+        let e = relative_l2(&values, &references[which]);
+        assert!(e < 1e-4, "points {p_label}, charges {label}: {e:e}");
+        if label == "npy-bec8-f" {
+            one_rank = Some((p, q.clone(), values));
+        }
+    }
+    let (_, q, one) = one_rank.expect("a big-endian Fortran complex64 form");
+    let raw = dir.join("p-raw.f64");
+    let (complex_output, _, two) = eval(2, &raw, &q, &kernel);
+    assert!(complex_output);
+    let d = relative_l2(&two, &one);
+    assert!(d < 1e-12, "2 ranks differ from 1: {d:e}");
+
+    let good_points = dir.join("good-p.csv");
+    let good_charges = dir.join("good-q.csv");
+    std::fs::write(&good_points, "0,0,0\n1,0,0\n0,1,0\n0,0,1\n").unwrap();
+    std::fs::write(&good_charges, "1\n2\n3\n4\n").unwrap();
+    for case in malformed(dir) {
+        let bad = case.path.to_str().unwrap();
+        let (sources, charges) = match case.what.as_str() {
+            "points" => (bad, good_charges.to_str().unwrap()),
+            _ => (good_points.to_str().unwrap(), bad),
+        };
+        let args = [
+            "eval",
+            "--sources",
+            sources,
+            "--charges",
+            charges,
+            "--kernel",
+            &case.kernel,
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        let _ = std::fs::remove_file(&out);
+        let (ok, text) = mpirun(1, &args);
+        let errors: Vec<&str> = text.lines().filter(|l| l.starts_with("error:")).collect();
+        assert!(
+            !ok && errors.len() == 1
+                && errors[0].starts_with(&format!("error: {bad}"))
+                && errors[0].contains(&case.message),
+            "{args:?}: '{}' expected in {text}",
+            case.message
+        );
+        assert!(!out.exists());
+    }
 }

@@ -5,6 +5,9 @@
 //! ([`ferrofmm_tree::Octree`]) behind two classes that take and return
 //! flat, C-contiguous NumPy arrays.
 //!
+//! Files are read and written by `ferrofmm-io`, the commands' own reader
+//! and writer ([`files`]: `ferrofmm.load`, `ferrofmm.save`).
+//!
 //! The public Python API (`ferrofmm.laplace`, `ferrofmm.yukawa`,
 //! `ferrofmm.Fmm`, `ferrofmm.Octree`) lives in `python/ferrofmm/__init__.py`:
 //! it turns whatever the caller passes (any float dtype the run accepts, C
@@ -22,6 +25,7 @@
 
 mod engine;
 mod errors;
+mod files;
 mod limits;
 mod octree;
 mod run;
@@ -34,6 +38,9 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<engine::NativeFmm>()?;
     m.add_class::<octree::NativeOctree>()?;
     m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(files::read_file, m)?)?;
+    m.add_function(wrap_pyfunction!(files::write_file, m)?)?;
+    m.add_function(wrap_pyfunction!(files::column_names, m)?)?;
     m.add("KERNELS", kernels(m.py())?)?;
     m.add(
         "SCHEMES",

@@ -17,7 +17,9 @@
 //!   uniform charges in a range;
 //! * [`errors`]: relative L2 errors (whole vectors or chosen columns of
 //!   interleaved rows), max-norm relative differences, norms;
-//! * [`scratch`]: [`TempDir`], a fresh directory removed on drop.
+//! * [`scratch`]: [`TempDir`], a fresh directory removed on drop;
+//! * [`files`]: input files in every form the front ends read, and the
+//!   shared table of malformed files and their messages.
 //!
 //! ```
 //! use ferrofmm_testing::{ChargeSign, charges, errors, points};
@@ -31,6 +33,7 @@
 
 pub mod charges;
 pub mod errors;
+pub mod files;
 pub mod points;
 pub mod rng;
 pub mod scratch;

@@ -79,6 +79,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         verify: args.fmm.verify()?,
         force: args.fmm.force,
         out_sources: None,
+        complex_output: false,
     };
     let report = run(input, &settings, None)?;
     if args.json {

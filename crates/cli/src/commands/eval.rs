@@ -14,14 +14,18 @@ use ferrofmm_io::{self as io, Contents};
 /// Arguments of `ferrofmm eval`.
 #[derive(Args, Clone, Debug)]
 pub struct EvalArgs {
-    /// Source points: .csv (x,y,z per line) or .npy (N x 3, float64/float32).
+    /// Source points: .csv (x,y,z per line), .npy (N x 3, float64/float32)
+    /// or raw .f64 (little-endian float64, x, y, z per point).
     #[arg(long, value_name = "FILE")]
     pub sources: PathBuf,
     /// Target points, same formats (default: the sources).
     #[arg(long, value_name = "FILE")]
     pub targets: Option<PathBuf>,
-    /// Charges, one per source: .csv (one per line) or .npy (N). At least
-    /// one of --charges and --dipoles.
+    /// Charges, one per source: .csv (one per line), .npy (N) or raw .f64.
+    /// For a complex kernel (helmholtz:K): complex .npy (N, complex128 or
+    /// complex64; the output is then complex too), re, im pairs (.csv
+    /// `re,im` per line, .npy N x 2), or real charges alone (zero
+    /// imaginary parts). At least one of --charges and --dipoles.
     #[arg(long, value_name = "FILE", required_unless_present = "dipoles")]
     pub charges: Option<PathBuf>,
     /// Dipole vectors n, one per source: .csv (nx,ny,nz per line) or .npy
@@ -32,8 +36,12 @@ pub struct EvalArgs {
     /// Output file, .csv or .npy, in the run's precision, one row per
     /// target: `potential`; with --gradients also `grad_x, grad_y, grad_z`
     /// (N x 4); with --hessians also `hess_xx, hess_yy, hess_zz, hess_xy,
-    /// hess_xz, hess_yz` (N x 10). Must not be one of the input files;
-    /// replaced only once fully written.
+    /// hess_xz, hess_yz` (N x 10). For a complex kernel each value is
+    /// re, im columns (`potential_re, potential_im, ...`); after a complex
+    /// .npy input of charges or dipoles, a .npy output holds complex
+    /// numbers instead (complex128, or complex64 with --precision f32),
+    /// one per quantity. Must not be one of the input files; replaced
+    /// only once fully written.
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// With --targets: also write the values at the sources (each source
@@ -111,9 +119,17 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         .transpose()?;
     let n_sources = sources.len() / 3;
     let c = kernel.components();
+    let complex = kernel.description().complex;
+    // A complex .npy input of densities makes the .npy output complex.
+    let mut complex_output = false;
+    let mut read_densities = |path: &std::path::Path, contents: Contents| {
+        let table = reader.read_table(path, contents, |n| 0..n)?;
+        complex_output |= table.complex;
+        Ok::<_, CliError>(table.values)
+    };
     let charges = match &args.charges {
         Some(path) => {
-            let q = reader.read(path, Contents::Charges(c))?;
+            let q = read_densities(path, Contents::charges(c, complex))?;
             if q.len() != c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "charges",
@@ -129,7 +145,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     };
     let dipoles = match &args.dipoles {
         Some(path) => {
-            let n = reader.read(path, Contents::Dipoles(c))?;
+            let n = read_densities(path, Contents::dipoles(c, complex))?;
             if n.len() != 3 * c * n_sources {
                 return Err(CliError::CountMismatch {
                     what: "dipoles",
@@ -177,6 +193,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         verify: args.fmm.verify()?,
         force: args.fmm.force,
         out_sources: split,
+        complex_output,
     };
     let report = run(input, &settings, Some(&args.out))?;
     if args.json {

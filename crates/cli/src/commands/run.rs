@@ -108,6 +108,9 @@ pub struct Settings {
     /// `eval --out-sources`: the first `n` targets are the sources, whose
     /// values go to this file (the rest to the output).
     pub out_sources: Option<(PathBuf, usize)>,
+    /// Write a `.npy` output as complex numbers (the densities came as a
+    /// complex `.npy` array); the values are then `re, im` pairs.
+    pub complex_output: bool,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
@@ -459,13 +462,18 @@ where
         with_stage(format!("writing {}", path.display()), || {
             let names = output_names(mode, settings.kernel);
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
+            let write = if settings.complex_output {
+                io::write_complex
+            } else {
+                io::write
+            };
             match &settings.out_sources {
                 Some((at_sources, n)) => {
                     let split = n * names.len();
-                    io::write(at_sources, as_values(&values[..split]), &names)?;
-                    io::write(path, as_values(&values[split..]), &names)
+                    write(at_sources, as_values(&values[..split]), &names)?;
+                    write(path, as_values(&values[split..]), &names)
                 }
-                None => io::write(path, as_values(&values), &names),
+                None => write(path, as_values(&values), &names),
             }
         })?;
     }

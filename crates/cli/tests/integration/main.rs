@@ -6,6 +6,7 @@ mod bad_input;
 mod common;
 mod demo;
 mod eval;
+mod file_forms;
 mod hostile;
 mod output_safety;
 mod physics;

@@ -29,6 +29,12 @@ Build once, evaluate many times (iterative solvers)::
 
 The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
 
+Files as the ``ferrofmm`` command reads and writes them (``.csv``, ``.npy``, raw ``.f64``)::
+
+    x = ferrofmm.load("points.csv")                       # (n, 3)
+    q = ferrofmm.load("q.npy", "charges", kernel="helmholtz")   # (n,) complex128
+    ferrofmm.save("out.npy", ferrofmm.helmholtz(x, q, k=2.0))
+
 Arrays are (n, 3) float64 or float32, in any memory order; they are copied,
 never modified. The run's float type follows the sources unless ``dtype``
 says otherwise. Bad input raises ValueError or TypeError; the GIL is
@@ -49,6 +55,7 @@ from ._fmm import (
     stokes,
     yukawa,
 )
+from ._files import load, save
 from ._octree import Octree
 
 __version__: str = _ferrofmm.__version__
@@ -65,6 +72,8 @@ __all__ = [
     "Fmm",
     "FmmResult",
     "Octree",
+    "load",
+    "save",
     "AccuracyWarning",
     "KERNELS",
     "DEFAULT_EPS",

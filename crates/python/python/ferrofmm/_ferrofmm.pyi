@@ -26,6 +26,14 @@ def check_run_memory(
     build: bool = ...,
 ) -> None: ...
 
+def read_file(
+    path: str, what: str, components: int, complex: bool
+) -> Tuple[npt.NDArray[np.float64], int, bool]: ...
+def write_file(
+    path: str, values: npt.NDArray[np.floating], names: List[str], complex: bool
+) -> None: ...
+def column_names(values_per_target: int, component_names: List[str]) -> List[str]: ...
+
 class NativeFmm:
     def __init__(
         self,

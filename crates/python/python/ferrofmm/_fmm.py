@@ -65,7 +65,8 @@ class FmmResult:
         sources (each excluding itself) from the same run, as an
         ``FmmResult`` of their own (FMM3D's ``pg`` with ``pgt``).
     info : dict
-        ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``dtype``,
+        ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``kernel_name``
+        (the name in :data:`KERNELS`), ``dtype``,
         ``eps``, ``predicted_error``, ``measured_error`` (estimated on a
         sample of targets against direct summation, for the first
         evaluation of a tolerance), ``verified``, ``threads``, tree figures
@@ -319,6 +320,7 @@ class Fmm:
         dens = parts[0] if len(parts) == 1 else np.concatenate(parts, axis=2)
         values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
         info = json.loads(info_json)
+        info["kernel_name"] = self._kernel
         self._last_info = info
         if info.get("verified") is False and not self._accuracy_warned:
             self._accuracy_warned = True
