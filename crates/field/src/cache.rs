@@ -286,8 +286,13 @@ pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
             return Ok((s, CacheStatus::Hit { path }));
         }
         Ok(Err(reason)) => Some(format!("inconsistent layout: {reason}")),
+        // No file (or no folder yet, or a folder path through a file: the
+        // write below says why it cannot be saved).
         Err(FieldError::CacheIo { source, .. })
-            if source.kind() == std::io::ErrorKind::NotFound =>
+            if matches!(
+                source.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) =>
         {
             None
         }
@@ -437,7 +442,8 @@ pub(crate) fn write<T: Real>(
     arrays: &[&[T]],
 ) -> Result<(), FieldError> {
     let dir = path.parent().unwrap_or(Path::new("."));
-    fs::create_dir_all(dir).map_err(io_err(dir))?;
+    // Errors name the file, as every other error of the cache does.
+    fs::create_dir_all(dir).map_err(io_err(path))?;
     let joined: Vec<T>;
     let le = match arrays {
         [one] => to_le(one),

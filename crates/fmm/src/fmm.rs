@@ -199,7 +199,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             (Some(c), Some(f)) => (f.config)(c),
             _ => config,
         };
-        let params = b.operator_params();
+        let params = b.operator_params()?;
         let mut parts = Vec::with_capacity(clusters.len());
         let mut first_rank = None;
         let single = clusters.len() == 1;

@@ -119,9 +119,8 @@ fn eviction_keeps_the_newest_and_the_recently_used() {
 fn concurrent_writers_of_one_entry_leave_one_valid_file() {
     let dir = TempDir::new("writers");
     let cache = dir.join("cache");
-    let reference = fingerprint(
-        &Operators::<f64>::new(&Laplace3d, &OperatorParams::new(5), 1.0, 2).unwrap(),
-    );
+    let reference =
+        fingerprint(&Operators::<f64>::new(&Laplace3d, &OperatorParams::new(5), 1.0, 2).unwrap());
     let n = 4;
     let barrier = Barrier::new(n);
     let prints: Vec<Vec<u64>> = std::thread::scope(|s| {
