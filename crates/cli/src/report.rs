@@ -312,68 +312,12 @@ pub fn mebibytes(bytes: Option<u64>) -> String {
     }
 }
 
-/// One cache file's fate in words: `hit`, `miss (computed, saved)`,
-/// `recomputed (cached file rejected: ...)`, with `, not saved: ...` when
-/// the new file could not be written. `None` when caching is off.
-fn cache_word(status: &CacheStatus) -> Option<String> {
-    let short = |s: &str| -> String {
-        let line = s.lines().next().unwrap_or_default();
-        if line.chars().count() > 70 {
-            format!("{}...", line.chars().take(70).collect::<String>())
-        } else {
-            line.to_string()
-        }
-    };
-    match status {
-        CacheStatus::Disabled => None,
-        CacheStatus::Hit { .. } => Some("hit".into()),
-        CacheStatus::Computed {
-            path,
-            rejected,
-            write_error,
-        } => {
-            // The messages name the file ("cache file PATH rejected: why");
-            // keep the reason only, the directory is the user's own.
-            let path = path.display().to_string();
-            let short = |s: &str| -> String {
-                let s = match s.find(&path) {
-                    Some(k) => s[k + path.len()..]
-                        .trim_start_matches(" rejected")
-                        .trim_start_matches(':')
-                        .trim_start(),
-                    None => s,
-                };
-                short(s)
-            };
-            Some(match (rejected, write_error) {
-                (None, None) => "miss (computed, saved)".to_string(),
-                (Some(r), None) => {
-                    format!("recomputed (cached file rejected: {}; saved)", short(r))
-                }
-                (None, Some(e)) => format!("memory only (computed, not saved: {})", short(e)),
-                (Some(r), Some(e)) => format!(
-                    "memory only (cached file rejected: {}; recomputed, not saved: {})",
-                    short(r),
-                    short(e)
-                ),
-            })
-        }
-    }
-}
-
 /// The cache's part in a run, from the status of the operator file and of
-/// the M2L file: `hit`, `miss (computed, saved)`, ... for both, or
-/// `operators X; M2L Y` when they differ. `None` when caching is off.
+/// the M2L file ([`CacheStatus::summary`]): `hit`, `miss (computed,
+/// saved)`, ... for both, or `operators X; M2L Y` when they differ. `None`
+/// when caching is off.
 pub fn cache_summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<String> {
-    match (cache_word(operators), cache_word(m2l)) {
-        (None, None) => None,
-        (Some(a), Some(b)) if a == b => Some(a),
-        (a, b) => Some(format!(
-            "operators {}; M2L {}",
-            a.unwrap_or_else(|| "not cached".into()),
-            b.unwrap_or_else(|| "not cached".into())
-        )),
-    }
+    CacheStatus::summary(operators, m2l)
 }
 
 /// The cache's part in a run and its folder, for the report: the words
