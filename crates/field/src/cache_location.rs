@@ -52,7 +52,31 @@ pub const DEFAULT_CACHE_SIZE: u64 = 2 << 30;
 /// The folder below the platform's cache folder.
 const CACHE_SUBFOLDER: &str = "ferrofmm";
 
-/// Which on-disk cache a run asks for (see the [module docs](self)).
+/// Which on-disk cache a run asks for.
+///
+/// # Resolution ([`CacheSetting::resolve`])
+///
+/// 1. An explicit folder ([`CacheSetting::Dir`]: `--cache-dir`,
+///    `cache_dir=` / `cache="path"`, `FmmBuilder::cache_dir`) wins.
+/// 2. [`CacheSetting::Default`] reads [`CACHE_ENV`] (`FERROFMM_CACHE`):
+///    `off`, `0`, `false` or `no` (any case) turns the cache off; any other
+///    non-empty value is the folder.
+/// 3. Else `$XDG_CACHE_HOME/ferrofmm` (an absolute `XDG_CACHE_HOME`), else
+///    `$HOME/.cache/ferrofmm`.
+/// 4. Else (no home) the operators are kept in memory only.
+///
+/// [`CacheSetting::Off`] (`--no-cache`, `cache=False`, the library's
+/// default) keeps them in memory only.
+///
+/// # Size
+///
+/// A folder holds at most [`DEFAULT_CACHE_SIZE`] (2 GiB) of cache files,
+/// or what [`CACHE_SIZE_ENV`] (`FERROFMM_CACHE_SIZE`) says
+/// ([`parse_cache_size`]). After each file written, the least recently
+/// used cache files (by modification time; a hit refreshes it) are deleted
+/// until the folder is under the cap; the file just written is never
+/// deleted, and only files of ours (our name pattern and our magic bytes)
+/// are ever touched.
 ///
 /// ```
 /// use ferrofmm_field::{CacheLocation, CacheSetting};
@@ -154,7 +178,7 @@ impl CacheLocation {
 
 impl CacheSetting {
     /// The folder and cap this setting means in the current environment
-    /// (see the [module docs](self)).
+    /// (the rules are those of [`CacheSetting`]).
     ///
     /// # Errors
     /// [`FieldError::InvalidParams`] when a folder is used and
