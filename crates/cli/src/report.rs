@@ -8,7 +8,8 @@
 //! scheme, precision, gradients, hessians, kernel ("laplace" or "yukawa:K"),
 //! sources ("charge", "dipole" or "charge+dipole"), threads, tolerance,
 //! predicted_error,
-//! cache (null without --cache-dir, else in words),
+//! cache (in words: hit, miss (computed, saved), off (--no-cache), memory only: why, ...),
+//! cache_dir (the cache folder, null when off),
 //! tree:       { depth, n_boxes, n_leaves, n_surface, u_list, v_list, w_list, x_list, m2l_bytes,
 //!               clusters, far_points },
 //! setup:      { tree_s, operators_s, m2l_precompute_s, layout_s, total_s },
@@ -28,7 +29,7 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use ferrofmm_field::CacheStatus;
+use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting, CacheStatus};
 use ferrofmm_fmm::{EvalTimings, FmmSummary, SetupTimings};
 
 use crate::commands::{PrecisionArg, SchemeArg};
@@ -96,10 +97,13 @@ pub struct RunReport {
     pub sources: String,
     /// Rayon worker threads.
     pub threads: usize,
-    /// What the operator cache did (`None`: no `--cache-dir`), in words;
-    /// see [`cache_summary`].
+    /// What the operator cache did, in words ([`cache_report`]; `None`
+    /// only in reports of older versions).
     #[serde(default)]
     pub cache: Option<String>,
+    /// The operator cache folder (`None`: no folder, see `cache`).
+    #[serde(default)]
+    pub cache_dir: Option<String>,
     /// Tree and operator figures.
     pub tree: TreeFigures,
     /// Setup time by step.
@@ -320,63 +324,32 @@ pub fn mebibytes(bytes: Option<u64>) -> String {
     }
 }
 
-/// One cache file's fate in words: `hit`, `miss (computed, saved)`,
-/// `recomputed (cached file rejected: ...)`, with `, not saved: ...` when
-/// the new file could not be written. `None` when caching is off.
-fn cache_word(status: &CacheStatus) -> Option<String> {
-    let short = |s: &str| -> String {
-        let line = s.lines().next().unwrap_or_default();
-        if line.chars().count() > 70 {
-            format!("{}...", line.chars().take(70).collect::<String>())
-        } else {
-            line.to_string()
-        }
-    };
-    match status {
-        CacheStatus::Disabled => None,
-        CacheStatus::Hit { .. } => Some("hit".into()),
-        CacheStatus::Computed {
-            path,
-            rejected,
-            write_error,
-        } => {
-            // The messages name the file ("cache file PATH rejected: why");
-            // keep the reason only, the directory is the user's own.
-            let path = path.display().to_string();
-            let short = |s: &str| -> String {
-                let s = match s.find(&path) {
-                    Some(k) => s[k + path.len()..]
-                        .trim_start_matches(" rejected")
-                        .trim_start_matches(':')
-                        .trim_start(),
-                    None => s,
-                };
-                short(s)
-            };
-            let saved = match write_error {
-                None => "saved".to_string(),
-                Some(e) => format!("not saved: {}", short(e)),
-            };
-            Some(match rejected {
-                None => format!("miss (computed, {saved})"),
-                Some(r) => format!("recomputed (cached file rejected: {}; {saved})", short(r)),
-            })
-        }
-    }
+/// The cache's part in a run, from the status of the operator file and of
+/// the M2L file ([`CacheStatus::summary`]): `hit`, `miss (computed,
+/// saved)`, ... for both, or `operators X; M2L Y` when they differ. `None`
+/// when caching is off.
+pub fn cache_summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<String> {
+    CacheStatus::summary(operators, m2l)
 }
 
-/// The cache's part in a run, from the status of the operator file and of
-/// the M2L file: `hit`, `miss (computed, saved)`, ... for both, or
-/// `operators X; M2L Y` when they differ. `None` when caching is off.
-pub fn cache_summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<String> {
-    match (cache_word(operators), cache_word(m2l)) {
-        (None, None) => None,
-        (Some(a), Some(b)) if a == b => Some(a),
-        (a, b) => Some(format!(
-            "operators {}; M2L {}",
-            a.unwrap_or_else(|| "not cached".into()),
-            b.unwrap_or_else(|| "not cached".into())
-        )),
+/// The cache's part in a run and its folder, for the report: the words
+/// of [`cache_summary`] when there is a folder, else why there is none
+/// (`off (--no-cache)`, `off (FERROFMM_CACHE=off)`, `memory only: no
+/// cache folder (...)`).
+pub fn cache_report(
+    setting: &CacheSetting,
+    operators: &CacheStatus,
+    m2l: &CacheStatus,
+) -> (Option<String>, Option<String>) {
+    match setting.resolve() {
+        Ok(CacheLocation::Folder { dir, .. }) => (
+            Some(cache_summary(operators, m2l).unwrap_or_else(|| "not needed".into())),
+            Some(dir.display().to_string()),
+        ),
+        Ok(CacheLocation::Off(CacheOff::Requested)) => (Some("off (--no-cache)".into()), None),
+        Ok(CacheLocation::Off(why)) => (Some(why.to_string()), None),
+        // The build read the same environment and succeeded.
+        Err(e) => (Some(format!("unknown: {e}")), None),
     }
 }
 
@@ -482,7 +455,11 @@ impl RunReport {
         );
         row(&mut o, "threads", self.threads.to_string());
         if let Some(c) = &self.cache {
-            row(&mut o, "operator cache", c.clone());
+            let c = match &self.cache_dir {
+                Some(dir) => format!("{c} in {dir}"),
+                None => c.clone(),
+            };
+            row(&mut o, "operator cache", c);
         }
 
         let _ = writeln!(

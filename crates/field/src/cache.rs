@@ -20,11 +20,29 @@
 //! and renamed into place, so a reader never sees a half-written file.
 //! The file name carries a hash of the key, so different parameters live in
 //! different files.
+//!
+//! # Several writers, eviction
+//!
+//! Every writer has its own temporary name (process id, a per-process
+//! random number, a counter), so processes, threads or MPI ranks that fill
+//! the same entry at once each write a whole file and the last rename wins:
+//! one valid file is left. A reader that opens a file renamed or deleted
+//! under it still reads the file it opened (POSIX), and one that finds no
+//! file recomputes: never an error, never wrong values.
+//!
+//! With a size cap ([`OperatorParams::cache_size_limit`](crate::OperatorParams::cache_size_limit)),
+//! each write is followed by an eviction: the folder's cache files (our
+//! name pattern *and* our magic bytes; nothing else is ever touched) are
+//! deleted oldest modification time first until their total is under the
+//! cap, never the file just written. A hit refreshes the file's
+//! modification time, so the order is least recently used. Temporary files
+//! of ours older than a day (a writer killed mid-write) are deleted too.
 
 use std::fs::{self, File};
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, SystemTime};
 
 use ferrofmm_kernels::{Kernel, Real};
 use serde::de::DeserializeOwned;
@@ -139,6 +157,72 @@ impl CacheStatus {
             CacheStatus::Hit { path } | CacheStatus::Computed { path, .. } => Some(path),
         }
     }
+
+    /// What happened, in words for a report (the file's path left out of
+    /// the reasons): `hit`, `miss (computed, saved)`, `recomputed (cached
+    /// file rejected: WHY; saved)`, `memory only (computed, not saved:
+    /// WHY)`, `memory only (cached file rejected: WHY; recomputed, not
+    /// saved: WHY)`. `None` for [`CacheStatus::Disabled`].
+    pub fn describe(&self) -> Option<String> {
+        let short = |s: &str| -> String {
+            let line = s.lines().next().unwrap_or_default();
+            if line.chars().count() > 70 {
+                format!("{}...", line.chars().take(70).collect::<String>())
+            } else {
+                line.to_string()
+            }
+        };
+        match self {
+            CacheStatus::Disabled => None,
+            CacheStatus::Hit { .. } => Some("hit".into()),
+            CacheStatus::Computed {
+                path,
+                rejected,
+                write_error,
+            } => {
+                // The messages name the file ("cache file PATH rejected:
+                // why"); keep the reason only.
+                let path = path.display().to_string();
+                let short = |s: &str| -> String {
+                    let s = match s.find(&path) {
+                        Some(k) => s[k + path.len()..]
+                            .trim_start_matches(" rejected")
+                            .trim_start_matches(':')
+                            .trim_start(),
+                        None => s,
+                    };
+                    short(s)
+                };
+                Some(match (rejected, write_error) {
+                    (None, None) => "miss (computed, saved)".to_string(),
+                    (Some(r), None) => {
+                        format!("recomputed (cached file rejected: {}; saved)", short(r))
+                    }
+                    (None, Some(e)) => format!("memory only (computed, not saved: {})", short(e)),
+                    (Some(r), Some(e)) => format!(
+                        "memory only (cached file rejected: {}; recomputed, not saved: {})",
+                        short(r),
+                        short(e)
+                    ),
+                })
+            }
+        }
+    }
+
+    /// The cache's part in a build from the status of the operator file
+    /// and of the M2L file: their [`CacheStatus::describe`] when they
+    /// agree, else `operators X; M2L Y`. `None` when both are disabled.
+    pub fn summary(operators: &CacheStatus, m2l: &CacheStatus) -> Option<String> {
+        match (operators.describe(), m2l.describe()) {
+            (None, None) => None,
+            (Some(a), Some(b)) if a == b => Some(a),
+            (a, b) => Some(format!(
+                "operators {}; M2L {}",
+                a.unwrap_or_else(|| "not cached".into()),
+                b.unwrap_or_else(|| "not cached".into())
+            )),
+        }
+    }
 }
 
 /// The typed description of what a cache file's payload holds: which
@@ -240,8 +324,12 @@ impl<T: Real, L: StoreLayout + Clone> CachePayload<T> for FlatStore<L, T> {
 
 /// Load `S` from the cache when a valid file exists (and `accept` agrees
 /// with its layout), else compute it and (try to) write the file.
+///
+/// After a successful write, the folder is trimmed to `size_limit` bytes
+/// ([`evict`]); a hit refreshes the file's modification time.
 pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
     dir: Option<&Path>,
+    size_limit: Option<u64>,
     key: &CacheKey,
     accept: impl Fn(&S::Layout) -> Result<(), String>,
     compute: impl FnOnce() -> Result<S, FieldError>,
@@ -259,10 +347,18 @@ pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
         S::from_values(layout, data)
     });
     let rejected = match loaded {
-        Ok(Ok(s)) => return Ok((s, CacheStatus::Hit { path })),
+        Ok(Ok(s)) => {
+            touch(&path);
+            return Ok((s, CacheStatus::Hit { path }));
+        }
         Ok(Err(reason)) => Some(format!("inconsistent layout: {reason}")),
+        // No file (or no folder yet, or a folder path through a file: the
+        // write below says why it cannot be saved).
         Err(FieldError::CacheIo { source, .. })
-            if source.kind() == std::io::ErrorKind::NotFound =>
+            if matches!(
+                source.kind(),
+                std::io::ErrorKind::NotFound | std::io::ErrorKind::NotADirectory
+            ) =>
         {
             None
         }
@@ -274,6 +370,9 @@ pub(crate) fn load_or_compute<T: Real, S: CachePayload<T>>(
         .and_then(|layout| write::<T>(&path, key, &layout, &s.arrays()))
         .err()
         .map(|e| e.to_string());
+    if let (None, Some(limit)) = (&write_error, size_limit) {
+        evict(dir, limit, &path);
+    }
     Ok((
         s,
         CacheStatus::Computed {
@@ -409,7 +508,8 @@ pub(crate) fn write<T: Real>(
     arrays: &[&[T]],
 ) -> Result<(), FieldError> {
     let dir = path.parent().unwrap_or(Path::new("."));
-    fs::create_dir_all(dir).map_err(io_err(dir))?;
+    // Errors name the file, as every other error of the cache does.
+    fs::create_dir_all(dir).map_err(io_err(path))?;
     let joined: Vec<T>;
     let le = match arrays {
         [one] => to_le(one),
@@ -429,8 +529,9 @@ pub(crate) fn write<T: Real>(
         .map_err(|e| invalid(path, format!("header does not encode: {e}")))?;
     let file_name = path.file_name().and_then(|s| s.to_str()).unwrap_or("cache");
     let tmp = dir.join(format!(
-        ".{file_name}.{}.{}.tmp",
+        ".{file_name}.{}.{:016x}.{}.tmp",
         std::process::id(),
+        process_nonce(),
         TMP_COUNTER.fetch_add(1, Ordering::Relaxed)
     ));
     let result = (|| -> std::io::Result<()> {
@@ -453,6 +554,125 @@ pub(crate) fn write<T: Real>(
         });
     }
     Ok(())
+}
+
+/// A random number fixed for the life of the process: with the process id
+/// and [`TMP_COUNTER`], temporary names differ between writers even across
+/// machines that share a folder (MPI ranks on several nodes).
+fn process_nonce() -> u64 {
+    use std::hash::{BuildHasher, Hasher};
+    static NONCE: std::sync::OnceLock<u64> = std::sync::OnceLock::new();
+    *NONCE.get_or_init(|| {
+        // `RandomState` is seeded from the operating system's randomness.
+        let mut h = std::collections::hash_map::RandomState::new().build_hasher();
+        h.write_u128(
+            SystemTime::now()
+                .duration_since(SystemTime::UNIX_EPOCH)
+                .map_or(0, |d| d.as_nanos()),
+        );
+        h.finish()
+    })
+}
+
+/// Mark a cache file as just used (its modification time), so eviction
+/// removes it last; silently nothing where the file cannot be written.
+fn touch(path: &Path) {
+    if let Ok(f) = File::options().write(true).open(path) {
+        let _ = f.set_modified(SystemTime::now());
+    }
+}
+
+/// Temporary files older than this are left over by a killed writer.
+const STALE_TMP: Duration = Duration::from_secs(24 * 3600);
+
+/// `<kind>_<kernel>_p<order>_<float>_<16 hex digits>.ffmm`, as
+/// [`file_path`] names them.
+fn is_cache_file_name(name: &str) -> bool {
+    let Some(stem) = name.strip_suffix(".ffmm") else {
+        return false;
+    };
+    let Some((front, hash)) = stem.rsplit_once('_') else {
+        return false;
+    };
+    hash.len() == 16
+        && hash.bytes().all(|b| b.is_ascii_hexdigit())
+        && front.contains("_p")
+        && name
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || b"-_.".contains(&b))
+}
+
+/// `.<cache file name>.<pid>.<nonce>.<n>.tmp`, as [`write`] names them.
+fn is_temporary_name(name: &str) -> bool {
+    name.strip_prefix('.')
+        .and_then(|n| n.strip_suffix(".tmp"))
+        .and_then(|n| n.split_once(".ffmm."))
+        .is_some_and(|(file, rest)| {
+            is_cache_file_name(&format!("{file}.ffmm"))
+                && rest.split('.').count() == 3
+                && rest.bytes().all(|b| b.is_ascii_hexdigit() || b == b'.')
+        })
+}
+
+/// Whether `path` starts with the cache's magic bytes.
+fn has_magic(path: &Path) -> bool {
+    let mut m = [0u8; 8];
+    File::open(path)
+        .and_then(|mut f| f.read_exact(&mut m))
+        .is_ok_and(|()| &m == MAGIC)
+}
+
+/// Trim the cache folder `dir` to at most `limit` bytes of cache files:
+/// delete ours (name pattern and magic) oldest modification time first,
+/// never `keep`; also delete our temporary files older than a day.
+/// Returns how many cache files were deleted. Errors (a file another
+/// process deleted first, a folder that cannot be listed) are ignored:
+/// eviction is housekeeping and never fails a run.
+pub(crate) fn evict(dir: &Path, limit: u64, keep: &Path) -> usize {
+    let Ok(entries) = fs::read_dir(dir) else {
+        return 0;
+    };
+    let now = SystemTime::now();
+    let mut files: Vec<(SystemTime, u64, PathBuf)> = Vec::new();
+    for entry in entries.flatten() {
+        let name = entry.file_name();
+        let Some(name) = name.to_str() else { continue };
+        let Ok(meta) = entry.metadata() else { continue };
+        if !meta.is_file() {
+            continue;
+        }
+        let modified = meta.modified().unwrap_or(now);
+        let path = entry.path();
+        if is_cache_file_name(name) {
+            if has_magic(&path) {
+                files.push((modified, meta.len(), path));
+            }
+        } else if is_temporary_name(name)
+            && now.duration_since(modified).unwrap_or_default() > STALE_TMP
+        {
+            let _ = fs::remove_file(&path);
+        }
+    }
+    let mut total: u64 = files.iter().map(|f| f.1).sum();
+    if total <= limit {
+        return 0;
+    }
+    files.sort();
+    let mut removed = 0;
+    for (_, len, path) in files {
+        if total <= limit {
+            break;
+        }
+        if path == keep {
+            continue;
+        }
+        if fs::remove_file(&path).is_ok() {
+            removed += 1;
+        }
+        // Gone either way (deleted here or by another process).
+        total = total.saturating_sub(len);
+    }
+    removed
 }
 
 /// The values as little-endian (a borrow on little-endian hosts).
@@ -560,6 +780,33 @@ pub(crate) fn xxh64(data: &[u8], seed: u64) -> u64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn our_names_only() {
+        let key = CacheKey::new::<ferrofmm_kernels::Laplace3d, f64>(
+            "operators",
+            &ferrofmm_kernels::Laplace3d,
+            6,
+            [1.05, 2.95, 2.95, 1.05],
+        );
+        let path = file_path(Path::new("/x"), &key);
+        let name = path.file_name().unwrap().to_str().unwrap();
+        assert!(is_cache_file_name(name), "{name}");
+        let tmp = format!(".{name}.123.00ff00ff00ff00ff.7.tmp");
+        assert!(is_temporary_name(&tmp), "{tmp}");
+        for other in [
+            "notes.txt",
+            "data.ffmm",
+            "a_p6_f64_0123.ffmm",
+            "a_p6_f64_0123456789abcdeg.ffmm",
+            "operators_laplace_p6_f64_0123456789abcdef.ffmm.bak",
+            ".notes.txt.1.2.3.tmp",
+            ".data.ffmm.1.2.3.tmp",
+        ] {
+            assert!(!is_cache_file_name(other), "{other}");
+            assert!(!is_temporary_name(other), "{other}");
+        }
+    }
 
     #[test]
     fn xxh64_reference_vectors() {

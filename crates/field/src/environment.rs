@@ -1,5 +1,6 @@
-//! The environment variables the precomputation reads: only
-//! [`MEMORY_LIMIT_ENV`] (`FERROFMM_MEMORY_LIMIT`), a byte count
+//! The environment variables the precomputation reads:
+//! [`MEMORY_LIMIT_ENV`] (`FERROFMM_MEMORY_LIMIT`, the cache's variables
+//! are read in `cache_location`), a byte count
 //! `x [K|M|G|T][i][B]` meaning `x * 1024^e` bytes (`e = 0..4` for no
 //! suffix, `K`, `M`, `G`, `T`), or `unlimited` / `off`.
 //!
@@ -24,7 +25,7 @@ pub(crate) fn memory_limit_from_env() -> Option<Result<Option<u64>, FieldError>>
 
 /// `"123"`, `"64K"`, `"512M"`, `"8G"`, `"1T"` (powers of 1024, optional
 /// trailing `B`/`iB`), or `"unlimited"` (`Some(None)`).
-fn parse_bytes(s: &str) -> Option<Option<u64>> {
+pub(crate) fn parse_bytes(s: &str) -> Option<Option<u64>> {
     let s = s.trim();
     if s.eq_ignore_ascii_case("unlimited") || s.eq_ignore_ascii_case("off") {
         return Some(None);

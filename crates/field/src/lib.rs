@@ -70,11 +70,15 @@
 //! are stored on disk (module `cache`: bincode header + raw little-endian
 //! payload with an XXH64 checksum) and reloaded when every parameter
 //! matches; anything stale, truncated or corrupt is recomputed and rewritten.
-//! See [`CacheStatus`].
+//! See [`CacheStatus`]. [`OperatorParams::cache_size_limit`] caps the
+//! folder (least recently used files deleted first). Where the folder is
+//! (an explicit one, `FERROFMM_CACHE`, the XDG cache folder) is decided by
+//! [`CacheSetting::resolve`], for every front end.
 
 #![warn(missing_docs)]
 
 mod cache;
+mod cache_location;
 mod environment;
 mod error;
 mod estimate;
@@ -97,6 +101,10 @@ mod threads;
 mod usage;
 
 pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};
+pub use cache_location::{
+    CACHE_ENV, CACHE_SIZE_ENV, CacheLocation, CacheOff, CacheOrigin, CacheSetting,
+    DEFAULT_CACHE_SIZE, parse_cache_size,
+};
 pub use environment::MEMORY_LIMIT_ENV;
 pub use error::FieldError;
 pub use estimate::PrecomputeEstimate;

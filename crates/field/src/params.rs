@@ -60,8 +60,13 @@ pub struct OperatorParams {
     /// a bad idea at high order).
     pub pinv_rcond: Option<f64>,
     /// Directory of the on-disk operator cache; `None` disables the cache.
-    /// The directory is created when missing.
+    /// The directory is created when missing. [`CacheSetting::resolve`](crate::CacheSetting::resolve)
+    /// finds the default one.
     pub cache_dir: Option<PathBuf>,
+    /// Most bytes of cache files kept in [`OperatorParams::cache_dir`]:
+    /// after writing a file, the least recently used others are deleted
+    /// until the folder is under it (`None`: no cap).
+    pub cache_size_limit: Option<u64>,
     /// Progress callback and cancel flag of the precomputation (observes
     /// it, takes no part in the result; the default reports nothing).
     pub monitor: PrecomputeMonitor,
@@ -79,6 +84,7 @@ impl OperatorParams {
             radii: SurfaceRadii::default(),
             pinv_rcond: None,
             cache_dir: None,
+            cache_size_limit: None,
             monitor: PrecomputeMonitor::default(),
             memory_limit: MemoryLimit::default(),
         }

@@ -5,8 +5,8 @@ use std::path::PathBuf;
 use std::sync::Arc;
 
 use ferrofmm_field::{
-    DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor, SurfaceRadii, SvdConfig,
-    SvdM2l,
+    CacheSetting, DenseM2l, M2lScheme, MemoryLimit, OperatorParams, PrecomputeMonitor,
+    SurfaceRadii, SvdConfig, SvdM2l,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Precision, Real, SourceKind};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
@@ -116,7 +116,7 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) source_kind: SourceKind,
     pub(crate) radii: SurfaceRadii,
     pub(crate) pinv_rcond: Option<f64>,
-    pub(crate) cache_dir: Option<PathBuf>,
+    pub(crate) cache: CacheSetting,
     pub(crate) domain: Option<Domain>,
     pub(crate) max_level: u32,
     pub(crate) tolerance: Option<f64>,
@@ -175,7 +175,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             source_kind: SourceKind::Charge,
             radii: SurfaceRadii::default(),
             pinv_rcond: None,
-            cache_dir: None,
+            cache: CacheSetting::Off,
             domain: None,
             max_level: DEEPEST_LEVEL,
             tolerance: None,
@@ -203,7 +203,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             source_kind: self.source_kind,
             radii: self.radii,
             pinv_rcond: self.pinv_rcond,
-            cache_dir: self.cache_dir,
+            cache: self.cache,
             domain: self.domain,
             max_level: self.max_level,
             tolerance: self.tolerance,
@@ -388,10 +388,53 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
-    /// Directory for the on-disk operator cache (none by default).
+    /// Directory for the on-disk operator cache (none by default):
+    /// `.cache(CacheSetting::Dir(dir))`.
     pub fn cache_dir(mut self, dir: impl Into<PathBuf>) -> Self {
-        self.cache_dir = Some(dir.into());
+        self.cache = CacheSetting::Dir(dir.into());
         self
+    }
+
+    /// Which on-disk operator cache to use: [`CacheSetting::Off`] (the
+    /// default), [`CacheSetting::Default`] or [`CacheSetting::Dir`].
+    ///
+    /// The library keeps operators in memory unless asked, so a program or
+    /// a test suite never writes into the user's home folder by surprise;
+    /// the `ferrofmm` command, `ferrofmm-mpi` and the Python module ask for
+    /// [`CacheSetting::Default`] (see [`FmmBuilder::default_cache`]). With
+    /// a folder, at most its size cap of cache files is kept there
+    /// (`FERROFMM_CACHE_SIZE`, default
+    /// [`DEFAULT_CACHE_SIZE`](ferrofmm_field::DEFAULT_CACHE_SIZE)), least
+    /// recently used first out; a folder that cannot be written leaves the
+    /// operators in memory (the [`CacheStatus`](ferrofmm_field::CacheStatus)
+    /// of [`Fmm::operators`] says why), never an error.
+    pub fn cache(mut self, setting: CacheSetting) -> Self {
+        self.cache = setting;
+        self
+    }
+
+    /// Use the default on-disk cache, as the command-line tools do:
+    /// `FERROFMM_CACHE` (a folder, or `off`), else
+    /// `$XDG_CACHE_HOME/ferrofmm`, else `$HOME/.cache/ferrofmm`, else memory
+    /// only ([`CacheSetting::resolve`]). A `FERROFMM_CACHE_SIZE` that is
+    /// not a size makes the build fail with [`FmmError::Field`].
+    ///
+    /// ```
+    /// use ferrofmm_fmm::FmmBuilder;
+    /// use ferrofmm_fmm::CacheSetting;
+    /// # let dir = std::env::temp_dir().join(format!("ferrofmm-doc-{}", std::process::id()));
+    /// let points = ferrofmm_fmm::Geometry::Cube.points(500, 1);
+    /// // A folder of one's own; `.default_cache()` for the user's cache folder.
+    /// let fmm = FmmBuilder::<f64, _>::new(&points)
+    ///     .order(4)
+    ///     .cache(CacheSetting::Dir(dir.clone()))
+    ///     .build_svd()?;
+    /// assert!(fmm.operators().cache_status().path().unwrap().starts_with(&dir));
+    /// # std::fs::remove_dir_all(&dir).ok();
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn default_cache(self) -> Self {
+        self.cache(CacheSetting::Default)
     }
 
     /// How much memory the operator precomputation may take (default
@@ -439,15 +482,18 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
-    /// Operator parameters as they will be used.
-    pub(crate) fn operator_params(&self) -> OperatorParams {
+    /// Operator parameters as they will be used (the cache setting
+    /// resolved: a `FERROFMM_CACHE_SIZE` that is not a size is an error).
+    pub(crate) fn operator_params(&self) -> Result<OperatorParams, FmmError> {
         let mut params = OperatorParams::new(self.order);
         params.radii = self.radii;
         params.pinv_rcond = self.pinv_rcond;
-        params.cache_dir = self.cache_dir.clone();
+        let cache = self.cache.resolve()?;
+        params.cache_dir = cache.dir().map(PathBuf::from);
+        params.cache_size_limit = cache.size_limit();
         params.memory_limit = self.memory_limit;
         params.monitor = self.monitor.clone();
-        params
+        Ok(params)
     }
 
     /// Check every parameter and every coordinate before any work
@@ -466,6 +512,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         if let Some(t) = &self.targets {
             t.check("targets")?;
         }
+        self.cache.resolve()?;
         Ok(())
     }
 

@@ -215,7 +215,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 && clusters.len() == 1
                 && T::PRECISION == Precision::F64
             {
-                let cached = b.cache_dir.is_some() && b.kernel.homogeneity().is_some();
+                let cached = !matches!(b.cache, ferrofmm_field::CacheSetting::Off)
+                    && b.kernel.homogeneity().is_some();
                 let precompute = if cached {
                     0.0
                 } else {
@@ -241,7 +242,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             (Some(c), Some(f)) => (f.config)(c),
             _ => config,
         };
-        let params = b.operator_params();
+        let params = b.operator_params()?;
         let mut parts = Vec::with_capacity(clusters.len());
         let mut first_rank = None;
         let single = clusters.len() == 1;

@@ -56,7 +56,9 @@ pub use builder::{
 };
 pub use data::{Charges, Geometry, charges};
 pub use error::FmmError;
-pub use ferrofmm_field::{MemoryLimit, PrecomputeMonitor, PrecomputeProgress};
+pub use ferrofmm_field::{
+    CacheLocation, CacheSetting, MemoryLimit, PrecomputeMonitor, PrecomputeProgress,
+};
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::{MemoryReport, RunSize, check_memory};
 pub use overflow::check_finite_output;

@@ -28,7 +28,7 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use ferrofmm_field::{M2lScheme, M2lUsage, OperatorParams};
+use ferrofmm_field::{M2lScheme, M2lUsage, OperatorParams, Operators};
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use ferrofmm_tree::Octree;
 
@@ -209,6 +209,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     /// The M2L scheme.
     pub fn m2l_scheme(&self) -> &S {
         &self.part.m2l
+    }
+
+    /// The per-box translation operators (and their
+    /// [`cache_status`](Operators::cache_status)).
+    pub fn operators(&self) -> &Operators<T> {
+        &self.part.operators
     }
 
     /// Time spent precomputing operators and laying out the points.

@@ -7,7 +7,10 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdConfig, SvdM2l};
+use ferrofmm_field::{
+    CacheLocation, CacheOff, CacheSetting, CacheStatus, DenseM2l, FftM2l, M2lScheme, SvdConfig,
+    SvdM2l,
+};
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice, effective_tolerance};
 use ferrofmm_kernels::{
@@ -109,8 +112,14 @@ pub struct EvalArgs {
     pub(crate) check: usize,
     /// Directory of the operator cache: rank 0 computes (or loads) the
     /// operators, the other ranks load them.
+    /// Default: FERROFMM_CACHE (a folder, or `off`), else
+    /// $XDG_CACHE_HOME/ferrofmm, else ~/.cache/ferrofmm; at most
+    /// FERROFMM_CACHE_SIZE (default 2G) kept, least recently used first out.
     #[arg(long, value_name = "DIR")]
     pub(crate) cache_dir: Option<PathBuf>,
+    /// Keep the operators in memory only (every rank computes them).
+    #[arg(long, conflicts_with = "cache_dir")]
+    pub(crate) no_cache: bool,
     /// Threads per rank (default: RAYON_NUM_THREADS, else the node's cores
     /// divided among the ranks on it).
     #[arg(long, value_name = "T")]
@@ -237,6 +246,7 @@ fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
         ("--repeats", a.repeats.to_string()),
         ("--check", a.check.to_string()),
         ("--cache-dir", path(&a.cache_dir)),
+        ("--no-cache", a.no_cache.to_string()),
         ("--json", a.json.to_string()),
     ]
 }
@@ -539,10 +549,19 @@ impl<K: Kernel> Run<'_, K> {
         }
         .min(usize::try_from(total_points).unwrap_or(usize::MAX));
         let mut attempts = Vec::new();
+        // The one resolution of the cache folder (every rank reads the
+        // same environment, so a bad FERROFMM_CACHE_SIZE fails on all).
+        let cache_setting = match (&a.cache_dir, a.no_cache) {
+            (Some(dir), _) => CacheSetting::Dir(dir.clone()),
+            (None, true) => CacheSetting::Off,
+            (None, false) => CacheSetting::Default,
+        };
+        let cache = cache_setting.resolve().map_err(|e| e.to_string())?;
         loop {
             let options = DistFmmOptions {
                 sources: input.kind,
-                cache_dir: a.cache_dir.clone(),
+                cache_dir: cache.dir().map(PathBuf::from),
+                cache_size_limit: cache.size_limit(),
                 ..DistFmmOptions::new(plan.order, mode)
             };
             let config = S::config(plan.svd_tolerance);
@@ -643,6 +662,16 @@ impl<K: Kernel> Run<'_, K> {
                     samples,
                     read_s,
                     threads,
+                    cache: match &cache {
+                        CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
+                        CacheLocation::Off(why) => why.to_string(),
+                        CacheLocation::Folder { .. } => CacheStatus::summary(
+                            dfmm.local().operators().cache_status(),
+                            &dfmm.local().m2l_scheme().cache_status(),
+                        )
+                        .unwrap_or_else(|| "not needed".into()),
+                    },
+                    cache_dir: cache.dir().map(|d| d.display().to_string()),
                 };
                 report(&info, &all, size);
             }

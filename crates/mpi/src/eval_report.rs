@@ -36,6 +36,11 @@ pub(crate) struct RunInfo<'a> {
     pub(crate) samples: usize,
     pub(crate) read_s: f64,
     pub(crate) threads: usize,
+    /// What the operator cache did on rank 0, in words (`hit`, `miss
+    /// (computed, saved)`, `off (--no-cache)`, `memory only: ...`).
+    pub(crate) cache: String,
+    /// The cache folder (`None`: none).
+    pub(crate) cache_dir: Option<String>,
 }
 
 /// Figures of one rank, gathered on all: points, ghost points, boxes of the
@@ -140,6 +145,8 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
             "gradients": info.gradients,
             "input": info.input.unwrap_or("files"),
             "threads_per_rank": info.threads,
+            "cache": info.cache,
+            "cache_dir": info.cache_dir,
             "tolerance": info.tolerance,
             "chosen": info.choice.map(|c| serde_json::json!({
                 "order": c.order,
@@ -175,6 +182,10 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
         "{size} ranks x {} threads, {}, order {}, leaf {}, {} M2L; imbalance: points {points_imb:.4}, evaluation time {time_imb:.4}",
         info.threads, info.kernel, info.order, info.leaf_size, info.scheme
     );
+    match &info.cache_dir {
+        Some(dir) => println!("operator cache (rank 0): {} in {dir}", info.cache),
+        None => println!("operator cache: {}", info.cache),
+    }
     if let (Some(eps), Some(c)) = (info.tolerance, info.choice) {
         println!(
             "tolerance {eps:e}: chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",

@@ -5,7 +5,10 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, RwLock};
 
-use ferrofmm_field::{CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor};
+use ferrofmm_field::{
+    CacheLocation, CacheOff, CacheSetting, CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme,
+    PrecomputeMonitor,
+};
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SchemeChoice, SetupTimings, Verification,
 };
@@ -136,6 +139,8 @@ trait Engine: Send + Sync {
     fn n_targets(&self) -> usize;
     /// Why the operator cache could not be written (one line per file).
     fn cache_write_errors(&self) -> Vec<String>;
+    /// What the cache did, in words ([`CacheStatus::summary`]).
+    fn cache_summary(&self) -> Option<String>;
 }
 
 impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
@@ -196,6 +201,13 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         Fmm::n_targets(self)
     }
 
+    fn cache_summary(&self) -> Option<String> {
+        CacheStatus::summary(
+            self.operators().cache_status(),
+            &self.m2l_scheme().cache_status(),
+        )
+    }
+
     fn cache_write_errors(&self) -> Vec<String> {
         [
             self.operators().cache_status().clone(),
@@ -224,7 +236,8 @@ struct BuildOptions {
     mode: EvalMode,
     source_kind: SourceKind,
     verify: bool,
-    cache_dir: Option<PathBuf>,
+    /// `cache_dir=` / `cache="path"`, `cache=False`, else the default.
+    cache: CacheSetting,
 }
 
 /// Build for float type `T` from points held in `f64`: they are rounded to
@@ -287,10 +300,10 @@ fn build_with<T: Float, K: Kernel>(
     if let Some(l) = o.leaf_size {
         b = b.leaf_size(l);
     }
-    if let Some(dir) = &o.cache_dir {
-        b = b.cache_dir(dir);
-    }
-    let cached = o.cache_dir.is_some();
+    b = b.cache(o.cache.clone());
+    // The SVD precomputation counts as free only with a folder the user
+    // named (the default folder may be cold).
+    let cached = matches!(o.cache, CacheSetting::Dir(_));
     let scheme = o.scheme.resolve(
         o.kernel,
         ferrofmm_fmm::effective_tolerance(o.eps, o.order, T::PRECISION),
@@ -322,12 +335,14 @@ pub(crate) struct NativeFmm {
     verification: Mutex<Option<Verification>>,
     options: BuildOptions,
     dtype: &'static str,
+    /// Where the operator cache is (resolved once, at construction).
+    cache: CacheLocation,
 }
 
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -346,6 +361,7 @@ impl NativeFmm {
         hessian: bool,
         source: &str,
         dtype: Option<&str>,
+        cache: bool,
     ) -> PyResult<Self> {
         let source_kind = match source {
             "charge" => SourceKind::Charge,
@@ -414,11 +430,21 @@ impl NativeFmm {
             },
             source_kind,
             verify,
-            cache_dir,
+            cache: match (cache_dir, cache) {
+                (Some(dir), _) => CacheSetting::Dir(dir),
+                (None, true) => CacheSetting::Default,
+                (None, false) => CacheSetting::Off,
+            },
         };
-        if let Some(dir) = &options.cache_dir {
+        // A folder the caller named must be usable; the default one may
+        // not be (read-only home): the operators then stay in memory.
+        if let CacheSetting::Dir(dir) = &options.cache {
             check_cache_dir(dir)?;
         }
+        let cache_location = options
+            .cache
+            .resolve()
+            .map_err(|e| PyValueError::new_err(e.to_string()))?;
         let threads = Threads::new(py, threads)?;
         // The run's float type: `dtype`, else the sources'. The points go
         // to the builder in f64 (f32 widens exactly) and are rounded to the
@@ -474,6 +500,7 @@ impl NativeFmm {
             verification: Mutex::new(None),
             options,
             dtype,
+            cache: cache_location,
         })
     }
 
@@ -582,9 +609,18 @@ impl NativeFmm {
         verification: Option<&Verification>,
         n_vectors: usize,
     ) -> Value {
-        let (s, setup) = {
+        let (s, setup, cache) = {
             let engine = self.read();
-            (engine.summary(), engine.setup_timings())
+            (
+                engine.summary(),
+                engine.setup_timings(),
+                engine.cache_summary(),
+            )
+        };
+        let cache = match &self.cache {
+            CacheLocation::Folder { .. } => cache.unwrap_or_else(|| "not needed".into()),
+            CacheLocation::Off(CacheOff::Requested) => "off (cache=False)".into(),
+            CacheLocation::Off(why) => why.to_string(),
         };
         let chosen = s.chosen.as_ref();
         json!({
@@ -608,6 +644,8 @@ impl NativeFmm {
             "boxes": s.n_boxes,
             "leaves": s.n_leaves,
             "clusters": s.clusters,
+            "cache": cache,
+            "cache_dir": self.cache.dir().map(|d| d.display().to_string()),
             "timings": {
                 "setup": setup_seconds(&setup),
                 "evaluate": eval_seconds(timings),

@@ -1,5 +1,7 @@
 """Shared fixtures: point sets, charges and a NumPy direct sum."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -34,6 +36,21 @@ def direct(sources, charges, targets, *, k=None, gradient=False, exclude_self=Tr
 def rel(a, b):
     """Relative L2 error of a against the reference b."""
     return float(np.linalg.norm(np.asarray(a, dtype=np.float64) - b) / np.linalg.norm(b))
+
+
+@pytest.fixture(autouse=True, scope="session")
+def _operator_cache(tmp_path_factory):
+    """The operator cache is on by default: point it at a temporary folder
+    for the whole session (never the home folder of the machine running
+    the tests). Tests that need another place set FERROFMM_CACHE
+    themselves (monkeypatch)."""
+    old = os.environ.get("FERROFMM_CACHE")
+    os.environ["FERROFMM_CACHE"] = str(tmp_path_factory.mktemp("operator-cache"))
+    yield
+    if old is None:
+        os.environ.pop("FERROFMM_CACHE", None)
+    else:
+        os.environ["FERROFMM_CACHE"] = old
 
 
 @pytest.fixture

@@ -222,6 +222,7 @@ pub(crate) mod tests {
             sources: "charge".into(),
             threads: 2,
             cache: None,
+            cache_dir: None,
             tree: TreeFigures {
                 depth: 3,
                 n_boxes: 73,

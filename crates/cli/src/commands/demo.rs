@@ -74,7 +74,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         kernel: parse_kernel(&args.fmm.kernel)?,
         repeats: args.repeats,
         check: args.check,
-        cache_dir: args.fmm.cache_dir.clone(),
+        cache: args.fmm.cache(),
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
         force: args.fmm.force,

@@ -188,7 +188,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         kernel,
         repeats: 1,
         check: args.check,
-        cache_dir: args.fmm.cache_dir.clone(),
+        cache: args.fmm.cache(),
         tolerance: args.fmm.tolerance,
         verify: args.fmm.verify()?,
         force: args.fmm.force,

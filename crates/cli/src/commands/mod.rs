@@ -182,9 +182,16 @@ pub struct FmmArgs {
     /// Float type of the whole computation.
     #[arg(long, value_enum, default_value_t = PrecisionArg::F64)]
     pub precision: PrecisionArg,
-    /// Directory of the on-disk operator cache (off by default).
+    /// Directory of the on-disk operator cache. Default: FERROFMM_CACHE
+    /// (a folder, or `off`), else $XDG_CACHE_HOME/ferrofmm, else
+    /// ~/.cache/ferrofmm; at most FERROFMM_CACHE_SIZE (default 2G) kept,
+    /// least recently used files deleted first.
     #[arg(long, value_name = "DIR")]
     pub cache_dir: Option<std::path::PathBuf>,
+    /// Keep the operators in memory only: no cache folder is read or
+    /// written.
+    #[arg(long, conflicts_with = "cache_dir")]
+    pub no_cache: bool,
     #[arg(long, default_value = "laplace", value_name = "NAME[:K]", help = kernel_help())]
     pub kernel: String,
     /// Requested relative L2 error, e.g. 1e-6, of the potential and (with
@@ -208,6 +215,17 @@ pub struct FmmArgs {
 }
 
 impl FmmArgs {
+    /// The operator cache asked for: `--cache-dir`, `--no-cache`, else the
+    /// default location.
+    pub fn cache(&self) -> ferrofmm_field::CacheSetting {
+        use ferrofmm_field::CacheSetting;
+        match (&self.cache_dir, self.no_cache) {
+            (Some(dir), _) => CacheSetting::Dir(dir.clone()),
+            (None, true) => CacheSetting::Off,
+            (None, false) => CacheSetting::Default,
+        }
+    }
+
     /// `--verify` as a switch (a value other than `on` / `off` is bad
     /// input: exit status 1).
     pub fn verify(&self) -> Result<bool, CliError> {

@@ -7,7 +7,7 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use ferrofmm_field::{DenseM2l, FftM2l, M2lScheme, SvdM2l};
+use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, effective_tolerance,
@@ -21,7 +21,7 @@ use crate::error::{CliError, Result};
 use crate::memory::peak_rss_bytes;
 use crate::progress::with_stage;
 use crate::report::{
-    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures, cache_summary,
+    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures, cache_report,
 };
 use ferrofmm_io::{self as io, Values};
 
@@ -96,8 +96,9 @@ pub struct Settings {
     pub repeats: usize,
     /// Targets to compare with direct summation (0: no check).
     pub check: usize,
-    /// Operator cache directory.
-    pub cache_dir: Option<PathBuf>,
+    /// The operator cache (`--cache-dir`, `--no-cache`, else the default
+    /// folder).
+    pub cache: CacheSetting,
     /// Requested accuracy: parameters chosen by the library (`None` with
     /// no order either: [`ferrofmm_fmm::DEFAULT_TOLERANCE`]).
     pub tolerance: Option<f64>,
@@ -153,7 +154,9 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
             PrecisionArg::F32 => Precision::F32,
             _ => Precision::F64,
         },
-        settings.cache_dir.is_some(),
+        // The SVD precomputation counts as free only with a folder the
+        // user named (the default folder may be cold).
+        matches!(settings.cache, CacheSetting::Dir(_)),
     )?;
     drop(points);
     let settings = &Settings {
@@ -394,9 +397,7 @@ where
         if let Some(s) = settings.leaf_size {
             builder = builder.leaf_size(s);
         }
-        if let Some(dir) = &settings.cache_dir {
-            builder = builder.cache_dir(dir);
-        }
+        builder = builder.cache(settings.cache.clone());
         if let Some(eps) = settings.tolerance {
             builder = builder.tolerance(eps).verify(settings.verify);
         }
@@ -479,6 +480,11 @@ where
     }
 
     let summary = fmm.summary();
+    let (cache, cache_dir) = cache_report(
+        &settings.cache,
+        fmm.operators().cache_status(),
+        &fmm.m2l_scheme().cache_status(),
+    );
     Ok(RunReport {
         command: settings.command.to_string(),
         geometry,
@@ -513,10 +519,8 @@ where
         kernel: settings.kernel.name(),
         sources: kind.name().to_string(),
         threads: rayon::current_num_threads(),
-        cache: cache_summary(
-            fmm.operators().cache_status(),
-            &fmm.m2l_scheme().cache_status(),
-        ),
+        cache,
+        cache_dir,
         tree: TreeFigures::from(&summary),
         setup: SetupSeconds::from(fmm.setup_timings()),
         evaluation: EvalSeconds {

@@ -3,6 +3,7 @@
 //! of once per file.
 
 mod bad_input;
+mod cache;
 mod common;
 mod demo;
 mod eval;

@@ -183,6 +183,7 @@ fn a_failed_write_leaves_no_partial_file() {
     let bin = env!("CARGO_BIN_EXE_ferrofmm");
     let limited_with = |script: &str, out: &Path| {
         Command::new("sh")
+            .env("FERROFMM_CACHE", common::test_cache())
             .arg("-c")
             .arg(script)
             .arg(bin)

@@ -4,13 +4,13 @@
 use crate::common;
 
 use std::path::Path;
-use std::process::{Command, Stdio};
+use std::process::Stdio;
 
 use common::{charges, points, scratch, write_npy};
 
 /// Run `ferrofmm args` with stdout a pipe whose read end is closed at once.
 fn with_closed_stdout(args: &[&str]) -> (Option<i32>, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    let mut child = common::command()
         .args(args)
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -40,7 +40,7 @@ fn memory_estimate_refuses_unless_forced() {
         "--check",
         "0",
     ];
-    let out = Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    let out = common::command()
         .args(args)
         .env("FERROFMM_MEMORY_LIMIT", "1M")
         .output()
@@ -50,14 +50,14 @@ fn memory_estimate_refuses_unless_forced() {
     assert!(stderr.contains("predicted to need"), "{stderr}");
     assert!(stderr.contains("1.0 MiB"), "{stderr}");
     assert!(stderr.contains("--force"), "{stderr}");
-    let forced = Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    let forced = common::command()
         .args(args)
         .arg("--force")
         .env("FERROFMM_MEMORY_LIMIT", "1M")
         .output()
         .unwrap();
     assert!(forced.status.success(), "{}", texts(&forced).1);
-    let bad = Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    let bad = common::command()
         .args(args)
         .env("FERROFMM_MEMORY_LIMIT", "lots")
         .output()
@@ -67,7 +67,7 @@ fn memory_estimate_refuses_unless_forced() {
 }
 
 fn timed(args: &[&str], env: Option<(&str, &str)>) -> f64 {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ferrofmm"));
+    let mut cmd = common::command();
     cmd.args(args).env_remove("RAYON_NUM_THREADS");
     if let Some((k, v)) = env {
         cmd.env(k, v);
@@ -121,7 +121,7 @@ fn sigint_stops_a_long_precompute_with_130() {
     let (s, q, out) = (dir.join("s.csv"), dir.join("q.csv"), dir.join("out.npy"));
     write_csv(&s, &points(4000, 3), 3, None);
     write_csv(&q, &vec![0.25; 4000], 1, None);
-    let mut child = Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    let mut child = common::command()
         .args(["eval", "--sources"])
         .arg(&s)
         .arg("--charges")

@@ -89,8 +89,9 @@ fn cache_status_is_in_the_table() {
     };
     let row = demo(&cache);
     assert!(row.contains("miss (computed, saved)"), "{row}");
+    let hit = format!(" hit in {}", cache.display());
     let row = demo(&cache);
-    assert!(row.ends_with(" hit"), "{row}");
+    assert!(row.ends_with(&hit), "{row}");
 
     // Damage every cache file: both are rebuilt, and say why.
     for entry in std::fs::read_dir(&cache).unwrap() {
@@ -103,17 +104,23 @@ fn cache_status_is_in_the_table() {
         row.contains("recomputed (cached file rejected: ") && row.contains("saved"),
         "{row}"
     );
-    assert!(demo(&cache).ends_with(" hit"));
+    assert!(demo(&cache).ends_with(&hit));
 
     // A regular file as the cache directory: computed, not saved.
     let file = dir.join("not-a-dir");
     std::fs::write(&file, "x").unwrap();
     let row = demo(&file);
-    assert!(row.contains("not saved"), "{row}");
+    assert!(row.contains("memory only (computed, not saved"), "{row}");
 
-    // No --cache-dir: no row.
-    let out = ferrofmm(&["demo", "-n", "300", "-p", "3", "--check", "0"]);
-    assert!(!texts(&out).0.contains("operator cache"));
+    // --no-cache: the row says so.
+    let out = ferrofmm(&["demo", "-n", "300", "-p", "3", "--check", "0", "--no-cache"]);
+    assert!(
+        texts(&out)
+            .0
+            .contains("operator cache     off (--no-cache)\n"),
+        "{}",
+        texts(&out).0
+    );
 }
 
 /// `--help` and the README list the same exit codes.

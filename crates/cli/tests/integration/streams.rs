@@ -29,7 +29,7 @@ fn shell(script: &str) -> std::process::Child {
 
 /// `ferrofmm args` with extra environment variables.
 fn ferrofmm_env(args: &[&str], env: &[(&str, &str)]) -> std::process::Output {
-    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ferrofmm"));
+    let mut cmd = common::command();
     cmd.args(args);
     for (k, v) in env {
         cmd.env(k, v);

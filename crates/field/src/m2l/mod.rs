@@ -242,7 +242,9 @@ impl Plan {
         compute: impl FnOnce() -> Result<S, FieldError>,
     ) -> Result<(S, CacheStatus), FieldError> {
         match params.cache_dir.as_deref() {
-            Some(dir) if self.is_complete() => load_or_compute(Some(dir), &key(), accept, compute),
+            Some(dir) if self.is_complete() => {
+                load_or_compute(Some(dir), params.cache_size_limit, &key(), accept, compute)
+            }
             _ => Ok((compute()?, CacheStatus::Disabled)),
         }
     }

@@ -208,10 +208,13 @@ impl<T: Real> Operators<T> {
             first,
         );
         let accept = |l: &OperatorLayout| l.accept(n, levels.n_sets(), n_child_sets);
-        let (tables, cache_status) =
-            load_or_compute(params.cache_dir.as_deref(), &key, accept, || {
-                compute(kernel, params, rcond, &levels, n_child_sets)
-            })?;
+        let (tables, cache_status) = load_or_compute(
+            params.cache_dir.as_deref(),
+            params.cache_size_limit,
+            &key,
+            accept,
+            || compute(kernel, params, rcond, &levels, n_child_sets),
+        )?;
         Ok(Operators {
             order: params.order,
             n: tables.n,

@@ -3,6 +3,7 @@
 //! once per file.
 
 mod cache;
+mod cache_policy;
 mod common;
 mod conformance;
 mod convergence;

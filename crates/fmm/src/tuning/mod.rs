@@ -75,7 +75,8 @@
 //! the cheapest ([`Tuner::candidates`] describes the search and what bounds
 //! its cost). Precomputing operators is not counted (it does not depend on
 //! the points and is cached on disk with
-//! [`FmmBuilder::cache_dir`](crate::FmmBuilder::cache_dir)), but a higher
+//! [`FmmBuilder::cache_dir`](crate::FmmBuilder::cache_dir) or
+//! [`FmmBuilder::default_cache`](crate::FmmBuilder::default_cache)), but a higher
 //! order must be predicted at least [`HIGHER_ORDER_GAIN`] cheaper to be
 //! taken, since it costs more to precompute and to store.
 //!

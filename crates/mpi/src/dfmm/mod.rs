@@ -74,8 +74,13 @@ pub struct DistFmmOptions {
     /// cache, rank 0 builds (or loads) the operators first and the other
     /// ranks load what it wrote: one precomputation instead of `R`
     /// competing for the cores of a node. A directory local to each node
-    /// works too (one rank per node then computes).
+    /// works too (one rank per node then computes). The command
+    /// `ferrofmm-mpi` passes the default folder
+    /// ([`CacheSetting::resolve`](ferrofmm_field::CacheSetting::resolve)).
     pub cache_dir: Option<PathBuf>,
+    /// Most bytes of cache files kept in `cache_dir` (least recently used
+    /// deleted first; `None`: no cap).
+    pub cache_size_limit: Option<u64>,
 }
 
 impl DistFmmOptions {
@@ -86,6 +91,7 @@ impl DistFmmOptions {
             mode,
             sources: SourceKind::Charge,
             cache_dir: None,
+            cache_size_limit: None,
         }
     }
 }
@@ -180,6 +186,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let (depth, usage) = global_usage(comm, &tree);
         let mut params = OperatorParams::new(options.order);
         params.cache_dir.clone_from(&options.cache_dir);
+        params.cache_size_limit = options.cache_size_limit;
         let local = LocalTree {
             tree,
             sources: &sources,

@@ -165,15 +165,33 @@ def _positive_int(name: str, value: Optional[int]) -> Optional[int]:
     return min(int(value), sys.maxsize)
 
 
-def _cache_dir(value: Any) -> Optional[str]:
+def _cache_dir(value: Any, name: str = "cache_dir") -> Optional[str]:
     if value is None:
         return None
     if not isinstance(value, (str, bytes, os.PathLike)):
-        raise TypeError(f"cache_dir must be a path (str or os.PathLike), got {type(value).__name__}")
+        raise TypeError(f"{name} must be a path (str or os.PathLike), got {type(value).__name__}")
     path = os.fsdecode(os.fspath(value))
     if not path:
-        raise ValueError("cache_dir is an empty path")
+        raise ValueError(f"{name} is an empty path")
     return path
+
+
+def _cache(cache: Any, cache_dir: Any) -> Tuple[Optional[str], bool]:
+    """``(folder, use_default)``: the folder named by ``cache="path"`` or
+    ``cache_dir=``, else ``None`` and whether the default folder is used
+    (``cache=True``) or none (``cache=False``)."""
+    folder = _cache_dir(cache_dir)
+    if isinstance(cache, (bool, np.bool_)):
+        if folder is not None and not cache:
+            raise ValueError("cache=False contradicts cache_dir: give one of them")
+        return folder, bool(cache)
+    if not isinstance(cache, (str, bytes, os.PathLike)):
+        raise TypeError(
+            f"cache must be True, False or a path (str or os.PathLike), got {type(cache).__name__}"
+        )
+    if folder is not None:
+        raise ValueError("give cache or cache_dir, not both")
+    return _cache_dir(cache, "cache"), True
 
 
 def _per_target(kernel: str, gradient: bool, hessian: bool) -> int:

@@ -52,6 +52,7 @@ class NativeFmm:
         hessian: bool = ...,
         source: str = ...,
         dtype: Optional[str] = ...,
+        cache: bool = ...,
     ) -> None: ...
     def evaluate(
         self, charges: npt.NDArray[np.floating], n_vectors: int

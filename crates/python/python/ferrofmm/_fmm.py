@@ -13,7 +13,7 @@ from . import _ferrofmm
 from ._checks import (
     _as_complex_array,
     _bool,
-    _cache_dir,
+    _cache,
     _check_densities,
     _check_eps_order,
     _check_float32_range,
@@ -155,7 +155,16 @@ class Fmm:
     verify : bool
         Check ``eps`` on the first evaluation (a few percent of its time).
     cache_dir : str or os.PathLike, optional
-        Directory for the on-disk operator cache.
+        Directory for the on-disk operator cache (as ``cache="path"``).
+    cache : bool or str or os.PathLike
+        The on-disk operator cache. ``True`` (default): the default folder,
+        ``FERROFMM_CACHE`` (a folder, or ``off``), else
+        ``$XDG_CACHE_HOME/ferrofmm``, else ``~/.cache/ferrofmm``, at most
+        ``FERROFMM_CACHE_SIZE`` bytes of it kept (default 2 GiB, least
+        recently used files deleted first); a default folder that cannot
+        be written leaves the operators in memory (a ``RuntimeWarning``).
+        ``False``: memory only. A path: that folder. ``info["cache"]`` and
+        ``info["cache_dir"]`` say what happened and where.
     at_sources : bool
         With ``targets``: also evaluate at the sources in the same run
         (each source excluding itself); ``evaluate`` then returns them as
@@ -178,6 +187,7 @@ class Fmm:
         scheme: str = "auto",
         verify: bool = True,
         cache_dir: Any = None,
+        cache: Any = True,
         hessian: bool = False,
         charges: bool = True,
         dipoles: bool = False,
@@ -203,7 +213,7 @@ class Fmm:
         k = _real("k", k)
         leaf_size = _positive_int("leaf_size", leaf_size)
         threads = _positive_int("threads", threads)
-        cache_dir = _cache_dir(cache_dir)
+        cache_dir, default_cache = _cache(cache, cache_dir)
         # Values at the sources too: the sources lead the targets (a target
         # on a source skips it, K(x, x) := 0).
         self._n_at_sources = len(src) if (at_sources and tgt is not None) else 0
@@ -236,6 +246,7 @@ class Fmm:
             hessian,
             source,
             str(run),
+            default_cache,
         )
         self._dtype = run
         self._kernel = kernel

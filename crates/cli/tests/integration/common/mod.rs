@@ -8,9 +8,24 @@ use std::process::{Command, Output};
 
 pub use ferrofmm_testing::TempDir;
 
+/// The operator cache of the tests' runs: a folder under Cargo's
+/// temporary directory for integration tests (`target/tmp`), never the
+/// user's home. Shared by every test (the cache is built for that).
+pub fn test_cache() -> std::path::PathBuf {
+    Path::new(env!("CARGO_TARGET_TMPDIR")).join("cli-operator-cache")
+}
+
+/// The `ferrofmm` binary as a command, its default cache pointed at
+/// [`test_cache`] (`FERROFMM_CACHE`).
+pub fn command() -> Command {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_ferrofmm"));
+    cmd.env("FERROFMM_CACHE", test_cache());
+    cmd
+}
+
 /// Run `ferrofmm` with `args`; stderr is not a terminal, so no progress bars.
 pub fn ferrofmm(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ferrofmm"))
+    command()
         .args(args)
         .output()
         .expect("the ferrofmm binary runs")
