@@ -11,7 +11,19 @@ use std::process::{Command, Output};
 
 use common::{charges, points, scratch, texts, write_npy};
 
-const DEMO: [&str; 8] = ["demo", "-n", "2000", "-p", "3", "--check", "0", "--json"];
+/// A tree (a leaf size given): 2,000 points alone would be a direct sum.
+const DEMO: [&str; 10] = [
+    "demo",
+    "-n",
+    "2000",
+    "-p",
+    "3",
+    "--leaf-size",
+    "150",
+    "--check",
+    "0",
+    "--json",
+];
 
 /// `ferrofmm args` with `FERROFMM_CACHE`, `XDG_CACHE_HOME` and `HOME`
 /// removed, then `env` set.
@@ -153,7 +165,16 @@ fn two_processes_fill_one_entry_at_once() {
             .arg(&s)
             .arg("--charges")
             .arg(&q)
-            .args(["-p", "5", "--check", "0", "--json", "--out"])
+            .args([
+                "-p",
+                "5",
+                "--leaf-size",
+                "150",
+                "--check",
+                "0",
+                "--json",
+                "--out",
+            ])
             .arg(out)
             .env("FERROFMM_CACHE", &cache);
         cmd

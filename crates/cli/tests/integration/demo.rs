@@ -251,6 +251,7 @@ fn every_registered_kernel_runs_by_name() {
                 d.example(),
                 None,
                 None,
+                None,
                 ferrofmm_kernels::EvalMode::Potential,
                 ferrofmm_kernels::Precision::F64,
                 false,

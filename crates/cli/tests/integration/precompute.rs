@@ -14,7 +14,20 @@ use common::{ferrofmm, points, scratch, texts, write_csv};
 #[test]
 fn no_v_list_precomputes_no_m2l_operator() {
     let start = Instant::now();
-    let out = ferrofmm(&["demo", "-n", "1000", "-p", "14", "--check", "0", "--json"]);
+    let out = ferrofmm(&[
+        "demo",
+        "-n",
+        "1000",
+        "-p",
+        "14",
+        "--leaf-size",
+        "150",
+        "--scheme",
+        "svd",
+        "--check",
+        "0",
+        "--json",
+    ]);
     let (stdout, stderr) = texts(&out);
     assert!(out.status.success(), "{stderr}");
     assert!(stdout.contains("\"m2l_bytes\":0"), "{stdout}");
@@ -128,7 +141,15 @@ fn sigint_stops_a_long_precompute_with_130() {
         .arg(&q)
         .arg("--out")
         .arg(&out)
-        .args(["-p", "12", "--leaf-size", "40", "--force"])
+        .args([
+            "-p",
+            "12",
+            "--leaf-size",
+            "40",
+            "--scheme",
+            "svd",
+            "--force",
+        ])
         .stdout(Stdio::null())
         .stderr(Stdio::piped())
         .spawn()

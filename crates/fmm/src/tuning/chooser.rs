@@ -298,6 +298,9 @@ impl Tuner {
         if let Some(eps) = eps {
             validate_tolerance(eps, self.error.precision)?;
         }
+        if let Some(p) = self.fixed_order {
+            crate::validate::check_order(p)?;
+        }
         // The error model fitted to these points (volume, surface or
         // curve, and how many): `ErrorModel::in_scene`.
         let error = self.error.in_scene(&Scene::of(occupancy));
@@ -451,6 +454,9 @@ impl Tuner {
             return Err(FmmError::InvalidParameter(
                 "the chooser needs a tolerance or a fixed order".to_string(),
             ));
+        }
+        if let Some(p) = self.fixed_order {
+            crate::validate::check_order(p)?;
         }
         // A domain the float type cannot resolve has no order: say so
         // (the build's message), not "no order reaches eps".
