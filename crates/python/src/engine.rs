@@ -629,6 +629,7 @@ impl NativeFmm {
             "order": s.order,
             "leaf_size": s.leaf_size,
             "scheme": s.m2l_scheme,
+            "method": if chosen.is_some_and(|c| c.direct) { "direct" } else { "fmm" },
             "eps": self.options.eps,
             "predicted_error": verification
                 .map(Verification::predicted_error)

@@ -62,15 +62,18 @@ def test_fixed_order_each_scheme(rng, scheme):
 
 
 def test_auto_scheme(rng):
-    """The default scheme: with eps the cost model picks svd or fft (at
-    1e-9 the SVD precomputation costs seconds, the FFT's milliseconds), with
-    an order it is svd; the answer meets eps either way."""
+    """The default scheme: with eps or an order the cost model picks svd or
+    fft (at 1e-9, or at order 10, the SVD precomputation costs seconds, the
+    FFT's milliseconds); the answer meets eps either way."""
     x = cube(rng, N)
     q = zero_mean(rng, N)
     r = ferrofmm.laplace(x, q, eps=1e-9)
     assert r.info["scheme"] == "fft"
     check(r, x, q, x, 3e-9)
-    assert ferrofmm.laplace(x, q, order=4).info["scheme"] == "svd"
+    assert ferrofmm.laplace(x, q, order=10).info["scheme"] == "fft"
+    # 6,000 points: a direct sum is cheaper than order-10 operators.
+    assert r.info["method"] == "direct"
+    assert ferrofmm.laplace(x, q, order=4, leaf_size=64).info["method"] == "fmm"
     s = ferrofmm.laplace(x, q, eps=1e-9, scheme="svd")
     assert s.info["scheme"] == "svd"
     check(s, x, q, x, 3e-9)

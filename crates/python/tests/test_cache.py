@@ -18,7 +18,9 @@ Q = rng.random(2000) - 0.5
 
 
 def run(**kw):
-    return ferrofmm.Fmm(X, order=3, **kw).evaluate(Q)
+    # A leaf size given: a tree with its two cache files (2,000 points with
+    # an order alone would be a direct sum, with order-2 operators only).
+    return ferrofmm.Fmm(X, order=3, leaf_size=150, **kw).evaluate(Q)
 
 
 def files(d):
@@ -93,7 +95,7 @@ def test_size_cap_keeps_the_newest(tmp_path, monkeypatch):
     monkeypatch.setenv("FERROFMM_CACHE", str(tmp_path))
     monkeypatch.setenv("FERROFMM_CACHE_SIZE", "1")
     run()
-    ferrofmm.Fmm(X, order=4).evaluate(Q)
+    ferrofmm.Fmm(X, order=4, leaf_size=150).evaluate(Q)
     names = files(tmp_path)
     assert len(names) == 1 and "_p4_" in names[0], names
 
