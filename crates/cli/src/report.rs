@@ -53,6 +53,10 @@ pub struct RunReport {
     /// Requested accuracy (`--tolerance`), when given.
     #[serde(default)]
     pub tolerance: Option<f64>,
+    /// Whether `tolerance` is the default one (neither `--tolerance` nor
+    /// `--order` given).
+    #[serde(default)]
+    pub default_tolerance: bool,
     /// The library's predicted error for the chosen parameters (with
     /// `--tolerance`; after verification raised the order, the last
     /// order's).
@@ -506,7 +510,14 @@ impl RunReport {
             row(
                 &mut o,
                 "tolerance",
-                format!("{eps:.2e} requested{predicted}"),
+                format!(
+                    "{eps:.2e} {}{predicted}",
+                    if self.default_tolerance {
+                        "(the default; --tolerance or --order to change it)"
+                    } else {
+                        "requested"
+                    }
+                ),
             );
             match &self.verification {
                 Some(v) => {

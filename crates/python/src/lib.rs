@@ -52,6 +52,8 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("MIN_ORDER", ferrofmm_fmm::MIN_ORDER)?;
     m.add("MAX_ORDER", ferrofmm_fmm::MAX_ORDER)?;
     m.add("DEFAULT_LEAF_SIZE", ferrofmm_fmm::DEFAULT_LEAF_SIZE)?;
+    m.add("DEFAULT_TOLERANCE", ferrofmm_fmm::DEFAULT_TOLERANCE)?;
+    m.add("DEFAULT_F32_TOLERANCE", ferrofmm_fmm::DEFAULT_F32_TOLERANCE)?;
     m.add("DEEPEST_LEVEL", ferrofmm_tree::DEEPEST_LEVEL)?;
     Ok(())
 }

@@ -207,6 +207,7 @@ pub(crate) mod tests {
             order,
             leaf_size: leaf,
             tolerance: None,
+            default_tolerance: false,
             predicted_error: None,
             charges: Some("signed".into()),
             verify: "n/a".into(),

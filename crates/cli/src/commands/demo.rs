@@ -76,6 +76,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         check: args.check,
         cache: args.fmm.cache(),
         tolerance: args.fmm.tolerance,
+        default_tolerance: false,
         verify: args.fmm.verify()?,
         force: args.fmm.force,
         out_sources: None,

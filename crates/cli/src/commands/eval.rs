@@ -190,6 +190,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         check: args.check,
         cache: args.fmm.cache(),
         tolerance: args.fmm.tolerance,
+        default_tolerance: false,
         verify: args.fmm.verify()?,
         force: args.fmm.force,
         out_sources: split,

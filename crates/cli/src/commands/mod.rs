@@ -27,6 +27,15 @@ pub enum PrecisionArg {
 }
 
 impl PrecisionArg {
+    /// The float type it names (`auto` before it is resolved: f64, the
+    /// type whose default tolerance and limits apply).
+    pub fn float_type(self) -> ferrofmm_kernels::Precision {
+        match self {
+            PrecisionArg::F32 => ferrofmm_kernels::Precision::F32,
+            _ => ferrofmm_kernels::Precision::F64,
+        }
+    }
+
     /// `"f32"` or `"f64"`.
     pub fn name(self) -> &'static str {
         match self {

@@ -102,6 +102,9 @@ pub struct Settings {
     /// Requested accuracy: parameters chosen by the library (`None` with
     /// no order either: [`ferrofmm_fmm::DEFAULT_TOLERANCE`]).
     pub tolerance: Option<f64>,
+    /// Whether `tolerance` is the default one (set by [`run`]; the report
+    /// says so).
+    pub default_tolerance: bool,
     /// Check the tolerance after evaluating.
     pub verify: bool,
     /// Precompute even beyond the memory limit (`--force`).
@@ -125,11 +128,9 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         tolerance: effective_tolerance(
             settings.tolerance,
             settings.order,
-            match settings.precision {
-                PrecisionArg::F32 => Precision::F32,
-                _ => Precision::F64,
-            },
+            settings.precision.float_type(),
         ),
+        default_tolerance: settings.tolerance.is_none() && settings.order.is_none(),
         ..settings.clone()
     };
     // The points, made once, for the automatic choices (only with a
@@ -150,10 +151,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         settings.order,
         points.as_ref().map(|(s, t)| (s.as_ref(), *t)),
         mode,
-        match precision {
-            PrecisionArg::F32 => Precision::F32,
-            _ => Precision::F64,
-        },
+        precision.float_type(),
         // The SVD precomputation counts as free only with a folder the
         // user named (the default folder may be cold).
         matches!(settings.cache, CacheSetting::Dir(_)),
@@ -493,6 +491,7 @@ where
         order: fmm.order(),
         leaf_size: summary.leaf_size,
         tolerance: settings.tolerance,
+        default_tolerance: settings.default_tolerance,
         predicted_error: fmm.chosen_parameters().map(|c| c.predicted_error),
         charges: charge_kind,
         verify: match (settings.tolerance, settings.verify) {

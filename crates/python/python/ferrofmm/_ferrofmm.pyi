@@ -9,6 +9,8 @@ __version__: str
 MIN_ORDER: int
 MAX_ORDER: int
 DEFAULT_LEAF_SIZE: int
+DEFAULT_TOLERANCE: float
+DEFAULT_F32_TOLERANCE: float
 DEEPEST_LEVEL: int
 #: The kernel registry: name -> description.
 KERNELS: Dict[str, Dict[str, Any]]

@@ -29,10 +29,21 @@ from ._checks import (
     _real,
     _vector_valued,
 )
-from ._ferrofmm import DEFAULT_LEAF_SIZE, MAX_ORDER, MIN_ORDER
+from ._ferrofmm import (
+    DEFAULT_F32_TOLERANCE,
+    DEFAULT_LEAF_SIZE,
+    DEFAULT_TOLERANCE,
+    MAX_ORDER,
+    MIN_ORDER,
+)
 
-#: Tolerance used when neither ``eps`` nor ``order`` is given, per dtype.
-DEFAULT_EPS = {np.dtype(np.float64): 1e-6, np.dtype(np.float32): 1e-4}
+#: Tolerance used when neither ``eps`` nor ``order`` is given, per dtype
+#: (the library's ``DEFAULT_TOLERANCE`` and ``DEFAULT_F32_TOLERANCE``, the
+#: defaults of the command-line tools too).
+DEFAULT_EPS = {
+    np.dtype(np.float64): DEFAULT_TOLERANCE,
+    np.dtype(np.float32): DEFAULT_F32_TOLERANCE,
+}
 
 
 class AccuracyWarning(UserWarning):
