@@ -79,6 +79,28 @@ pub enum KernelError {
         /// What would have been accepted.
         expected: &'static str,
     },
+    /// A periodic cell whose origin is not finite or whose side length is
+    /// not finite and positive.
+    #[error("periodic cell {what}[{axis}] = {value} is invalid (expected {expected})")]
+    InvalidCell {
+        /// `"origin"` or `"lengths"`.
+        what: &'static str,
+        /// The axis, 0 (x), 1 (y) or 2 (z).
+        axis: usize,
+        /// The rejected value.
+        value: f64,
+        /// What would have been accepted.
+        expected: &'static str,
+    },
+    /// A source index out of range (e.g. a target of
+    /// [`EwaldSum::at_sources`](crate::EwaldSum::at_sources)).
+    #[error("source index {index} out of range ({n_sources} sources)")]
+    SourceIndex {
+        /// The offending index.
+        index: usize,
+        /// The number of sources.
+        n_sources: usize,
+    },
 }
 
 /// `k` when it is a valid wavenumber (finite and `>= 0`) of either

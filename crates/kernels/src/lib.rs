@@ -69,7 +69,8 @@
 //!
 //! One folder per kernel, each with its maths (module docs), its
 //! [`Kernel`] impl (`mod.rs`) and its micro-kernel (`pair.rs`):
-//! `laplace/` (and its dense assembly), `modified_helmholtz/` (Yukawa),
+//! `laplace/` (and its dense assembly and the periodic Ewald sums of
+//! [`ewald`]: [`EwaldSum`], [`PeriodicGreen`]), `modified_helmholtz/` (Yukawa),
 //! `helmholtz/` (the oscillatory kernel) and `stokes/`. Shared machinery
 //! stays outside them: the lane engine and its instruction sets
 //! (`lanes/`), direct summation (`direct.rs`), the pairwise references
@@ -103,6 +104,8 @@ pub use direct::{
 pub use error::KernelError;
 pub use helmholtz::Helmholtz3d;
 pub use kernel::{EvalMode, Kernel, SourceKind};
+pub use laplace::ewald;
+pub use laplace::ewald::{EwaldOptions, EwaldParameters, EwaldSum, PeriodicCell, PeriodicGreen};
 pub use laplace::{INV_4PI, Laplace3d, laplace_assemble_with, laplace_p2p, laplace_p2p_with};
 pub use modified_helmholtz::{ModifiedHelmholtz3d, modified_helmholtz_p2p_with};
 pub use real::{Precision, Real};

@@ -40,6 +40,7 @@
 //! with [`check_inputs`](crate::check_inputs) where that matters.
 
 mod assemble;
+pub mod ewald;
 mod pair;
 
 pub use assemble::laplace_assemble_with;

@@ -7,6 +7,7 @@ mod assemble;
 mod common;
 mod components;
 mod direct;
+mod ewald;
 mod gradients;
 mod helmholtz;
 mod lane_kernel;

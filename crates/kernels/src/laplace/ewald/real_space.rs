@@ -1,0 +1,174 @@
+//! The real-space part of an Ewald sum: a cell list over the periodic box
+//! and the screened pair sum `sum_j sum_n q_j erfc(alpha r) / r`, `r = |y -
+//! x_j - n∘L| < r_c`.
+
+use super::TWO_OVER_SQRT_PI;
+
+/// Sources sorted into a regular grid of cells (structure of arrays,
+/// coordinates relative to the cell origin, in `[0, L)`), with the stencil
+/// of neighbouring cells (images included) that can hold a source within
+/// `r_c` of a point.
+#[derive(Clone, Debug)]
+pub(crate) struct CellList {
+    /// Cells per axis.
+    n: [usize; 3],
+    /// Cell sizes `L_d / n_d`.
+    h: [f64; 3],
+    /// The periodic cell's lengths.
+    lengths: [f64; 3],
+    /// `start[c]..start[c + 1]`: the sources of cell `c` (x fastest).
+    start: Vec<usize>,
+    x: Vec<f64>,
+    y: Vec<f64>,
+    z: Vec<f64>,
+    q: Vec<f64>,
+    /// Integer cell offsets (unbounded, so images of the whole cell appear
+    /// when `r_c` exceeds `L`) whose cells come within `r_c` of cell 0.
+    stencil: Vec<[i64; 3]>,
+    r_cut2: f64,
+    alpha: f64,
+}
+
+impl CellList {
+    /// Sort `positions` (relative, in `[0, L)`) with `charges` into cells
+    /// of size about `r_c / 2`, with at most about `2N` cells.
+    pub(crate) fn new(
+        lengths: [f64; 3],
+        positions: &[[f64; 3]],
+        charges: &[f64],
+        r_cut: f64,
+        alpha: f64,
+    ) -> Self {
+        let n_src = positions.len();
+        let max_cells = (2 * n_src).max(8) as f64;
+        let mut h_target = 0.5 * r_cut;
+        let mut n = [1usize; 3];
+        for _ in 0..200 {
+            n = [0, 1, 2].map(|d| ((lengths[d] / h_target).floor() as usize).clamp(1, 1 << 20));
+            if (n[0] as f64) * (n[1] as f64) * (n[2] as f64) <= max_cells {
+                break;
+            }
+            h_target *= 1.25;
+        }
+        let h = [0, 1, 2].map(|d| lengths[d] / n[d] as f64);
+        let n_cells = n[0] * n[1] * n[2];
+        let cell_of = |p: &[f64; 3]| -> usize {
+            let c = [0, 1, 2].map(|d| ((p[d] / h[d]) as usize).min(n[d] - 1));
+            c[0] + n[0] * (c[1] + n[1] * c[2])
+        };
+        let mut count = vec![0usize; n_cells + 1];
+        let cells: Vec<usize> = positions.iter().map(cell_of).collect();
+        for &c in &cells {
+            count[c + 1] += 1;
+        }
+        for c in 0..n_cells {
+            count[c + 1] += count[c];
+        }
+        let start = count.clone();
+        let mut next = count;
+        let (mut x, mut y, mut z, mut q) = (
+            vec![0.0; n_src],
+            vec![0.0; n_src],
+            vec![0.0; n_src],
+            vec![0.0; n_src],
+        );
+        for (i, &c) in cells.iter().enumerate() {
+            let k = next[c];
+            next[c] += 1;
+            x[k] = positions[i][0];
+            y[k] = positions[i][1];
+            z[k] = positions[i][2];
+            q[k] = charges[i];
+        }
+        let m = [0, 1, 2].map(|d| (r_cut / h[d]).ceil() as i64);
+        let r_cut2 = r_cut * r_cut;
+        let mut stencil = Vec::new();
+        for oz in -m[2]..=m[2] {
+            for oy in -m[1]..=m[1] {
+                for ox in -m[0]..=m[0] {
+                    let o = [ox, oy, oz];
+                    let gap2: f64 = (0..3)
+                        .map(|d| {
+                            let g = ((o[d].abs() - 1).max(0)) as f64 * h[d];
+                            g * g
+                        })
+                        .sum();
+                    if gap2 < r_cut2 {
+                        stencil.push(o);
+                    }
+                }
+            }
+        }
+        Self {
+            n,
+            h,
+            lengths,
+            start,
+            x,
+            y,
+            z,
+            q,
+            stencil,
+            r_cut2,
+            alpha,
+        }
+    }
+
+    /// `[sum, gx, gy, gz]` of `q_j erfc(alpha r) / r` over the sources and
+    /// their images within `r_c` of `t` (relative, in `[0, L)`), **without**
+    /// the factor `1/(4 pi)`; the gradient (with respect to `t`) only when
+    /// `grad`. A pair at zero distance contributes its regular part
+    /// `lim_{r->0} (erfc(alpha r) - 1) / r = -2 alpha / sqrt(pi)` and no
+    /// gradient.
+    pub(crate) fn sum(&self, t: [f64; 3], grad: bool) -> [f64; 4] {
+        let c = [0, 1, 2].map(|d| ((t[d] / self.h[d]) as i64).clamp(0, self.n[d] as i64 - 1));
+        let alpha = self.alpha;
+        let mut acc = [0.0f64; 4];
+        for o in &self.stencil {
+            let mut idx = [0usize; 3];
+            let mut ts = [0.0f64; 3];
+            for d in 0..3 {
+                let u = c[d] + o[d];
+                let nd = self.n[d] as i64;
+                idx[d] = u.rem_euclid(nd) as usize;
+                ts[d] = t[d] - u.div_euclid(nd) as f64 * self.lengths[d];
+            }
+            let cell = idx[0] + self.n[0] * (idx[1] + self.n[1] * idx[2]);
+            let range = self.start[cell]..self.start[cell + 1];
+            let (xs, ys, zs, qs) = (
+                &self.x[range.clone()],
+                &self.y[range.clone()],
+                &self.z[range.clone()],
+                &self.q[range],
+            );
+            for j in 0..xs.len() {
+                let dx = ts[0] - xs[j];
+                let dy = ts[1] - ys[j];
+                let dz = ts[2] - zs[j];
+                let r2 = dx * dx + dy * dy + dz * dz;
+                if r2 >= self.r_cut2 {
+                    continue;
+                }
+                let qj = qs[j];
+                if r2 < f64::MIN_POSITIVE {
+                    acc[0] -= qj * TWO_OVER_SQRT_PI * alpha;
+                    continue;
+                }
+                let r = r2.sqrt();
+                let rinv = 1.0 / r;
+                let e = libm::erfc(alpha * r);
+                acc[0] += qj * e * rinv;
+                if grad {
+                    let g = (e * rinv + TWO_OVER_SQRT_PI * alpha * (-alpha * alpha * r2).exp())
+                        * rinv
+                        * rinv
+                        * qj;
+                    acc[1] -= g * dx;
+                    acc[2] -= g * dy;
+                    acc[3] -= g * dz;
+                }
+            }
+        }
+        acc
+    }
+}
