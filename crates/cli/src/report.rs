@@ -96,6 +96,14 @@ pub struct RunReport {
     /// The kernel: `laplace` or `yukawa:K`.
     #[serde(default = "laplace_name")]
     pub kernel: String,
+    /// The periodic cell (`--box`), e.g. `box 10 (xyz, tin-foil), origin
+    /// [0, 0, 0]`; `None` in free space.
+    #[serde(default)]
+    pub periodic: Option<String>,
+    /// The energy `1/2 sum_i q_i phi_i` (charges evaluated at the sources
+    /// themselves, a scalar kernel; in a periodic cell, per cell).
+    #[serde(default)]
+    pub energy: Option<f64>,
     /// What the sources carry: `charge`, `dipole` or `charge+dipole`.
     #[serde(default = "charge_name")]
     pub sources: String,
@@ -399,6 +407,12 @@ impl RunReport {
             row(&mut o, "charges", what.to_string());
         }
         row(&mut o, "targets", thousands(self.n_targets));
+        if let Some(p) = &self.periodic {
+            row(&mut o, "periodic", p.clone());
+        }
+        if let Some(e) = self.energy {
+            row(&mut o, "energy", format!("{e:.12e} (1/2 sum q phi)"));
+        }
         if self.method == "direct" {
             let predicted = match (self.direct_predicted_s, self.fmm_predicted_s) {
                 (Some(d), Some(f)) => format!(

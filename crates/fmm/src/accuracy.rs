@@ -144,6 +144,56 @@ pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
     sums.report(mode)
 }
 
+/// [`relative_errors`] of a periodic Laplace run ([`crate::Periodic`]):
+/// the truth at the sampled targets is the Ewald sum
+/// ([`ferrofmm_kernels::EwaldSum`], to `1e-13`) of the charges at the
+/// sources in the cell, at the `targets` (`None`: the targets are the
+/// sources, each leaving out only itself).
+///
+/// # Errors
+/// What [`ferrofmm_kernels::EwaldSum::new`] refuses (a bad cell, points or
+/// charges that do not match).
+#[allow(clippy::too_many_arguments)]
+pub fn relative_errors_periodic<T: Real>(
+    cell: &crate::Periodic,
+    mode: EvalMode,
+    sources: &[f64],
+    charges: &[T],
+    targets: Option<&[f64]>,
+    values: &[T],
+    sample: &[usize],
+) -> Result<ErrorReport, crate::FmmError> {
+    let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
+    let green_cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
+    let options = ferrofmm_kernels::EwaldOptions::new(1e-13).expected_targets(sample.len());
+    let ewald = ferrofmm_kernels::EwaldSum::with_options(green_cell, sources, &q, options)?;
+    let exact = match targets {
+        Some(t) => {
+            let at: Vec<f64> = sample
+                .iter()
+                .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
+                .collect();
+            ewald.at_points(&at, mode)?
+        }
+        None => ewald.at_sources(sample, mode)?,
+    };
+    let truth = |_: &[usize]| -> Vec<f64> { exact.clone() };
+    let laplace = ferrofmm_kernels::Laplace3d;
+    let mut problem = Comparison::new(
+        &laplace,
+        SourceKind::Charge,
+        mode,
+        sources,
+        charges,
+        targets.unwrap_or(sources),
+        values,
+    );
+    problem.truth = Some(&truth);
+    let mut sums = ErrorSums::default();
+    problem.add(&mut sums, sample);
+    Ok(sums.report(mode))
+}
+
 /// Estimate the relative L2 errors of `values` on a random sample of
 /// targets whose direct sums take about `budget` (at least `min_sample`
 /// and at most `max_sample` targets, fewer only when there are fewer
@@ -169,6 +219,7 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
 ) -> ErrorReport {
     sample_sums(
         kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample,
+        None,
     )
     .0
     .report(mode)
@@ -187,12 +238,14 @@ fn sample_sums<P: Real, T: Real, K: Kernel>(
     budget: Duration,
     min_sample: usize,
     max_sample: usize,
+    truth: Option<&Truth<'_>>,
 ) -> (ErrorSums, f64) {
     const PROBE: usize = 16;
     let n_targets = targets.len() / 3;
     let max_sample = max_sample.max(min_sample).max(1);
     let sample = random_sample(n_targets, max_sample);
-    let problem = Comparison::new(kernel, kind, mode, sources, charges, targets, values);
+    let mut problem = Comparison::new(kernel, kind, mode, sources, charges, targets, values);
+    problem.truth = truth;
     let mut sums = ErrorSums::default();
     let first = PROBE.min(sample.len());
     let t = Instant::now();
@@ -238,9 +291,11 @@ pub(crate) fn estimate_errors_population<P: Real, T: Real, K: Kernel>(
     budget: Duration,
     min_sample: usize,
     max_sample: usize,
+    truth: Option<&Truth<'_>>,
 ) -> ErrorReport {
     let (mut sums, scale) = sample_sums(
         kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample,
+        truth,
     );
     let n_targets = targets.len() / 3;
     let comps = kernel.components();
@@ -305,7 +360,14 @@ struct Comparison<'a, P, T, K> {
     values: &'a [T],
     /// [`charge_scale`] of the charges.
     scale: f64,
+    /// The exact values at given targets, when they are not the direct
+    /// sum (a periodic cell's Ewald sums).
+    truth: Option<&'a Truth<'a>>,
 }
+
+/// The exact values (`values_per_target` each, unscaled) at the targets of
+/// the given indices, for problems whose truth is not a direct sum.
+pub(crate) type Truth<'a> = dyn Fn(&[usize]) -> Vec<f64> + Sync + 'a;
 
 impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
     fn new(
@@ -326,6 +388,7 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             targets,
             values,
             scale: charge_scale(charges),
+            truth: None,
         }
     }
 
@@ -342,15 +405,18 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
             .map(|x| x.to_f64())
             .collect();
-        let reference = scaled_reference(
-            self.kernel,
-            self.kind,
-            self.mode,
-            self.sources,
-            self.charges,
-            self.scale,
-            &at,
-        );
+        let reference = match self.truth {
+            Some(truth) => truth(sample).iter().map(|v| v / self.scale).collect(),
+            None => scaled_reference(
+                self.kernel,
+                self.kind,
+                self.mode,
+                self.sources,
+                self.charges,
+                self.scale,
+                &at,
+            ),
+        };
         for (k, &j) in sample.iter().enumerate() {
             for c in 0..w {
                 let r = reference[w * k + c];

@@ -14,6 +14,7 @@ use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 use crate::coordinates::Coordinates;
 use crate::fmm::ChosenScheme;
 use crate::tuning::{ChosenParameters, TuningModel};
+use crate::periodic::Periodic;
 use crate::{Fmm, FmmError, validate};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
@@ -124,6 +125,8 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) memory_limit: MemoryLimit,
     pub(crate) monitor: PrecomputeMonitor,
     pub(crate) tuning_model: Option<Arc<dyn TuningModel>>,
+    /// The periodic cell ([`FmmBuilder::periodic`]), `None` for free space.
+    pub(crate) periodic: Option<Periodic>,
 }
 
 impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
@@ -183,6 +186,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             memory_limit: MemoryLimit::Auto,
             monitor: PrecomputeMonitor::default(),
             tuning_model: None,
+            periodic: None,
         }
     }
 }
@@ -211,6 +215,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             memory_limit: self.memory_limit,
             monitor: self.monitor,
             tuning_model: None,
+            periodic: self.periodic,
         }
     }
 
@@ -482,6 +487,42 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
+    /// Periodic boundary conditions: the sources and targets lie in a cell
+    /// that repeats ([`Periodic`]), and every target sees every image of
+    /// every source (the Ewald convention; see [`crate::periodic`] for
+    /// the maths and the conventions). Points outside the cell are wrapped
+    /// into it; results come in the caller's order.
+    ///
+    /// This release runs the Laplace kernel with charges in a cubic cell
+    /// periodic in `x`, `y` and `z`; the cell must be neutral
+    /// ([`FmmError::NotNeutral`] at evaluation otherwise). Other kernels,
+    /// dipoles, slabs, rods, non-cubic boxes and a
+    /// [`FmmBuilder::domain`] beside the cell are refused when building.
+    /// A tolerance is chosen and verified as in free space, the
+    /// verification's truth being an Ewald sum
+    /// ([`ferrofmm_kernels::EwaldSum`]).
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, Periodic};
+    /// use ferrofmm_kernels::EvalMode;
+    /// // A CsCl crystal: two ions per cubic cell of side 1.
+    /// let points = [0.0, 0.0, 0.0, 0.5, 0.5, 0.5];
+    /// let fmm = FmmBuilder::new(&points)
+    ///     .periodic(Periodic::cube(1.0))
+    ///     .mode(EvalMode::Potential)
+    ///     .build_svd()?;
+    /// let q = [1.0, -1.0];
+    /// let phi = fmm.evaluate(&q)?;
+    /// // The Madelung constant, in units of the nearest-neighbour distance.
+    /// let madelung = -phi[0] * 4.0 * std::f64::consts::PI * 3f64.sqrt() / 2.0;
+    /// assert!((madelung - 1.762_674_773_070).abs() < 1e-5);
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn periodic(mut self, cell: Periodic) -> Self {
+        self.periodic = Some(cell);
+        self
+    }
+
     /// Operator parameters as they will be used (the cache setting
     /// resolved: a `FERROFMM_CACHE_SIZE` that is not a size is an error).
     pub(crate) fn operator_params(&self) -> Result<OperatorParams, FmmError> {
@@ -513,6 +554,15 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             t.check("targets")?;
         }
         self.cache.resolve()?;
+        if let Some(cell) = &self.periodic {
+            cell.validate()?;
+            check_periodic_problem(
+                &self.kernel,
+                self.source_kind,
+                self.mode,
+                self.domain.is_some(),
+            )?;
+        }
         Ok(())
     }
 
@@ -541,4 +591,38 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     pub fn build_dense(self) -> Result<Fmm<T, K, DenseM2l<T>>, FmmError> {
         self.build_with(Default::default())
     }
+}
+
+/// Refuse what periodic runs do not support yet (see
+/// [`FmmBuilder::periodic`]).
+fn check_periodic_problem<K: Kernel>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    domain_given: bool,
+) -> Result<(), FmmError> {
+    if mode.has_hessian() {
+        return Err(FmmError::InvalidParameter(
+            "periodic boundaries give potentials and gradients in this release, not Hessians"
+                .to_string(),
+        ));
+    }
+    if (kernel as &dyn std::any::Any).downcast_ref::<Laplace3d>().is_none() {
+        return Err(FmmError::InvalidParameter(format!(
+            "periodic boundaries run the Laplace kernel only in this release, not {}",
+            kernel.name()
+        )));
+    }
+    if kind != SourceKind::Charge {
+        return Err(FmmError::InvalidParameter(
+            "periodic boundaries take charges only in this release, not dipoles".to_string(),
+        ));
+    }
+    if domain_given {
+        return Err(FmmError::InvalidParameter(
+            "a periodic run's domain is its cell: give the cell (Periodic) and no domain"
+                .to_string(),
+        ));
+    }
+    Ok(())
 }

@@ -197,6 +197,21 @@ pub enum FmmError {
         /// The smallest tolerance that precision can promise.
         limit: f64,
     },
+    /// A periodic Laplace cell whose charges do not sum to zero (the
+    /// lattice sum diverges; see [`crate::periodic`]).
+    #[error(
+        "the periodic cell is not neutral: its charges sum to {total:e} (sum of |q| \
+         {absolute:e}, allowed {limit:e} of it); the Laplace lattice sum needs a neutral cell: \
+         add a compensating charge or subtract the mean charge"
+    )]
+    NotNeutral {
+        /// Sum of the charges.
+        total: f64,
+        /// Sum of their magnitudes.
+        absolute: f64,
+        /// The allowed share of `absolute`.
+        limit: f64,
+    },
     /// Any other impossible parameter.
     #[error("invalid parameter: {0}")]
     InvalidParameter(String),

@@ -1,6 +1,7 @@
 //! [`Fmm`]: a built problem (tree + operators) that evaluates any number of
 //! charge vectors.
 
+use std::borrow::Cow;
 use std::time::Instant;
 
 use ferrofmm_field::{M2lScheme, OperatorParams, Operators, surface_points};
@@ -10,6 +11,7 @@ use ferrofmm_tree::{Domain, Octree};
 use crate::builder::FmmBuilder;
 use crate::coordinates::Coordinates;
 use crate::memory::MemoryReport;
+use crate::periodic::FarImages;
 use crate::part::{
     Body, Part, PartInput, TreePart, build_tree_part, clusters_of, gather, points_part,
 };
@@ -72,6 +74,9 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     pub(crate) error_model: Option<ErrorModel>,
     /// The last verification (see [`Fmm::evaluate_verified`]).
     pub(crate) verification: Option<Verification>,
+    /// The far images of a periodic cell ([`crate::periodic`]); `None` in
+    /// free space.
+    pub(crate) periodic: Option<FarImages>,
 }
 
 /// Figures that describe a built [`Fmm`] (for reports and JSON output).
@@ -134,8 +139,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         // Every point in f64 (borrowed when given so): the tree is built on
         // them and the run's float type only sees coordinates relative to
         // the tree's origin (see `crate::coordinates`).
-        let src64 = b.sources.to_f64();
-        let tgt64 = b.targets.map(Coordinates::to_f64);
+        let mut src64 = b.sources.to_f64();
+        let mut tgt64 = b.targets.map(Coordinates::to_f64);
+        // A periodic run: every point wrapped into the cell, which is the
+        // tree's domain (so one cluster).
+        if let Some(cell) = &b.periodic {
+            src64 = Cow::Owned(cell.wrap_all(&src64));
+            tgt64 = tgt64.map(|t| Cow::Owned(cell.wrap_all(&t)));
+            b.domain = Some(cell.domain()?);
+        }
         let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());
         let mut error_model = None;
         // What is chosen: nothing when the caller gave both the order and
@@ -211,6 +223,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             // (one set serves every domain); a kernel with operators per
             // level and domain width pays them on every new set of points.
             if b.allow_direct
+                && b.periodic.is_none()
                 && !b.leaf_given
                 && clusters.len() == 1
                 && T::PRECISION == Precision::F64
@@ -288,6 +301,15 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let t = Instant::now();
         let unit_surface = surface_points::<f64>(b.order, [0.0; 3], 1.0, 1.0);
         setup.layout += t.elapsed();
+        let periodic = match &b.periodic {
+            Some(cell) => {
+                let t = Instant::now();
+                let far = far_images(cell, b.order, &parts)?;
+                setup.operators += t.elapsed();
+                Some(far)
+            }
+            None => None,
+        };
         setup.total = t0.elapsed();
 
         Ok(Fmm {
@@ -309,6 +331,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             verify: b.verify,
             error_model,
             verification: None,
+            periodic,
         })
     }
 
@@ -334,7 +357,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     &params,
                     &config,
                     &t.tree,
-                    self.parts.len() > 1,
+                    self.parts.len() > 1 || self.periodic.is_some(),
                     &mut s,
                 )?);
                 setup.operators += s.operators;
@@ -350,6 +373,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             }
         }
         self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);
+        if let Some(far) = &self.periodic {
+            let t = Instant::now();
+            self.periodic = Some(far_images(&far.cell, chosen.order, &self.parts)?);
+            setup.operators += t.elapsed();
+            self.setup.operators = setup.operators;
+        }
         self.order = chosen.order;
         self.params = params;
         self.config = config;
@@ -448,7 +477,53 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 value: charges[index].to_f64(),
             });
         }
+        if self.periodic.is_some() {
+            for q in charges.chunks(self.n_sources * per_source) {
+                crate::periodic::check_neutral(q)?;
+            }
+        }
         Ok(())
+    }
+
+    /// The periodic cell of a periodic run ([`FmmBuilder::periodic`]).
+    pub fn periodic(&self) -> Option<&crate::periodic::Periodic> {
+        self.periodic.as_ref().map(|f| &f.cell)
+    }
+
+    /// The energy `E = 1/2 sum_i q_i phi_i` of charges `charges` whose
+    /// potentials (one vector, `values` as [`Fmm::evaluate`] returned them)
+    /// are `phi`: the electrostatic energy of the set (the kernel's own
+    /// constant included, `1 / (4 pi r)` for Laplace; in a periodic cell,
+    /// per cell).
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] when the targets are not the
+    /// sources, the sources are not charges or the kernel has more than
+    /// one component; [`FmmError::ChargeCount`] for lengths that do not
+    /// match.
+    pub fn energy(&self, charges: &[T], values: &[T]) -> Result<f64, FmmError> {
+        if self.separate_targets
+            || self.source_kind != SourceKind::Charge
+            || self.kernel.components() != 1
+        {
+            return Err(FmmError::InvalidParameter(
+                "an energy needs charges of a scalar kernel evaluated at the sources themselves"
+                    .to_string(),
+            ));
+        }
+        let w = self.kernel.values_per_target(self.mode);
+        if charges.len() != self.n_sources || values.len() != w * self.n_sources {
+            return Err(FmmError::ChargeCount {
+                expected: self.n_sources,
+                got: charges.len(),
+            });
+        }
+        Ok(0.5
+            * charges
+                .iter()
+                .zip(values.chunks_exact(w))
+                .map(|(q, v)| q.to_f64() * v[0].to_f64())
+                .sum::<f64>())
     }
 
     /// The octree (plain data: keys, ranges, lists) of the largest
@@ -579,4 +654,19 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             memory: self.memory(),
         }
     }
+}
+
+/// The far images of a periodic run at `order`, for the surfaces of its
+/// tree's operators.
+fn far_images<T: Real, S: M2lScheme<T>>(
+    cell: &crate::periodic::Periodic,
+    order: usize,
+    parts: &[Part<T, S>],
+) -> Result<FarImages, FmmError> {
+    let radii = parts[0]
+        .tree_part()
+        .expect("a periodic run has one tree")
+        .operators
+        .radii();
+    FarImages::new(*cell, order, radii.upward_equivalent, radii.downward_check)
 }

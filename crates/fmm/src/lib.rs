@@ -38,6 +38,7 @@ mod memory;
 mod overflow;
 mod part;
 mod passes;
+pub mod periodic;
 mod precompute;
 mod scheme_choice;
 mod timings;
@@ -47,8 +48,8 @@ mod validate;
 pub mod verify;
 
 pub use accuracy::{
-    ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_sources,
-    sample_indices,
+    ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_periodic,
+    relative_errors_sources, sample_indices,
 };
 pub use builder::{
     DEFAULT_F32_TOLERANCE, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, DEFAULT_TOLERANCE, FmmBuilder,
@@ -62,6 +63,7 @@ pub use ferrofmm_field::{
 pub use fmm::{Fmm, FmmSummary};
 pub use memory::{MemoryReport, RunSize, check_memory};
 pub use overflow::check_finite_output;
+pub use periodic::{Periodic, PeriodicAxes, SurfaceTerm};
 pub use precompute::{first_far_level, m2l_usage};
 pub use scheme_choice::SchemeChoice;
 pub use timings::{EvalTimings, SetupTimings};

@@ -121,6 +121,19 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
     /// of the half-width), from the unit-cube surface grid `unit`, written
     /// into `out` (interleaved, relative to `centre` like the points).
     pub(crate) fn surface_of(&self, unit: &[f64], b: usize, radius: f64, out: &mut Vec<T>) {
+        self.image_surface_of(unit, b, [0; 3], radius, out);
+    }
+
+    /// [`TreePart::surface_of`] for the image of box `b` at the periodic
+    /// shift `shift` (in cells; see [`ferrofmm_tree::TreeOptions::periodic`]).
+    pub(crate) fn image_surface_of(
+        &self,
+        unit: &[f64],
+        b: usize,
+        shift: [i8; 3],
+        radius: f64,
+        out: &mut Vec<T>,
+    ) {
         let key = self.tree.key(b);
         let domain = self.tree.domain();
         let c: [f64; 3] = {
@@ -128,6 +141,7 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
             std::array::from_fn(|i| a[i] - self.centre[i])
         };
         let r = key.half_width(domain) * radius;
+        let c: [f64; 3] = std::array::from_fn(|a| c[a] + f64::from(shift[a]) * domain.width);
         out.clear();
         out.extend(
             unit.chunks_exact(3)
@@ -135,6 +149,34 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
                 .map(T::from_f64),
         );
     }
+}
+
+/// The points `x` (interleaved) of a box seen at the periodic image
+/// `shift` of a cell of side `width`: `x` itself for no shift, else a
+/// translated copy in `buffer`.
+pub(crate) fn image_points<'a, T: Real>(
+    x: &'a [T],
+    shift: [i8; 3],
+    width: f64,
+    buffer: &'a mut Vec<T>,
+) -> &'a [T] {
+    if shift == [0; 3] {
+        return x;
+    }
+    let offset: [f64; 3] = std::array::from_fn(|a| f64::from(shift[a]) * width);
+    buffer.clear();
+    buffer.extend(
+        x.chunks_exact(3)
+            .flat_map(|p| std::array::from_fn::<T, 3, _>(|a| T::from_f64(p[a].to_f64() + offset[a]))),
+    );
+    buffer
+}
+
+/// The shift of entry `k` of a list row whose shifts are `shifts` (`None`:
+/// a tree without periodicity, every shift zero).
+#[inline]
+pub(crate) fn shift_at(shifts: Option<&[[i8; 3]]>, k: usize) -> [i8; 3] {
+    shifts.map_or([0; 3], |s| s[k])
 }
 
 /// A small cluster: its points, in the order of its index lists, relative
@@ -342,12 +384,15 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         domain: b.domain,
         uniform_depth: None,
         balance: true,
+        periodic: b.periodic.map_or([false; 3], |cell| cell.axes().mask()),
     };
     let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
     setup.tree += t0.elapsed();
     check_domain_width(tree.domain().width, T::PRECISION, tree.depth())?;
     let mut timings = SetupTimings::default();
-    let coupled = input.ids.is_some();
+    // The root's local expansion is needed when other clusters or the
+    // far images of a periodic cell act on it.
+    let coupled = input.ids.is_some() || b.periodic.is_some();
     let (operators, m2l) =
         build_operators(&b.kernel, params, config, &tree, coupled, &mut timings)?;
     setup.operators += timings.operators;

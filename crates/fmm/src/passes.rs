@@ -24,7 +24,7 @@ use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
 use crate::batch::{gather_apply_scatter, par_columns};
-use crate::part::{Body, TreePart};
+use crate::part::{Body, TreePart, image_points, shift_at};
 use crate::timings::EvalTimings;
 use crate::{Fmm, coupling};
 use ferrofmm_tree::Octree;
@@ -82,6 +82,16 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         })
         .collect();
     let mut root_checks: Vec<Vec<T>> = fmm.parts.iter().map(|_| Vec::new()).collect();
+    // A periodic cell: the far images act on the root ([`crate::periodic`]).
+    let mut periodic_constant = 0.0;
+    if let (Some(far), Some(tp)) = (&fmm.periodic, fmm.parts[0].tree_part()) {
+        let t = Instant::now();
+        let centre = cell_centre(far, tp);
+        let (check, constant) = far.root_check(&multipoles[0], &tp.sources, centre, &local_q[0]);
+        root_checks[0] = check;
+        periodic_constant = constant;
+        timings.coupling = t.elapsed();
+    }
     if fmm.parts.len() > 1 {
         let t = Instant::now();
         couple(fmm, &local_q, &multipoles, &mut values, &mut root_checks);
@@ -131,6 +141,19 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         }
     }
 
+    if let (Some(far), Some(tp)) = (&fmm.periodic, fmm.parts[0].tree_part()) {
+        let centre = cell_centre(far, tp);
+        far.add_terms(
+            periodic_constant,
+            w,
+            &tp.sources,
+            &local_q[0],
+            tp.target_points(),
+            centre,
+            &mut values[0],
+        );
+    }
+
     let mut out = vec![T::ZERO; w * fmm.n_targets];
     for (part, v) in fmm.parts.iter().zip(&values) {
         for (k, i) in part.stored_target_ids().into_iter().enumerate() {
@@ -139,6 +162,12 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     }
     timings.total = t0.elapsed();
     (out, timings)
+}
+
+/// The centre of a periodic cell in the coordinates of its tree part.
+fn cell_centre<T: Real, S>(far: &crate::periodic::FarImages, tp: &TreePart<T, S>) -> [f64; 3] {
+    let c = far.cell.centre();
+    std::array::from_fn(|a| c[a] - tp.centre[a])
 }
 
 /// P2M and M2M of one tree part: its multipoles.
@@ -340,22 +369,25 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         timings.m2l += t.elapsed();
 
         let t = Instant::now();
-        check
-            .par_chunks_mut(n)
-            .enumerate()
-            .for_each_init(Vec::new, |surface, (j, col)| {
+        let width = tree.domain().width;
+        check.par_chunks_mut(n).enumerate().for_each_init(
+            || (Vec::new(), Vec::new()),
+            |(surface, image), (j, col)| {
                 let b = r.start + j;
                 let xs = tree.x_list(b);
                 if xs.is_empty() || !part.has_sources {
                     return;
                 }
+                let shifts = tree.x_shifts(b);
                 part.surface_of(cx.unit_surface, b, radius, surface);
-                for &a in xs {
+                for (k, &a) in xs.iter().enumerate() {
                     let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
+                    let x = image_points(x, shift_at(shifts, k), width, image);
                     cx.kernel
                         .evaluate_sources(cx.kind, EvalMode::Potential, x, qa, surface, col);
                 }
-            });
+            },
+        );
         timings.p2l += t.elapsed();
         on_checks(level, r.clone(), &mut check);
 
@@ -427,8 +459,9 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     slices
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
-            for &a in tree.w_list(*b) {
-                part.surface_of(cx.unit_surface, a, up_equiv, surface);
+            let shifts = tree.w_shifts(*b);
+            for (k, &a) in tree.w_list(*b).iter().enumerate() {
+                part.image_surface_of(cx.unit_surface, a, shift_at(shifts, k), up_equiv, surface);
                 let u = &multipoles[n * a..n * (a + 1)];
                 cx.kernel.evaluate_sources(
                     SourceKind::Charge,
@@ -460,14 +493,19 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
                 .map(move |(k, chunk)| (*b, k * rows.max(1), chunk))
         })
         .collect();
-    blocks.into_par_iter().for_each(|(b, first, out)| {
-        let y = targets_of(b);
-        let y = &y[3 * first..3 * first + 3 * (out.len() / w)];
-        for &a in tree.u_list(b) {
-            let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
-            cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
-        }
-    });
+    let width = tree.domain().width;
+    blocks
+        .into_par_iter()
+        .for_each_init(Vec::new, |image, (b, first, out)| {
+            let y = targets_of(b);
+            let y = &y[3 * first..3 * first + 3 * (out.len() / w)];
+            let shifts = tree.u_shifts(b);
+            for (k, &a) in tree.u_list(b).iter().enumerate() {
+                let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
+                let x = image_points(x, shift_at(shifts, k), width, image);
+                cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
+            }
+        });
     timings.p2p += t.elapsed();
 }
 

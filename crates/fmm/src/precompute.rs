@@ -16,6 +16,7 @@ use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::Octree;
 
 use crate::FmmError;
+use crate::part::shift_at;
 use crate::timings::SetupTimings;
 use crate::validate::check_wavenumber;
 
@@ -28,15 +29,29 @@ pub fn m2l_usage(tree: &Octree) -> M2lUsage {
     let mut usage = M2lUsage::none();
     for level in 0..=tree.depth() {
         for b in tree.level_range(level) {
-            let key = tree.key(b);
-            for &a in tree.v_list(b) {
-                if let Some(v) = transfer_vector_index(key.transfer_vector(tree.key(a))) {
+            for (_, v) in v_entries(tree, b) {
+                if let Some(v) = transfer_vector_index(v) {
                     usage.mark(level, v);
                 }
             }
         }
     }
     usage
+}
+
+/// The V entries of box `b` with their transfer vectors (source centre
+/// minus target centre, in box widths of `b`'s level), the image shift of
+/// a periodic tree included: the entry `(a, s)` is box `a` moved by `s`
+/// cells, `2^level s` boxes.
+pub(crate) fn v_entries(tree: &Octree, b: usize) -> impl Iterator<Item = (usize, [i32; 3])> + '_ {
+    let key = tree.key(b);
+    let side = 1i32 << tree.level(b);
+    let shifts = tree.v_shifts(b);
+    tree.v_list(b).iter().enumerate().map(move |(k, &a)| {
+        let v = key.transfer_vector(tree.key(a));
+        let s = shift_at(shifts, k);
+        (a, std::array::from_fn(|i| v[i] + side * i32::from(s[i])))
+    })
 }
 
 /// The shallowest level with far-field work: a box with a V or X list
@@ -174,10 +189,7 @@ pub(crate) fn level_interactions(tree: &Octree, level: u32) -> Result<M2lInterac
     let start = range.start;
     let chunk = M2lInteractions::default_chunk_size(range.len());
     let inter = M2lInteractions::from_targets(range.len(), range.len(), chunk, |t| {
-        let key = tree.key(start + t);
-        tree.v_list(start + t)
-            .iter()
-            .map(move |&a| (a - start, key.transfer_vector(tree.key(a))))
+        v_entries(tree, start + t).map(move |(a, v)| (a - start, v))
     })?;
     if level == 0 {
         return Ok(inter);

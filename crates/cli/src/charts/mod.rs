@@ -220,6 +220,8 @@ pub(crate) mod tests {
             gradients: true,
             hessians: false,
             kernel: "laplace".into(),
+            periodic: None,
+            energy: None,
             sources: "charge".into(),
             threads: 2,
             cache: None,

@@ -78,6 +78,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         tolerance: args.fmm.tolerance,
         default_tolerance: false,
         verify: args.fmm.verify()?,
+        periodic: args.fmm.periodic()?,
         force: args.fmm.force,
         out_sources: None,
         complex_output: false,

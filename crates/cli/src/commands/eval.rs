@@ -192,6 +192,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         tolerance: args.fmm.tolerance,
         default_tolerance: false,
         verify: args.fmm.verify()?,
+        periodic: args.fmm.periodic()?,
         force: args.fmm.force,
         out_sources: split,
         complex_output,

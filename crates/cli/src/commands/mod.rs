@@ -221,9 +221,85 @@ pub struct FmmArgs {
     /// run stops before any work with the estimate.
     #[arg(long)]
     pub force: bool,
+    /// Periodic boundaries: the side of the cell that repeats, `L` (or
+    /// `LX,LY,LZ`; only cubes run in this release). Every target sees
+    /// every image of every source (Ewald's convention, tin-foil
+    /// surroundings unless --surface vacuum); points outside the cell are
+    /// wrapped into it; the cell must be neutral (demo charges are made
+    /// so). Laplace kernel and charges only.
+    #[arg(long = "box", value_name = "L|LX,LY,LZ")]
+    pub periodic_box: Option<String>,
+    /// The periodic cell's lower corner (default 0,0,0).
+    #[arg(long, value_name = "X,Y,Z", requires = "periodic_box")]
+    pub box_origin: Option<String>,
+    /// Which axes repeat: xyz (the default with --box), xy (a slab) or x
+    /// (a rod); only xyz runs in this release.
+    #[arg(long, value_name = "xyz|xy|x", requires = "periodic_box")]
+    pub periodic: Option<String>,
+    /// How the periodic Laplace sum is closed: tin-foil (conducting
+    /// surroundings, the default, as particle-mesh Ewald) or vacuum (adds
+    /// the dipole term).
+    #[arg(long, value_name = "tin-foil|vacuum", requires = "periodic_box")]
+    pub surface: Option<String>,
+}
+
+/// Up to three comma-separated numbers of an option.
+fn numbers(option: &str, text: &str) -> Result<Vec<f64>, CliError> {
+    text.split(',')
+        .map(|t| {
+            t.trim().parse::<f64>().map_err(|_| {
+                CliError::InvalidArgument(format!("{option} takes numbers, got `{text}`"))
+            })
+        })
+        .collect()
 }
 
 impl FmmArgs {
+    /// The periodic cell asked for with `--box` (and `--box-origin`,
+    /// `--periodic`, `--surface`), `None` without `--box`. Checked when the
+    /// FMM is built.
+    pub fn periodic(&self) -> Result<Option<ferrofmm_fmm::Periodic>, CliError> {
+        use ferrofmm_fmm::{Periodic, PeriodicAxes, SurfaceTerm};
+        let Some(text) = &self.periodic_box else {
+            return Ok(None);
+        };
+        let lengths = match numbers("--box", text)?[..] {
+            [l] => [l; 3],
+            [a, b, c] => [a, b, c],
+            _ => {
+                return Err(CliError::InvalidArgument(format!(
+                    "--box takes one side or three (LX,LY,LZ), got `{text}`"
+                )));
+            }
+        };
+        let mut cell = Periodic::with_lengths(lengths);
+        if let Some(o) = &self.box_origin {
+            match numbers("--box-origin", o)?[..] {
+                [x, y, z] => cell = cell.with_origin([x, y, z]),
+                _ => {
+                    return Err(CliError::InvalidArgument(format!(
+                        "--box-origin takes three numbers (X,Y,Z), got `{o}`"
+                    )));
+                }
+            }
+        }
+        if let Some(a) = &self.periodic {
+            let axes: PeriodicAxes = a
+                .parse()
+                .map_err(|e: ferrofmm_fmm::FmmError| CliError::InvalidArgument(e.to_string()))?;
+            cell = cell.with_axes(axes);
+        }
+        if let Some(s) = &self.surface {
+            let surface: SurfaceTerm = s
+                .parse()
+                .map_err(|e: ferrofmm_fmm::FmmError| CliError::InvalidArgument(e.to_string()))?;
+            cell = cell.with_surface(surface);
+        }
+        cell.validate()
+            .map_err(|e| CliError::InvalidArgument(format!("--box: {e}")))?;
+        Ok(Some(cell))
+    }
+
     /// The operator cache asked for: `--cache-dir`, `--no-cache`, else the
     /// default location.
     pub fn cache(&self) -> ferrofmm_field::CacheSetting {

@@ -115,6 +115,8 @@ pub struct Settings {
     /// Write a `.npy` output as complex numbers (the densities came as a
     /// complex `.npy` array); the values are then `re, im` pairs.
     pub complex_output: bool,
+    /// Periodic boundaries (`--box`), `None` for free space.
+    pub periodic: Option<ferrofmm_fmm::Periodic>,
 }
 
 /// Run the FMM described by `input` and `settings`; write the values to
@@ -350,12 +352,13 @@ where
         } => with_stage(
             format!("generating {n} points ({})", geometry.name()),
             || {
-                (
-                    geometry.points(n, seed),
-                    None,
-                    SourceKind::Charge,
-                    charges.generate(n * settings.kernel.components(), seed),
-                )
+                let mut q = charges.generate(n * settings.kernel.components(), seed);
+                if settings.periodic.is_some() {
+                    // A periodic cell must be neutral.
+                    let mean = q.iter().sum::<f64>() / q.len().max(1) as f64;
+                    q.iter_mut().for_each(|x| *x -= mean);
+                }
+                (geometry.points(n, seed), None, SourceKind::Charge, q)
             },
         ),
         Input::Given {
@@ -396,6 +399,9 @@ where
             builder = builder.leaf_size(s);
         }
         builder = builder.cache(settings.cache.clone());
+        if let Some(cell) = settings.periodic {
+            builder = builder.periodic(cell);
+        }
         if let Some(eps) = settings.tolerance {
             builder = builder.tolerance(eps).verify(settings.verify);
         }
@@ -442,10 +448,26 @@ where
         let t0 = Instant::now();
         let tgt = targets.as_deref().unwrap_or(&sources);
         let sample = sample_indices(fmm.n_targets(), settings.check);
-        let e = with_stage(
-            format!("direct summation on {} sampled targets", sample.len()),
-            || relative_errors_sources(&kernel, kind, mode, &sources, &q, tgt, &values, &sample),
-        );
+        let e = match &settings.periodic {
+            Some(cell) => with_stage(
+                format!("Ewald sums on {} sampled targets", sample.len()),
+                || {
+                    ferrofmm_fmm::relative_errors_periodic(
+                        cell,
+                        mode,
+                        &sources,
+                        &q,
+                        targets.as_deref(),
+                        &values,
+                        &sample,
+                    )
+                },
+            )?,
+            None => with_stage(
+                format!("direct summation on {} sampled targets", sample.len()),
+                || relative_errors_sources(&kernel, kind, mode, &sources, &q, tgt, &values, &sample),
+            ),
+        };
         let figures = ErrorFigures {
             n_sampled: e.n_sampled,
             potential: e.potential,
@@ -477,6 +499,8 @@ where
         })?;
     }
 
+    // The energy of charges at the sources themselves (a scalar kernel).
+    let energy = fmm.energy(&q, &values).ok();
     let summary = fmm.summary();
     let (cache, cache_dir) = cache_report(
         &settings.cache,
@@ -516,6 +540,19 @@ where
         gradients: mode.has_gradient(),
         hessians: mode.has_hessian(),
         kernel: settings.kernel.name(),
+        periodic: settings.periodic.map(|c| {
+            format!(
+                "box {} ({}, {}), origin {:?}",
+                c.width(),
+                c.axes(),
+                match c.surface() {
+                    ferrofmm_fmm::SurfaceTerm::TinFoil => "tin-foil",
+                    ferrofmm_fmm::SurfaceTerm::Vacuum => "vacuum",
+                },
+                c.origin()
+            )
+        }),
+        energy,
         sources: kind.name().to_string(),
         threads: rayon::current_num_threads(),
         cache,

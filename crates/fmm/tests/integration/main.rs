@@ -12,6 +12,7 @@ mod fft_scheme;
 mod hostile;
 mod memory;
 mod outliers;
+mod periodic;
 mod proptest_fmm;
 mod registry;
 mod right_sized;

@@ -1,0 +1,149 @@
+//! The far images of a periodic cell: the periodisation operator `P`
+//! (root multipole to root check potential), the neutral projection of the
+//! root multipole, and the constant and dipole terms (see the
+//! [module docs](super)).
+
+use ferrofmm_field::surface_points;
+use ferrofmm_kernels::{PeriodicCell, PeriodicGreen, Real};
+
+use super::{Periodic, SurfaceTerm};
+use crate::FmmError;
+
+/// Accuracy asked of the Ewald sums that build `P`: far below what any
+/// order reaches, so `P` adds no error of its own.
+const GREEN_TOLERANCE: f64 = 1e-15;
+
+/// Residual charge, relative to `sum |q|`, above which a Laplace cell is
+/// refused as not neutral.
+pub(crate) const NEUTRALITY: f64 = 1e-8;
+
+/// What a periodic FMM keeps for its far images.
+#[derive(Clone, Debug)]
+pub(crate) struct FarImages {
+    pub(crate) cell: Periodic,
+    /// `P`, row-major `n x n` (check point `i`, equivalent point `j`).
+    operator: Vec<f64>,
+    /// The root's upward equivalent points relative to the cell's centre.
+    equivalent: Vec<f64>,
+}
+
+impl FarImages {
+    /// `P` for `cell` at `order`, with the root surfaces of radii
+    /// `upward_equivalent` and `downward_check` half-widths.
+    pub(crate) fn new(
+        cell: Periodic,
+        order: usize,
+        upward_equivalent: f64,
+        downward_check: f64,
+    ) -> Result<Self, FmmError> {
+        let half = 0.5 * cell.width();
+        let equivalent = surface_points::<f64>(order, [0.0; 3], half, upward_equivalent);
+        let check = surface_points::<f64>(order, [0.0; 3], half, downward_check);
+        let green_cell = PeriodicCell::new([0.0; 3], cell.lengths())?;
+        let green = PeriodicGreen::new(green_cell, GREEN_TOLERANCE)?;
+        // `far_images(r)` depends on differences only: the cell's origin
+        // does not matter, the points are relative to its centre.
+        let operator = green.far_images_matrix(&check, &equivalent)?;
+        Ok(FarImages {
+            cell,
+            operator,
+            equivalent,
+        })
+    }
+
+    /// Number of surface points.
+    fn n(&self) -> usize {
+        self.equivalent.len() / 3
+    }
+
+    /// The far images' potentials on the root's downward check surface
+    /// for the root multipole `root` (its first `n` values), and the
+    /// constant `C` of the module docs for the wrapped charges `q` at the
+    /// wrapped points `x` (relative to anything: only differences and
+    /// the cell's centre `centre`, in the same frame, matter).
+    pub(crate) fn root_check<T: Real>(
+        &self,
+        root: &[T],
+        x: &[T],
+        centre: [f64; 3],
+        q: &[T],
+    ) -> (Vec<T>, f64) {
+        let n = self.n();
+        let mut u: Vec<f64> = root[..n].iter().map(|v| v.to_f64()).collect();
+        let mean = u.iter().sum::<f64>() / n as f64;
+        u.iter_mut().for_each(|v| *v -= mean);
+        let check: Vec<T> = self
+            .operator
+            .chunks_exact(n)
+            .map(|row| T::from_f64(row.iter().zip(&u).map(|(a, b)| a * b).sum()))
+            .collect();
+        let second = |p: &[f64], w: &[f64]| -> f64 {
+            p.chunks_exact(3)
+                .zip(w)
+                .map(|(p, w)| w * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]))
+                .sum()
+        };
+        let rel: Vec<f64> = x
+            .chunks_exact(3)
+            .flat_map(|p| std::array::from_fn::<f64, 3, _>(|a| p[a].to_f64() - centre[a]))
+            .collect();
+        let q64: Vec<f64> = q.iter().map(|v| v.to_f64()).collect();
+        let constant =
+            (second(&rel, &q64) - second(&self.equivalent, &u)) / (6.0 * self.cell.volume());
+        (check, constant)
+    }
+
+    /// Adds the constant `constant` and, in vacuum, the dipole term to the
+    /// values `out` (`w` per target: potential, then gradient) at the wrapped targets `y` for the
+    /// wrapped sources `x` with charges `q` (all relative to the frame in
+    /// which the cell's centre is `centre`).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn add_terms<T: Real>(
+        &self,
+        constant: f64,
+        w: usize,
+        x: &[T],
+        q: &[T],
+        y: &[T],
+        centre: [f64; 3],
+        out: &mut [T],
+    ) {
+        let dipole: [f64; 3] = match self.cell.surface() {
+            SurfaceTerm::TinFoil => [0.0; 3],
+            SurfaceTerm::Vacuum => {
+                let mut d = [0.0; 3];
+                for (p, q) in x.chunks_exact(3).zip(q) {
+                    for a in 0..3 {
+                        d[a] += q.to_f64() * (p[a].to_f64() - centre[a]);
+                    }
+                }
+                d.map(|d| d / (3.0 * self.cell.volume()))
+            }
+        };
+        for (p, o) in y.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
+            let lin: f64 = (0..3).map(|a| dipole[a] * (p[a].to_f64() - centre[a])).sum();
+            o[0] += T::from_f64(constant + lin);
+            if w >= 4 {
+                for a in 0..3 {
+                    o[1 + a] += T::from_f64(dipole[a]);
+                }
+            }
+        }
+    }
+}
+
+/// Refuse a Laplace cell that is not neutral.
+pub(crate) fn check_neutral<T: Real>(charges: &[T]) -> Result<(), FmmError> {
+    let (sum, abs) = charges.iter().fold((0.0f64, 0.0f64), |(s, a), q| {
+        let q = q.to_f64();
+        (s + q, a + q.abs())
+    });
+    if sum.abs() > NEUTRALITY * abs {
+        return Err(FmmError::NotNeutral {
+            total: sum,
+            absolute: abs,
+            limit: NEUTRALITY,
+        });
+    }
+    Ok(())
+}
