@@ -342,6 +342,7 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         domain: b.domain,
         uniform_depth: None,
         balance: true,
+        periodic: [false; 3],
     };
     let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
     setup.tree += t0.elapsed();
