@@ -201,14 +201,15 @@ impl Csr {
     }
 
     /// Builds `n` rows in two passes: `count(b)` gives the length of row
-    /// `b`, then `fill(scratch, b, row)` writes it in place (in parallel;
-    /// `scratch` is per work chunk of consecutive boxes).
-    pub(crate) fn build_counted<S, E, C, F>(n: usize, count: C, fill: F) -> Self
+    /// `b`, then `fill(scratch, b, row, shifts)` writes it in place (in
+    /// parallel; `scratch` is per work chunk of consecutive boxes). With
+    /// `periodic`, `shifts` is the row's shift slice, to be written too;
+    /// otherwise it is empty and no shift array is kept.
+    pub(crate) fn build_counted<S, C, F>(n: usize, periodic: bool, count: C, fill: F) -> Self
     where
         S: Default,
-        E: Entry,
         C: Fn(usize) -> usize + Sync,
-        F: Fn(&mut S, usize, &mut [E]) + Sync,
+        F: Fn(&mut S, usize, &mut [usize], &mut [[i8; 3]]) + Sync,
     {
         let counts: Vec<usize> = (0..n).into_par_iter().map(&count).collect();
         let mut offsets = Vec::with_capacity(n + 1);
@@ -216,28 +217,38 @@ impl Csr {
         for &c in &counts {
             offsets.push(offsets.last().copied().unwrap_or(0) + c);
         }
-        let mut entries = vec![E::default(); offsets[n]];
+        let mut indices = vec![0usize; offsets[n]];
+        let mut shifts = vec![[0i8; 3]; if periodic { offsets[n] } else { 0 }];
         let mut slices = Vec::with_capacity(n.div_ceil(CHUNK));
-        let mut rest: &mut [E] = &mut entries;
+        let mut rest: &mut [usize] = &mut indices;
+        let mut rest_s: &mut [[i8; 3]] = &mut shifts;
         for c in 0..n.div_ceil(CHUNK) {
             let (s, e) = (c * CHUNK, n.min((c + 1) * CHUNK));
-            let (head, tail) = rest.split_at_mut(offsets[e] - offsets[s]);
-            slices.push(head);
+            let len = offsets[e] - offsets[s];
+            let (head, tail) = rest.split_at_mut(len);
+            let (head_s, tail_s) = rest_s.split_at_mut(if periodic { len } else { 0 });
+            slices.push((head, head_s));
             rest = tail;
+            rest_s = tail_s;
         }
-        slices.into_par_iter().enumerate().for_each(|(c, slice)| {
-            let mut scratch = S::default();
-            let mut pos = 0;
-            for b in c * CHUNK..n.min((c + 1) * CHUNK) {
-                fill(&mut scratch, b, &mut slice[pos..pos + counts[b]]);
-                pos += counts[b];
-            }
-        });
-        let (indices, shifts) = E::unzip(entries);
+        slices
+            .into_par_iter()
+            .enumerate()
+            .for_each(|(c, (slice, slice_s))| {
+                let mut scratch = S::default();
+                let mut pos = 0;
+                let boxes = c * CHUNK..n.min((c + 1) * CHUNK);
+                for (b, &len) in boxes.clone().zip(&counts[boxes]) {
+                    let r = pos..pos + len;
+                    let sr = if periodic { r.clone() } else { 0..0 };
+                    fill(&mut scratch, b, &mut slice[r], &mut slice_s[sr]);
+                    pos += len;
+                }
+            });
         Csr {
             offsets,
             indices,
-            shifts,
+            shifts: periodic.then_some(shifts),
         }
     }
 }

@@ -130,16 +130,16 @@ impl InteractionLists {
 
     fn build_with<E: Entry>(tree: &Octree) -> Self {
         let n = tree.n_boxes();
-        InteractionLists {
-            u: Csr::build(n, |b, out| u_row::<E>(tree, b, out)),
-            v: Csr::build_counted(
-                n,
-                |b| v_count(tree, b),
-                |s, b, row| v_fill::<E>(tree, s, b, row),
-            ),
-            w: Csr::build(n, |b, out| w_row::<E>(tree, b, out)),
-            x: Csr::build(n, |b, out| x_row::<E>(tree, b, out)),
-        }
+        let u = Csr::build(n, |b, out| u_row::<E>(tree, b, out));
+        let v = Csr::build_counted(
+            n,
+            E::PERIODIC,
+            |b| v_count(tree, b),
+            |s, b, row, shifts| v_fill::<E>(tree, s, b, row, shifts),
+        );
+        let w = Csr::build(n, |b, out| w_row::<E>(tree, b, out));
+        let x = Csr::build(n, |b, out| x_row::<E>(tree, b, out));
+        InteractionLists { u, v, w, x }
     }
 }
 
@@ -338,11 +338,13 @@ fn v_count(tree: &Octree, b: usize) -> usize {
         .sum()
 }
 
-/// The last parent seen and its colleagues sorted by box index (siblings
-/// are consecutive boxes, so this is computed once per parent).
+/// The last parent seen, its colleagues (box, table index) sorted by box
+/// index and their shifts (siblings are consecutive boxes, so this is
+/// computed once per parent).
 struct VScratch {
     parent: usize,
     colleagues: [(usize, usize); 26],
+    shifts: [[i8; 3]; 26],
     n: usize,
 }
 
@@ -351,12 +353,21 @@ impl Default for VScratch {
         VScratch {
             parent: usize::MAX,
             colleagues: [(0, 0); 26],
+            shifts: [[0; 3]; 26],
             n: 0,
         }
     }
 }
 
-fn v_fill<E: Entry>(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [E]) {
+/// Fills the V row of `b` (and, periodic, its shifts: `shifts` is then
+/// parallel to `row`, else empty).
+fn v_fill<E: Entry>(
+    tree: &Octree,
+    scratch: &mut VScratch,
+    b: usize,
+    row: &mut [usize],
+    shifts: &mut [[i8; 3]],
+) {
     if row.is_empty() {
         return;
     }
@@ -364,30 +375,36 @@ fn v_fill<E: Entry>(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [
     if scratch.parent != parent {
         let (mut colleagues, n) = parent_colleagues(tree, parent);
         colleagues[..n].sort_unstable();
+        let mut s = [[0; 3]; 26];
+        if E::PERIODIC {
+            for (s, &(_, i)) in s.iter_mut().zip(&colleagues[..n]) {
+                *s = colleague_shift::<E>(tree, parent, i);
+            }
+        }
         *scratch = VScratch {
             parent,
             colleagues,
+            shifts: s,
             n,
         };
     }
     let ob = tree.key(b).octant();
     let mut k = 0;
-    for &(c, i) in &scratch.colleagues[..scratch.n] {
+    for (j, &(c, i)) in scratch.colleagues[..scratch.n].iter().enumerate() {
         let mut bits = v_children(i, ob) & tree.source_child_mask(c);
         if bits == 0 {
             continue;
         }
-        // The children of an image of `c` are images with its shift.
-        let s = colleague_shift::<E>(tree, parent, i);
         let first = tree.children(c).start;
         let existing = tree.child_mask(c);
         while bits != 0 {
             let octant = bits.trailing_zeros();
             bits &= bits - 1;
-            row[k] = E::new(
-                first + (existing & ((1u8 << octant) - 1)).count_ones() as usize,
-                s,
-            );
+            row[k] = first + (existing & ((1u8 << octant) - 1)).count_ones() as usize;
+            if E::PERIODIC {
+                // The children of an image of `c` are images with its shift.
+                shifts[k] = scratch.shifts[j];
+            }
             k += 1;
         }
     }
@@ -396,7 +413,13 @@ fn v_fill<E: Entry>(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [
     // (images with different shifts), whose children interleave: order the
     // row by (box, shift). Deeper, colleagues are distinct boxes.
     if E::PERIODIC && tree.level(parent) <= 1 {
-        row.sort_unstable();
+        let mut pairs: Vec<(usize, [i8; 3])> =
+            row.iter().copied().zip(shifts.iter().copied()).collect();
+        pairs.sort_unstable();
+        for ((r, s), (a, t)) in row.iter_mut().zip(shifts.iter_mut()).zip(pairs) {
+            *r = a;
+            *s = t;
+        }
     }
 }
 
