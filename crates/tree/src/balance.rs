@@ -21,6 +21,11 @@
 //! leaf are children of its colleagues, X-list entries are one level coarser
 //! (see [`lists`](crate::lists)).
 //!
+//! In a periodic tree ([`TreeOptions::periodic`](crate::TreeOptions::periodic))
+//! adjacency is that of the periodic tiling: a leaf and the boxes across a
+//! periodic face of the cell obey the condition like any adjacent boxes, so
+//! the bounds of the lists hold for the wrapped lists too.
+//!
 //! # The algorithm
 //!
 //! A ripple to a fixed point. A leaf that breaks the condition is split into

@@ -44,6 +44,43 @@
 //! L2L), X lists of `B` and its ancestors (likewise), and `W(B)`; the near
 //! field is `U(B)`.
 //!
+//! # Periodic trees
+//!
+//! A tree built with periodic axes ([`TreeOptions::periodic`](crate::TreeOptions::periodic))
+//! has the given domain, the *cell*, as its root, and stands for the
+//! infinite tiling of the cell along those axes (open axes are as in free
+//! space). The lists are the definitions above applied to that tiling:
+//! adjacency, colleagues and the 2:1 balance ([`balance`](crate::balance))
+//! wrap around the periodic faces.
+//!
+//! **Shifts.** An entry of a list of target box `B` is a pair (box `a`,
+//! shift `s`), `s` in `{-1, 0, 1}^3` (0 on open axes): the source is the
+//! image of `a` translated by `s[k] * domain.width` along axis `k`. The
+//! shifts are a parallel array ([`Csr::shifts`], [`Csr::row_shifts`],
+//! [`Octree::u_shifts`](crate::Octree::u_shifts) and the like); free-space
+//! lists have none. Rows are ordered by (box, shift) and hold no pair twice,
+//! but one box may appear several times with different shifts, at coarse
+//! levels especially: a root that is a leaf has `U(root)` = the root with
+//! all 27 shifts (fully periodic; 9 for a slab, 3 for a rod), and a box of
+//! level 1 sees the other boxes of its level on both sides. A V entry of a
+//! box of level `l` has the transfer vector
+//! `key(a) - key(b) + s * 2^l` ([`MortonKey::shifted_transfer_vector`]), in
+//! `-3..=3` with a component of magnitude `>= 2`, as in free space. The
+//! target box is always the one in the cell (shift 0).
+//!
+//! **Exactly once.** Take a target leaf `B` and an image `A + s` of a
+//! source leaf, `|s| <= 1` per axis. Their ancestors at level 0 are the
+//! root and its image `root + s`: equal if `s = 0`, adjacent otherwise. So
+//! the first level `m` where the ancestors are neither equal nor adjacent
+//! is at least 1, and the argument above, run in the tiling, puts `A + s`
+//! in exactly one of `U(B)`, `W(B)`, `V(B')` or `X(B')` for `B'` = `B` or
+//! an ancestor of level `>= 1`. Every entry derives from a colleague of a
+//! box at level `>= 0` (offsets in `-1..=1`), so shifts never exceed one
+//! cell: images with `|s|_inf >= 2` — the far field of the root, well
+//! separated from the whole cell — are never reached, and the root's V and
+//! X lists stay empty. That far field (a lattice sum acting on the root's
+//! multipole expansion) is the driver's business.
+//!
 //! # Sizes
 //!
 //! With the balance condition of [`balance`](crate::balance), internal boxes
@@ -75,7 +112,12 @@
 //!   coarser — guaranteed by the 2:1 balance.
 //! * The transfer vector of a V entry `a` of `b` is
 //!   `key(b).transfer_vector(key(a))`, with components in `-3..=3` and at
-//!   least one of magnitude `>= 2` (316 possible vectors).
+//!   least one of magnitude `>= 2` (316 possible vectors); in a periodic
+//!   tree, `key(b).shifted_transfer_vector(key(a), s)` with the entry's
+//!   shift `s` (same 316 vectors).
+//! * In a periodic tree, translate each entry's sources by its shift
+//!   (times the cell width) before evaluating: P2P over U, M2L over V (the
+//!   shifted transfer vector), M2P over W and P2L over X.
 
 use crate::MortonKey;
 use crate::csr::{Csr, Entry, Shifted};
