@@ -521,3 +521,15 @@ fn bad_periodic_options_are_errors() {
         Err(TreeError::OutsideDomain { .. })
     ));
 }
+
+/// `from_parts` builds free-space trees: lists with shifts are refused.
+#[test]
+fn from_parts_refuses_periodic_lists() {
+    let p = uniform(200, 3);
+    let tree = build(&p, None, 8, XYZ);
+    let boxes: Vec<_> = (0..tree.n_boxes())
+        .map(|b| (tree.key(b), tree.source_range(b), tree.target_range(b)))
+        .collect();
+    let err = Octree::from_parts(*tree.domain(), &boxes, tree.interaction_lists().clone());
+    assert!(matches!(err, Err(TreeError::InvalidParts { .. })));
+}
