@@ -21,6 +21,11 @@
 //! leaf are children of its colleagues, X-list entries are one level coarser
 //! (see [`lists`](crate::lists)).
 //!
+//! In a periodic tree ([`TreeOptions::periodic`](crate::TreeOptions::periodic))
+//! adjacency is that of the periodic tiling: a leaf and the boxes across a
+//! periodic face of the cell obey the condition like any adjacent boxes, so
+//! the bounds of the lists hold for the wrapped lists too.
+//!
 //! # The algorithm
 //!
 //! A ripple to a fixed point. A leaf that breaks the condition is split into
@@ -52,31 +57,40 @@ fn node(levels: &[Vec<Node>], key: MortonKey) -> Option<&Node> {
     find(levels, key).map(|i| &levels[key.level() as usize][i])
 }
 
-/// Same-level neighbours of `key` inside the domain (up to 26).
-pub(crate) fn neighbours(key: MortonKey) -> impl Iterator<Item = MortonKey> {
-    (0..27)
-        .filter(|&i| i != 13)
-        .filter_map(move |i: i32| key.neighbour([i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1]))
+/// Same-level neighbours of `key` (up to 26), with their image shifts:
+/// inside the domain along open axes, wrapped around the periodic ones (see
+/// [`MortonKey::neighbour_periodic`]).
+fn neighbours(key: MortonKey, periodic: [bool; 3]) -> impl Iterator<Item = (MortonKey, [i8; 3])> {
+    (0..27).filter(|&i| i != 13).filter_map(move |i: i32| {
+        key.neighbour_periodic([i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1], periodic)
+    })
 }
 
-/// `true` if the leaf `key` is adjacent to an internal box one level deeper.
-fn violates(levels: &[Vec<Node>], key: MortonKey) -> bool {
+/// `true` if the leaf `key` is adjacent to an internal box one level deeper
+/// (in the periodic tiling along periodic axes).
+fn violates(levels: &[Vec<Node>], key: MortonKey, periodic: [bool; 3]) -> bool {
     let level = key.level() as usize;
     // An internal box of level l + 1 has children, so level l + 2 must exist.
     if level + 2 >= levels.len() {
         return false;
     }
-    neighbours(key).any(|n| {
+    neighbours(key, periodic).any(|(n, s)| {
         node(levels, n).is_some_and(|nn| !nn.leaf)
-            && n.children()
-                .into_iter()
-                .any(|c| c.is_adjacent(key) && node(levels, c).is_some_and(|cn| !cn.leaf))
+            && n.children().into_iter().any(|c| {
+                c.is_adjacent_shifted(s, key) && node(levels, c).is_some_and(|cn| !cn.leaf)
+            })
     })
 }
 
-/// Leaves coarser than `key` and adjacent to it.
-fn coarser_adjacent_leaves(levels: &[Vec<Node>], key: MortonKey, out: &mut Vec<MortonKey>) {
-    for n in neighbours(key) {
+/// Leaves coarser than `key` and adjacent to it (wrapping around periodic
+/// axes).
+fn coarser_adjacent_leaves(
+    levels: &[Vec<Node>],
+    key: MortonKey,
+    periodic: [bool; 3],
+    out: &mut Vec<MortonKey>,
+) {
+    for (n, _) in neighbours(key, periodic) {
         for level in (0..key.level()).rev() {
             let a = n.ancestor(level);
             if let Some(an) = node(levels, a) {
@@ -90,7 +104,11 @@ fn coarser_adjacent_leaves(levels: &[Vec<Node>], key: MortonKey, out: &mut Vec<M
 }
 
 /// Balances the tree in place (see the [module documentation](self)).
-pub(crate) fn balance(levels: &mut [Vec<Node>], pts: &PointKeys<'_>) {
+///
+/// Along the axes flagged in `periodic` the condition wraps around the
+/// domain's faces: a leaf and the boxes adjacent to it across a periodic
+/// face obey it as any adjacent boxes (all `false`: free space).
+pub(crate) fn balance(levels: &mut [Vec<Node>], pts: &PointKeys<'_>, periodic: [bool; 3]) {
     let depth = levels.len() - 1;
     let mut candidates: Vec<MortonKey> = levels
         .iter()
@@ -104,7 +122,7 @@ pub(crate) fn balance(levels: &mut [Vec<Node>], pts: &PointKeys<'_>) {
         let bad: Vec<MortonKey> = candidates
             .par_iter()
             .copied()
-            .filter(|&k| node(lv, k).is_some_and(|n| n.leaf) && violates(lv, k))
+            .filter(|&k| node(lv, k).is_some_and(|n| n.leaf) && violates(lv, k, periodic))
             .collect();
         if bad.is_empty() {
             return;
@@ -131,7 +149,7 @@ pub(crate) fn balance(levels: &mut [Vec<Node>], pts: &PointKeys<'_>) {
             .par_iter()
             .flat_map_iter(|&k| {
                 let mut out = Vec::new();
-                coarser_adjacent_leaves(lv, k, &mut out);
+                coarser_adjacent_leaves(lv, k, periodic, &mut out);
                 out
             })
             .collect();

@@ -253,3 +253,28 @@ pub(crate) fn check_inside(set: PointSet, p: &[f64], d: &Domain) -> Result<(), T
         point,
     })
 }
+
+/// Checks that no point of `p` lies on the upper face of a periodic axis
+/// (the points are known to lie in the closed cube of `d`).
+pub(crate) fn check_periodic_faces(
+    set: PointSet,
+    p: &[f64],
+    d: &Domain,
+    periodic: [bool; 3],
+) -> Result<(), TreeError> {
+    let upper: [f64; 3] = std::array::from_fn(|a| d.origin[a] + d.width);
+    let on_face = |c: &[f64]| (0..3).find(|&a| periodic[a] && c[a] >= upper[a]);
+    let Some(index) = p
+        .par_chunks_exact(3)
+        .position_first(|c| on_face(c).is_some())
+    else {
+        return Ok(());
+    };
+    let point = point_at(p, index);
+    Err(TreeError::OnPeriodicFace {
+        set,
+        index,
+        point,
+        axis: on_face(&point).unwrap_or(0),
+    })
+}

@@ -113,4 +113,26 @@ pub enum TreeError {
         /// The point.
         point: [f64; 3],
     },
+    /// Periodic axes ([`TreeOptions::periodic`](crate::TreeOptions::periodic))
+    /// without a given domain: the periodic cell must be given, it is the
+    /// root box.
+    #[error("periodic axes need a given domain (the periodic cell): set TreeOptions::domain")]
+    PeriodicWithoutDomain,
+    /// A point on the upper face `origin + width` of a periodic axis: the
+    /// cell is half-open along periodic axes, wrap the point to the lower
+    /// face (`origin`) first.
+    #[error(
+        "{set}: point {index} {point:?} lies on the upper face of periodic axis {axis} \
+         (the periodic cell is half-open: wrap it to the lower face)"
+    )]
+    OnPeriodicFace {
+        /// The offending point set.
+        set: PointSet,
+        /// Index of the point in that set.
+        index: usize,
+        /// The point.
+        point: [f64; 3],
+        /// The axis (0 for x, 1 for y, 2 for z).
+        axis: usize,
+    },
 }

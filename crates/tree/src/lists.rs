@@ -44,6 +44,43 @@
 //! L2L), X lists of `B` and its ancestors (likewise), and `W(B)`; the near
 //! field is `U(B)`.
 //!
+//! # Periodic trees
+//!
+//! A tree built with periodic axes ([`TreeOptions::periodic`](crate::TreeOptions::periodic))
+//! has the given domain, the *cell*, as its root, and stands for the
+//! infinite tiling of the cell along those axes (open axes are as in free
+//! space). The lists are the definitions above applied to that tiling:
+//! adjacency, colleagues and the 2:1 balance ([`balance`](crate::balance))
+//! wrap around the periodic faces.
+//!
+//! **Shifts.** An entry of a list of target box `B` is a pair (box `a`,
+//! shift `s`), `s` in `{-1, 0, 1}^3` (0 on open axes): the source is the
+//! image of `a` translated by `s[k] * domain.width` along axis `k`. The
+//! shifts are a parallel array ([`Csr::shifts`], [`Csr::row_shifts`],
+//! [`Octree::u_shifts`](crate::Octree::u_shifts) and the like); free-space
+//! lists have none. Rows are ordered by (box, shift) and hold no pair twice,
+//! but one box may appear several times with different shifts, at coarse
+//! levels especially: a root that is a leaf has `U(root)` = the root with
+//! all 27 shifts (fully periodic; 9 for a slab, 3 for a rod), and a box of
+//! level 1 sees the other boxes of its level on both sides. A V entry of a
+//! box of level `l` has the transfer vector
+//! `key(a) - key(b) + s * 2^l` ([`MortonKey::shifted_transfer_vector`]), in
+//! `-3..=3` with a component of magnitude `>= 2`, as in free space. The
+//! target box is always the one in the cell (shift 0).
+//!
+//! **Exactly once.** Take a target leaf `B` and an image `A + s` of a
+//! source leaf, `|s| <= 1` per axis. Their ancestors at level 0 are the
+//! root and its image `root + s`: equal if `s = 0`, adjacent otherwise. So
+//! the first level `m` where the ancestors are neither equal nor adjacent
+//! is at least 1, and the argument above, run in the tiling, puts `A + s`
+//! in exactly one of `U(B)`, `W(B)`, `V(B')` or `X(B')` for `B'` = `B` or
+//! an ancestor of level `>= 1`. Every entry derives from a colleague of a
+//! box at level `>= 0` (offsets in `-1..=1`), so shifts never exceed one
+//! cell: images with `|s|_inf >= 2` — the far field of the root, well
+//! separated from the whole cell — are never reached, and the root's V and
+//! X lists stay empty. That far field (a lattice sum acting on the root's
+//! multipole expansion) is the driver's business.
+//!
 //! # Sizes
 //!
 //! With the balance condition of [`balance`](crate::balance), internal boxes
@@ -75,10 +112,15 @@
 //!   coarser — guaranteed by the 2:1 balance.
 //! * The transfer vector of a V entry `a` of `b` is
 //!   `key(b).transfer_vector(key(a))`, with components in `-3..=3` and at
-//!   least one of magnitude `>= 2` (316 possible vectors).
+//!   least one of magnitude `>= 2` (316 possible vectors); in a periodic
+//!   tree, `key(b).shifted_transfer_vector(key(a), s)` with the entry's
+//!   shift `s` (same 316 vectors).
+//! * In a periodic tree, translate each entry's sources by its shift
+//!   (times the cell width) before evaluating: P2P over U, M2L over V (the
+//!   shifted transfer vector), M2P over W and P2L over X.
 
 use crate::MortonKey;
-use crate::csr::Csr;
+use crate::csr::{Csr, Entry, Shifted};
 use crate::list_rules::{colleague_indices, index_offset, touching_children, v_children};
 use crate::neighbours::level_coords;
 use crate::octree::Octree;
@@ -97,27 +139,49 @@ pub struct InteractionLists {
 }
 
 impl InteractionLists {
-    /// Builds all four lists for `tree` (its structure and colleague table
-    /// must be complete).
-    /// Lists with `n` empty rows (a tree built without 2:1 balance).
-    pub(crate) fn empty(n: usize) -> Self {
-        let e = || Csr::build(n, |_, _| {});
+    /// Lists with `n` empty rows (a tree built without 2:1 balance); with
+    /// (empty) shift arrays when `periodic`.
+    pub(crate) fn empty(n: usize, periodic: bool) -> Self {
+        fn e<E: Entry>(n: usize) -> Csr {
+            Csr::build::<E, _>(n, |_, _| {})
+        }
+        let e = |n| {
+            if periodic {
+                e::<Shifted>(n)
+            } else {
+                e::<usize>(n)
+            }
+        };
         InteractionLists {
-            u: e(),
-            v: e(),
-            w: e(),
-            x: e(),
+            u: e(n),
+            v: e(n),
+            w: e(n),
+            x: e(n),
         }
     }
 
+    /// Builds all four lists for `tree` (its structure and colleague table
+    /// must be complete); with shifts for a periodic tree.
     pub(crate) fn build(tree: &Octree) -> Self {
-        let n = tree.n_boxes();
-        InteractionLists {
-            u: Csr::build(n, |b, out| u_row(tree, b, out)),
-            v: Csr::build_counted(n, |b| v_count(tree, b), |s, b, row| v_fill(tree, s, b, row)),
-            w: Csr::build(n, |b, out| w_row(tree, b, out)),
-            x: Csr::build(n, |b, out| x_row(tree, b, out)),
+        if tree.is_periodic() {
+            Self::build_with::<Shifted>(tree)
+        } else {
+            Self::build_with::<usize>(tree)
         }
+    }
+
+    fn build_with<E: Entry>(tree: &Octree) -> Self {
+        let n = tree.n_boxes();
+        let u = Csr::build(n, |b, out| u_row::<E>(tree, b, out));
+        let v = Csr::build_counted(
+            n,
+            E::PERIODIC,
+            |b| v_count(tree, b),
+            |s, b, row, shifts| v_fill::<E>(tree, s, b, row, shifts),
+        );
+        let w = Csr::build(n, |b, out| w_row::<E>(tree, b, out));
+        let x = Csr::build(n, |b, out| x_row::<E>(tree, b, out));
+        InteractionLists { u, v, w, x }
     }
 }
 
@@ -156,28 +220,64 @@ pub fn lists_of_boxes(boxes: &[(MortonKey, bool)]) -> (Vec<MortonKey>, Interacti
 }
 
 /// What covers the region of the same-level neighbour of `b` at table index
-/// `i`.
+/// `i`, with the image shift of that region (`[0; 3]` in free space).
 enum Cover {
     /// The neighbour exists.
-    Same(usize),
+    Same(usize, [i8; 3]),
     /// It does not, and lies in this coarser leaf.
-    CoarseLeaf(usize),
+    CoarseLeaf(usize, [i8; 3]),
     /// It holds no point (or lies outside the domain).
     Empty,
 }
 
-fn cover(tree: &Octree, b: usize, i: usize) -> Cover {
-    let o = index_offset(i);
-    if let Some(n) = tree.colleague(b, o) {
-        return Cover::Same(n);
+/// The image shift of the box at level coordinates `c` (unwrapped) of
+/// `level`: `floor(c / 2^level)` per axis (0 inside the domain).
+#[inline]
+fn image(c: [i64; 3], level: u32) -> [i8; 3] {
+    c.map(|x| (x >> level) as i8)
+}
+
+/// Whether `a` translated by `s` and `b` are adjacent (`s` is ignored, and
+/// zero, in free space).
+#[inline]
+fn adjacent<E: Entry>(a: MortonKey, s: [i8; 3], b: MortonKey) -> bool {
+    if E::PERIODIC {
+        a.is_adjacent_shifted(s, b)
+    } else {
+        a.is_adjacent(b)
     }
+}
+
+/// The shift of `b`'s colleague at table index `i` (`[0; 3]` in free
+/// space).
+#[inline]
+fn colleague_shift<E: Entry>(tree: &Octree, b: usize, i: usize) -> [i8; 3] {
+    if E::PERIODIC {
+        let own = level_coords(tree, b);
+        let o = index_offset(i);
+        image(std::array::from_fn(|a| own[a] + o[a] as i64), tree.level(b))
+    } else {
+        [0; 3]
+    }
+}
+
+fn cover<E: Entry>(tree: &Octree, b: usize, i: usize) -> Cover {
+    if let Some(n) = tree.colleague_at(b, i) {
+        return Cover::Same(n, colleague_shift::<E>(tree, b, i));
+    }
+    let o = index_offset(i);
     let level = tree.level(b);
-    let size = 1i64 << level;
     let own = level_coords(tree, b);
     let c: [i64; 3] = std::array::from_fn(|a| own[a] + o[a] as i64);
-    if c.iter().any(|&x| x < 0 || x >= size) {
+    let s = if E::PERIODIC { image(c, level) } else { [0; 3] };
+    let size = 1i64 << level;
+    let periodic = tree.periodic_axes();
+    if (0..3).any(|a| (!E::PERIODIC || !periodic[a]) && (c[a] < 0 || c[a] >= size)) {
         return Cover::Empty;
     }
+    // Coarser boxes at the region, found from the colleague tables of
+    // `b`'s ancestors; along periodic axes `c` is unwrapped, the tables
+    // wrap, and the shift of the region is that of any box covering it.
     let mut ancestor = b;
     for up in 1..=level {
         ancestor = tree.parent(ancestor).expect("ancestor above the root");
@@ -188,7 +288,7 @@ fn cover(tree: &Octree, b: usize, i: usize) -> Cover {
         }
         if let Some(m) = tree.colleague(ancestor, off) {
             return if tree.is_leaf(m) {
-                Cover::CoarseLeaf(m)
+                Cover::CoarseLeaf(m, s)
             } else {
                 Cover::Empty
             };
@@ -198,28 +298,38 @@ fn cover(tree: &Octree, b: usize, i: usize) -> Cover {
 }
 
 /// Appends every existing leaf adjacent to `b` (`b` excluded, unpruned; a
-/// coarse leaf may appear more than once).
-pub(crate) fn adjacent_leaves(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+/// coarse leaf may appear more than once), with its shift.
+pub(crate) fn adjacent_leaves<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     let key = tree.key(b);
     let mut stack = Vec::new();
     for i in colleague_indices() {
-        match cover(tree, b, i) {
-            Cover::Same(n) => stack.push(n),
-            Cover::CoarseLeaf(m) => out.push(m),
-            Cover::Empty => {}
-        }
+        let s = match cover::<E>(tree, b, i) {
+            Cover::Same(n, s) => {
+                stack.push(n);
+                s
+            }
+            Cover::CoarseLeaf(m, s) => {
+                out.push(E::new(m, s));
+                continue;
+            }
+            Cover::Empty => continue,
+        };
+        // Descendants of one neighbour share its shift.
         while let Some(x) = stack.pop() {
             if tree.is_leaf(x) {
-                out.push(x);
+                out.push(E::new(x, s));
             } else {
-                stack.extend(tree.children(x).filter(|&c| tree.key(c).is_adjacent(key)));
+                stack.extend(
+                    tree.children(x)
+                        .filter(|&c| adjacent::<E>(tree.key(c), s, key)),
+                );
             }
         }
     }
 }
 
 /// Sorts and deduplicates `out[start..]`.
-fn sort_dedup_tail(out: &mut Vec<usize>, start: usize) {
+fn sort_dedup_tail<E: Entry>(out: &mut Vec<E>, start: usize) {
     out[start..].sort_unstable();
     let mut w = start;
     for r in start..out.len() {
@@ -231,14 +341,14 @@ fn sort_dedup_tail(out: &mut Vec<usize>, start: usize) {
     out.truncate(w);
 }
 
-fn u_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+fn u_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     if !tree.is_leaf(b) || !tree.has_targets(b) {
         return;
     }
     let start = out.len();
     adjacent_leaves(tree, b, out);
-    out.push(b);
-    out.retain_tail(start, |&a| tree.has_sources(a));
+    out.push(E::new(b, [0; 3]));
+    out.retain_tail(start, |&a| tree.has_sources(a.index()));
     sort_dedup_tail(out, start);
 }
 
@@ -270,11 +380,13 @@ fn v_count(tree: &Octree, b: usize) -> usize {
         .sum()
 }
 
-/// The last parent seen and its colleagues sorted by box index (siblings
-/// are consecutive boxes, so this is computed once per parent).
+/// The last parent seen, its colleagues (box, table index) sorted by box
+/// index and their shifts (siblings are consecutive boxes, so this is
+/// computed once per parent).
 struct VScratch {
     parent: usize,
     colleagues: [(usize, usize); 26],
+    shifts: [[i8; 3]; 26],
     n: usize,
 }
 
@@ -283,12 +395,21 @@ impl Default for VScratch {
         VScratch {
             parent: usize::MAX,
             colleagues: [(0, 0); 26],
+            shifts: [[0; 3]; 26],
             n: 0,
         }
     }
 }
 
-fn v_fill(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [usize]) {
+/// Fills the V row of `b` (and, periodic, its shifts: `shifts` is then
+/// parallel to `row`, else empty).
+fn v_fill<E: Entry>(
+    tree: &Octree,
+    scratch: &mut VScratch,
+    b: usize,
+    row: &mut [usize],
+    shifts: &mut [[i8; 3]],
+) {
     if row.is_empty() {
         return;
     }
@@ -296,15 +417,22 @@ fn v_fill(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [usize]) {
     if scratch.parent != parent {
         let (mut colleagues, n) = parent_colleagues(tree, parent);
         colleagues[..n].sort_unstable();
+        let mut s = [[0; 3]; 26];
+        if E::PERIODIC {
+            for (s, &(_, i)) in s.iter_mut().zip(&colleagues[..n]) {
+                *s = colleague_shift::<E>(tree, parent, i);
+            }
+        }
         *scratch = VScratch {
             parent,
             colleagues,
+            shifts: s,
             n,
         };
     }
     let ob = tree.key(b).octant();
     let mut k = 0;
-    for &(c, i) in &scratch.colleagues[..scratch.n] {
+    for (j, &(c, i)) in scratch.colleagues[..scratch.n].iter().enumerate() {
         let mut bits = v_children(i, ob) & tree.source_child_mask(c);
         if bits == 0 {
             continue;
@@ -315,13 +443,29 @@ fn v_fill(tree: &Octree, scratch: &mut VScratch, b: usize, row: &mut [usize]) {
             let octant = bits.trailing_zeros();
             bits &= bits - 1;
             row[k] = first + (existing & ((1u8 << octant) - 1)).count_ones() as usize;
+            if E::PERIODIC {
+                // The children of an image of `c` are images with its shift.
+                shifts[k] = scratch.shifts[j];
+            }
             k += 1;
         }
     }
     debug_assert_eq!(k, row.len());
+    // Below level 2 a periodic parent may see one box as several colleagues
+    // (images with different shifts), whose children interleave: order the
+    // row by (box, shift). Deeper, colleagues are distinct boxes.
+    if E::PERIODIC && tree.level(parent) <= 1 {
+        let mut pairs: Vec<(usize, [i8; 3])> =
+            row.iter().copied().zip(shifts.iter().copied()).collect();
+        pairs.sort_unstable();
+        for ((r, s), (a, t)) in row.iter_mut().zip(shifts.iter_mut()).zip(pairs) {
+            *r = a;
+            *s = t;
+        }
+    }
 }
 
-fn w_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+fn w_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     if !tree.is_leaf(b) || !tree.has_targets(b) {
         return;
     }
@@ -329,30 +473,32 @@ fn w_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     let key = tree.key(b);
     let mut stack = Vec::new();
     for i in colleague_indices() {
-        if let Some(c) = tree.colleague(b, index_offset(i)) {
-            // The children that touch `b` are walked further, the others
-            // are W entries.
-            let touching = touching_children(i);
-            for a in tree.children(c) {
-                if touching & (1 << tree.key(a).octant()) != 0 {
-                    stack.push(a);
-                } else if tree.has_sources(a) {
-                    out.push(a);
-                }
+        let Some(c) = tree.colleague_at(b, i) else {
+            continue;
+        };
+        let s = colleague_shift::<E>(tree, b, i);
+        // The children that touch `b` are walked further, the others
+        // are W entries.
+        let touching = touching_children(i);
+        for a in tree.children(c) {
+            if touching & (1 << tree.key(a).octant()) != 0 {
+                stack.push(a);
+            } else if tree.has_sources(a) {
+                out.push(E::new(a, s));
             }
         }
         while let Some(a) = stack.pop() {
-            if tree.key(a).is_adjacent(key) {
+            if adjacent::<E>(tree.key(a), s, key) {
                 stack.extend(tree.children(a));
             } else if tree.has_sources(a) {
-                out.push(a);
+                out.push(E::new(a, s));
             }
         }
     }
     out[start..].sort_unstable();
 }
 
-fn x_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
+fn x_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     let Some(parent) = tree.parent(b) else {
         return;
     };
@@ -362,13 +508,13 @@ fn x_row(tree: &Octree, b: usize, out: &mut Vec<usize>) {
     let start = out.len();
     let key: MortonKey = tree.key(b);
     for i in colleague_indices() {
-        let a = match cover(tree, parent, i) {
-            Cover::Same(n) if tree.is_leaf(n) => n,
-            Cover::CoarseLeaf(m) => m,
+        let (a, s) = match cover::<E>(tree, parent, i) {
+            Cover::Same(n, s) if tree.is_leaf(n) => (n, s),
+            Cover::CoarseLeaf(m, s) => (m, s),
             _ => continue,
         };
-        if tree.has_sources(a) && !tree.key(a).is_adjacent(key) {
-            out.push(a);
+        if tree.has_sources(a) && !adjacent::<E>(tree.key(a), s, key) {
+            out.push(E::new(a, s));
         }
     }
     sort_dedup_tail(out, start);

@@ -326,6 +326,47 @@ impl MortonKey {
         Some(Self::pack(encode(out), level))
     }
 
+    /// The same-level box at `offset` (in box widths) in a domain that is
+    /// periodic along the axes flagged in `periodic`: along those axes the
+    /// position wraps around, and the box is returned with the image shift
+    /// `s` (in `-1..=1` per axis, in units of the domain width) such that
+    /// the neighbour is the returned box translated by `s` cells. `None` if
+    /// it leaves the domain along an open axis. With `offset` in
+    /// `-1..=1` per axis, the shift is in `-1..=1`; at level 0 the
+    /// neighbour is the root itself, shifted.
+    ///
+    /// ```
+    /// use ferrofmm_tree::MortonKey;
+    /// let c = MortonKey::ROOT.children();
+    /// // Left of the child at x = 0 lies the child at x = 1, one cell to the left.
+    /// assert_eq!(c[0].neighbour_periodic([-1, 0, 0], [true; 3]), Some((c[1], [-1, 0, 0])));
+    /// assert_eq!(c[0].neighbour_periodic([-1, 0, 0], [false, true, true]), None);
+    /// assert_eq!(c[0].neighbour_periodic([1, 0, 0], [true; 3]), Some((c[1], [0, 0, 0])));
+    /// ```
+    pub fn neighbour_periodic(
+        self,
+        offset: [i32; 3],
+        periodic: [bool; 3],
+    ) -> Option<(Self, [i8; 3])> {
+        let level = self.level();
+        let n = 1i64 << level;
+        let a = self.anchor();
+        let shift = DEEPEST_LEVEL - level;
+        let mut out = [0u32; 3];
+        let mut image = [0i8; 3];
+        for i in 0..3 {
+            let c = (a[i] >> shift) as i64 + offset[i] as i64;
+            // `n` is a power of two: wrap and floor-divide with bit operations.
+            let w = c & (n - 1);
+            if w != c && !periodic[i] {
+                return None;
+            }
+            image[i] = (c >> level) as i8;
+            out[i] = (w as u32) << shift;
+        }
+        Some((Self::pack(encode(out), level), image))
+    }
+
     /// Same-level neighbours inside the domain (boxes sharing a face, edge or
     /// corner), `self` excluded: at most 26, in order of offset
     /// (`x` fastest, then `y`, then `z`, each from -1 to 1).
@@ -388,6 +429,41 @@ impl MortonKey {
         touching
     }
 
+    /// `true` if the image of `self` translated by `shift` domain widths
+    /// (see [`neighbour_periodic`](Self::neighbour_periodic)) and `other`
+    /// touch and neither contains the other: [`is_adjacent`](Self::is_adjacent)
+    /// in the periodic tiling of the domain. With `shift == [0; 3]` it is
+    /// `is_adjacent`.
+    ///
+    /// ```
+    /// use ferrofmm_tree::MortonKey;
+    /// let c = MortonKey::ROOT.children();
+    /// // Child 0 (x in [0, 1/2)) shifted one cell to the right touches child 1.
+    /// assert!(c[0].is_adjacent_shifted([1, 0, 0], c[1]));
+    /// assert!(!c[0].is_adjacent_shifted([2, 0, 0], c[1]));
+    /// assert!(MortonKey::ROOT.is_adjacent_shifted([1, 1, 0], c[3]));
+    /// assert!(!MortonKey::ROOT.is_adjacent_shifted([0, 0, 0], c[3]));
+    /// ```
+    #[inline]
+    pub fn is_adjacent_shifted(self, shift: [i8; 3], other: Self) -> bool {
+        if shift == [0; 3] {
+            return self.is_adjacent(other);
+        }
+        let (a, b) = (self.anchor(), other.anchor());
+        let (wa, wb) = (self.width_in_cells() as i64, other.width_in_cells() as i64);
+        let mut touching = false;
+        for i in 0..3 {
+            let lo_a = a[i] as i64 + shift[i] as i64 * FINEST_GRID as i64;
+            let (hi_a, lo_b) = (lo_a + wa, b[i] as i64);
+            let hi_b = lo_b + wb;
+            if lo_a > hi_b || lo_b > hi_a {
+                return false;
+            }
+            touching |= hi_a == lo_b || hi_b == lo_a;
+        }
+        touching
+    }
+
     /// Centre of the box in the coordinates of `domain`.
     #[inline]
     pub fn center(self, domain: &Domain) -> [f64; 3] {
@@ -422,6 +498,31 @@ impl MortonKey {
         let shift = DEEPEST_LEVEL - self.level();
         let (a, b) = (self.anchor(), other.anchor());
         std::array::from_fn(|i| (b[i] >> shift) as i32 - (a[i] >> shift) as i32)
+    }
+
+    /// The M2L transfer vector of `other` translated by `shift` domain
+    /// widths, seen from `self` (same level `l`): `self.transfer_vector(other)
+    /// + shift * 2^l`, in units of the boxes' width. For an entry `a` of the
+    /// V list of box `b` of a periodic tree with shift `s`
+    /// ([`Octree::v_shifts`](crate::Octree::v_shifts)), it is
+    /// `key(b).shifted_transfer_vector(key(a), s)`: components in `-3..=3`,
+    /// at least one of magnitude `>= 2`, as in free space.
+    ///
+    /// ```
+    /// use ferrofmm_tree::MortonKey;
+    /// let c = MortonKey::ROOT.children();
+    /// // Child 1 (x = 1) shifted one cell to the left lies at x = -1.
+    /// assert_eq!(c[0].shifted_transfer_vector(c[1], [-1, 0, 0]), [-1, 0, 0]);
+    /// assert_eq!(c[0].shifted_transfer_vector(c[1], [0; 3]), c[0].transfer_vector(c[1]));
+    /// ```
+    ///
+    /// # Panics
+    /// If the two keys are at different levels.
+    #[inline]
+    pub fn shifted_transfer_vector(self, other: Self, shift: [i8; 3]) -> [i32; 3] {
+        let t = self.transfer_vector(other);
+        let cells = 1i32 << self.level();
+        std::array::from_fn(|i| t[i] + shift[i] as i32 * cells)
     }
 
     /// The deepest-level key of the first finest cell in the box (same anchor).

@@ -12,6 +12,13 @@
 //! that parent's neighbours (offset `c / 2 - i / 2`, again in `{-1, 0, 1}^3`),
 //! already in the table, and the neighbour is that box's child of octant
 //! `c mod 2`, found among at most 8 contiguous children.
+//!
+//! In a periodic tree the offsets wrap around the periodic axes: `c` is
+//! taken modulo `2^l` there (floor division and the low bit work on the
+//! unwrapped `c` as well), so the root is its own neighbour at every offset
+//! along periodic axes, and at level 1 a box may be the neighbour of
+//! another at two offsets. The shift of the neighbour at offset `o` is
+//! `floor((i + o) / 2^l)` per axis and is not stored.
 
 use rayon::prelude::*;
 
@@ -39,8 +46,16 @@ impl ColleagueTable {
     pub(crate) fn build(tree: &Octree) -> Self {
         let n = tree.n_boxes();
         assert!(n < NONE as usize, "too many boxes for the colleague table");
+        let periodic = tree.periodic_axes();
         let mut rows = vec![[NONE; NEIGHBOURHOOD]; n];
         rows[0][SELF_INDEX] = 0;
+        // The root's images along periodic axes.
+        for (oi, entry) in rows[0].iter_mut().enumerate() {
+            let o = index_offset(oi);
+            if (0..3).all(|a| o[a] == 0 || periodic[a]) {
+                *entry = 0;
+            }
+        }
         for level in 1..=tree.depth() {
             let range = tree.level_range(level);
             let (done, rest) = rows.split_at_mut(range.start);
@@ -57,7 +72,7 @@ impl ColleagueTable {
                     for (oi, entry) in row.iter_mut().enumerate() {
                         let o = index_offset(oi);
                         let c: [i64; 3] = std::array::from_fn(|a| i[a] + o[a] as i64);
-                        if c.iter().any(|&x| x < 0 || x >= size) {
+                        if (0..3).any(|a| !periodic[a] && (c[a] < 0 || c[a] >= size)) {
                             continue;
                         }
                         let po: [i32; 3] =

@@ -23,7 +23,7 @@ use std::ops::Range;
 
 use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
-use crate::domain::{Domain, check_inside, validate_sets};
+use crate::domain::{Domain, check_inside, check_periodic_faces, validate_sets};
 use crate::error::TreeError;
 use crate::list_rules::offset_index;
 use crate::lists::InteractionLists;
@@ -90,6 +90,8 @@ pub struct Octree {
     lists: InteractionLists,
     /// Whether the tree is 2:1 balanced (and has interaction lists).
     balanced: bool,
+    /// Periodic axes.
+    periodic: [bool; 3],
 }
 
 const NONE: usize = usize::MAX;
@@ -106,7 +108,13 @@ impl Octree {
     /// # Errors
     /// Invalid options ([`TreeOptions::validate`]); a length that is not a
     /// multiple of 3; a NaN or infinite coordinate; no sources, or an empty
-    /// target set; a point outside a given domain. See [`TreeError`].
+    /// target set; a point outside a given domain; periodic axes without a
+    /// given domain, or a point on the upper face of a periodic axis. See
+    /// [`TreeError`].
+    ///
+    /// With periodic axes ([`TreeOptions::periodic`]) the root box is the
+    /// periodic cell, and the balance, the colleague table and the lists
+    /// wrap around it (see [`lists`](crate::lists)).
     pub fn new(
         sources: &[f64],
         targets: Option<&[f64]>,
@@ -118,6 +126,9 @@ impl Octree {
             Some(d) => {
                 for &(set, p) in &sets {
                     check_inside(set, p, &d)?;
+                    if options.is_periodic() {
+                        check_periodic_faces(set, p, &d, options.periodic)?;
+                    }
                 }
                 d
             }
@@ -142,14 +153,15 @@ impl Octree {
         let mut levels = refine(&pts, rule);
         let adaptive = matches!(rule, Refinement::Adaptive { .. });
         if adaptive && options.balance {
-            balance(&mut levels, &pts);
+            balance(&mut levels, &pts, options.periodic);
         }
         let mut tree = Self::flatten(domain, &levels);
+        tree.periodic = options.periodic;
         tree.sources = Sorted::new(src);
         tree.targets = tgt.map(Sorted::new);
         tree.colleagues = ColleagueTable::build(&tree);
         tree.lists = if adaptive && !options.balance {
-            InteractionLists::empty(tree.n_boxes())
+            InteractionLists::empty(tree.n_boxes(), tree.is_periodic())
         } else {
             InteractionLists::build(&tree)
         };
@@ -243,7 +255,8 @@ impl Octree {
     /// # Errors
     /// [`TreeError::InvalidParts`]: no boxes, boxes out of order or
     /// repeated, a box whose parent is missing, a reversed range, or lists
-    /// whose row count or entries do not match the boxes.
+    /// whose row count or entries do not match the boxes, or lists with
+    /// image shifts (the tree is a free-space one).
     pub fn from_parts(
         domain: Domain,
         boxes: &[(MortonKey, Range<usize>, Range<usize>)],
@@ -278,6 +291,9 @@ impl Octree {
             }
             if csr.indices().iter().any(|&a| a >= n) {
                 return bad("a list entry out of range");
+            }
+            if csr.shifts().is_some() {
+                return bad("lists with image shifts (periodic) in a free-space tree");
             }
         }
         let depth = boxes[n - 1].0.level() as usize;
@@ -364,12 +380,26 @@ impl Octree {
             colleagues: ColleagueTable::default(),
             lists: InteractionLists::default(),
             balanced: true,
+            periodic: [false; 3],
         }
     }
 
     /// The root cube.
     pub fn domain(&self) -> &Domain {
         &self.domain
+    }
+
+    /// The periodic axes (x, y, z) the tree was built with
+    /// ([`TreeOptions::periodic`]); all `false` in free space.
+    pub fn periodic_axes(&self) -> [bool; 3] {
+        self.periodic
+    }
+
+    /// `true` if some axis is periodic: the colleague table and the lists
+    /// wrap around the domain, and the lists carry image shifts
+    /// ([`u_shifts`](Self::u_shifts) and the like).
+    pub fn is_periodic(&self) -> bool {
+        self.periodic.iter().any(|&p| p)
     }
 
     /// The deepest level present (0 for a tree that is only the root).
@@ -459,12 +489,47 @@ impl Octree {
     }
 
     /// The existing same-level neighbour of `b` at `offset` (each component
-    /// in `-1..=1`; `[0, 0, 0]` gives `b`), from a precomputed table.
+    /// in `-1..=1`; `[0, 0, 0]` gives `b`), from a precomputed table. In a
+    /// periodic tree the offset wraps around periodic axes: the neighbour
+    /// is the returned box translated by
+    /// [`colleague_shift`](Self::colleague_shift)`(b, offset)` domain widths
+    /// (at levels 0 and 1 one box may be the neighbour at several offsets).
     ///
     /// # Panics
     /// If a component of `offset` is outside `-1..=1`.
     pub fn colleague(&self, b: usize, offset: [i32; 3]) -> Option<usize> {
         self.colleagues.get(b, offset_index(offset))
+    }
+
+    /// The image shift of `b`'s neighbour at `offset` (see
+    /// [`colleague`](Self::colleague)): per axis, `-1` or `1` where the
+    /// offset crosses a periodic face of the domain, else 0 (always
+    /// `[0; 3]` in free space).
+    ///
+    /// ```
+    /// use ferrofmm_tree::{Domain, Octree, TreeOptions};
+    /// let pts = [0.1, 0.1, 0.1, 0.9, 0.1, 0.1];
+    /// let cell = Domain::new([0.0; 3], 1.0).unwrap();
+    /// let opts = TreeOptions::adaptive(1).with_domain(cell).with_periodic([true, false, false]);
+    /// let tree = Octree::new(&pts, None, &opts).unwrap();
+    /// let (a, b) = (1, 2); // the two leaves of level 1, at x = 0 and x = 1
+    /// assert_eq!(tree.colleague(a, [-1, 0, 0]), Some(b));
+    /// assert_eq!(tree.colleague_shift(a, [-1, 0, 0]), [-1, 0, 0]);
+    /// assert_eq!(tree.colleague(a, [1, 0, 0]), Some(b));
+    /// assert_eq!(tree.colleague_shift(a, [1, 0, 0]), [0, 0, 0]);
+    /// ```
+    ///
+    /// # Panics
+    /// If a component of `offset` is outside `-1..=1`.
+    pub fn colleague_shift(&self, b: usize, offset: [i32; 3]) -> [i8; 3] {
+        // Checks the offset.
+        offset_index(offset);
+        if !self.is_periodic() {
+            return [0; 3];
+        }
+        let own = crate::neighbours::level_coords(self, b);
+        let level = self.level(b);
+        std::array::from_fn(|a| ((own[a] + offset[a] as i64) >> level) as i8)
     }
 
     /// Colleague at a table index (see [`crate::neighbours`]).
@@ -570,6 +635,35 @@ impl Octree {
         self.lists.u.get(b)
     }
 
+    /// Image shifts of the U list of `b`, parallel to
+    /// [`u_list`](Self::u_list)`(b)`: `Some` in a periodic tree, `None` in
+    /// free space. Entry `k` is box `u_list(b)[k]` translated by
+    /// `u_shifts(b)[k][a]` domain widths along axis `a` (see
+    /// [`lists`](crate::lists)).
+    pub fn u_shifts(&self, b: usize) -> Option<&[[i8; 3]]> {
+        self.lists.u.row_shifts(b)
+    }
+
+    /// Image shifts of the V list of `b`, parallel to
+    /// [`v_list`](Self::v_list)`(b)` (see [`u_shifts`](Self::u_shifts));
+    /// the transfer vector of a shifted entry is
+    /// [`MortonKey::shifted_transfer_vector`](crate::MortonKey::shifted_transfer_vector).
+    pub fn v_shifts(&self, b: usize) -> Option<&[[i8; 3]]> {
+        self.lists.v.row_shifts(b)
+    }
+
+    /// Image shifts of the W list of `b`, parallel to
+    /// [`w_list`](Self::w_list)`(b)` (see [`u_shifts`](Self::u_shifts)).
+    pub fn w_shifts(&self, b: usize) -> Option<&[[i8; 3]]> {
+        self.lists.w.row_shifts(b)
+    }
+
+    /// Image shifts of the X list of `b`, parallel to
+    /// [`x_list`](Self::x_list)`(b)` (see [`u_shifts`](Self::u_shifts)).
+    pub fn x_shifts(&self, b: usize) -> Option<&[[i8; 3]]> {
+        self.lists.x.row_shifts(b)
+    }
+
     /// V list of `b` (M2L): see [`lists`](crate::lists).
     pub fn v_list(&self, b: usize) -> &[usize] {
         self.lists.v.get(b)
@@ -586,10 +680,24 @@ impl Octree {
     }
 
     /// All existing leaves adjacent to box `b` (any box, any levels; `b`
-    /// excluded), ascending, whether or not they hold sources.
+    /// excluded), ascending, whether or not they hold sources. In a
+    /// periodic tree, leaves adjacent across periodic faces are included
+    /// (each box once, whatever its images).
     pub fn adjacent_leaves(&self, b: usize) -> Vec<usize> {
-        let mut out = Vec::new();
-        crate::lists::adjacent_leaves(self, b, &mut out);
+        let mut out: Vec<usize> = if self.is_periodic() {
+            let mut shifted = Vec::new();
+            crate::lists::adjacent_leaves::<crate::csr::Shifted>(self, b, &mut shifted);
+            // At level 0 the root's images are its neighbours.
+            shifted
+                .into_iter()
+                .map(|e| e.0)
+                .filter(|&a| a != b)
+                .collect()
+        } else {
+            let mut out = Vec::new();
+            crate::lists::adjacent_leaves::<usize>(self, b, &mut out);
+            out
+        };
         out.sort_unstable();
         out.dedup();
         out

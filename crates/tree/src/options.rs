@@ -42,6 +42,16 @@ pub struct TreeOptions {
     /// ([`Octree::has_lists`](crate::Octree::has_lists) is `false`): the
     /// lists, and so the FMM, need a balanced tree.
     pub balance: bool,
+    /// Periodic axes (x, y, z); default all `false` (free space). Along a
+    /// periodic axis the cell (the given [`domain`](Self::domain), which is
+    /// then required and is the root box) repeats: the 2:1 balance, the
+    /// colleague table and every interaction list wrap around its faces,
+    /// and each list entry carries the image shift of its source box (see
+    /// [`lists`](crate::lists)). Points must lie in the half-open
+    /// `[origin, origin + width)` along periodic axes: a point on the upper
+    /// face is refused ([`TreeError::OnPeriodicFace`]; wrap it to the lower
+    /// face first).
+    pub periodic: [bool; 3],
 }
 
 impl Default for TreeOptions {
@@ -52,6 +62,7 @@ impl Default for TreeOptions {
             domain: None,
             uniform_depth: None,
             balance: true,
+            periodic: [false; 3],
         }
     }
 }
@@ -100,6 +111,31 @@ impl TreeOptions {
         self
     }
 
+    /// The same options with periodic axes (see [`TreeOptions::periodic`]):
+    /// `[true; 3]` fully periodic, `[true, true, false]` a slab,
+    /// `[true, false, false]` a rod. A periodic tree needs a given domain.
+    ///
+    /// ```
+    /// use ferrofmm_tree::{Domain, Octree, TreeError, TreeOptions};
+    /// let points: Vec<f64> = (0..900).map(|i| ((i * 37) % 101) as f64 / 101.0).collect();
+    /// let opts = TreeOptions::adaptive(20).with_periodic([true; 3]);
+    /// assert_eq!(Octree::new(&points, None, &opts).unwrap_err(), TreeError::PeriodicWithoutDomain);
+    /// let cell = Domain::new([0.0; 3], 1.0).unwrap();
+    /// let tree = Octree::new(&points, None, &opts.with_domain(cell)).unwrap();
+    /// assert!(tree.is_periodic());
+    /// let leaf = tree.leaves()[0];
+    /// assert_eq!(tree.u_shifts(leaf).unwrap().len(), tree.u_list(leaf).len());
+    /// ```
+    pub fn with_periodic(mut self, axes: [bool; 3]) -> Self {
+        self.periodic = axes;
+        self
+    }
+
+    /// `true` if any axis is periodic.
+    pub fn is_periodic(&self) -> bool {
+        self.periodic.iter().any(|&p| p)
+    }
+
     /// The same options with a maximum level.
     pub fn with_max_level(mut self, max_level: u32) -> Self {
         self.max_level = max_level;
@@ -111,7 +147,9 @@ impl TreeOptions {
     /// # Errors
     /// [`TreeError::ZeroLeafSize`], [`TreeError::LevelTooDeep`] (for
     /// `max_level` or `uniform_depth`), or [`TreeError::InvalidDomain`] for a
-    /// given domain that [`Domain::new`] would reject.
+    /// given domain that [`Domain::new`] would reject;
+    /// [`TreeError::PeriodicWithoutDomain`] for periodic axes without a
+    /// given domain.
     pub fn validate(&self) -> Result<(), TreeError> {
         if self.leaf_size == 0 {
             return Err(TreeError::ZeroLeafSize);
@@ -126,6 +164,8 @@ impl TreeOptions {
         }
         if let Some(d) = self.domain {
             Domain::new(d.origin, d.width)?;
+        } else if self.is_periodic() {
+            return Err(TreeError::PeriodicWithoutDomain);
         }
         Ok(())
     }

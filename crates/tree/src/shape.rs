@@ -283,7 +283,7 @@ impl TreeShape {
     /// ([`balance`](crate::balance)); `codes` must be the ones it was
     /// refined from.
     pub fn balance(&mut self, codes: &MortonCodes) {
-        balance(&mut self.levels, &codes.keys());
+        balance(&mut self.levels, &codes.keys(), [false; 3]);
     }
 
     /// Adds `keys` and all their ancestors as **internal** boxes, where a

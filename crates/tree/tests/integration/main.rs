@@ -7,4 +7,5 @@ mod degenerate;
 mod from_parts;
 mod list_bounds;
 mod morton_props;
+mod periodic;
 mod tree_props;
