@@ -19,6 +19,10 @@
 //!   neighbourhood (offsets, which children of a neighbour are V-list
 //!   candidates or touch the box) in [`list_rules`], for code that counts
 //!   the lists without building them.
+//! * Periodic trees ([`TreeOptions::periodic`]): the given domain is a cell
+//!   repeating along some axes; balance, colleagues and lists wrap around
+//!   it, each list entry carrying the image shift of its source box
+//!   ([`Octree::u_shifts`] and the like; see [`lists`]).
 //! * [`MortonCodes`] and [`TreeShape`] ([`shape`]): the boxes and point
 //!   counts of the adaptive, balanced tree for any leaf size, from sorted
 //!   Morton codes alone, with the builder's own refinement and balance

@@ -248,26 +248,42 @@ fn adjacent<E: Entry>(a: MortonKey, s: [i8; 3], b: MortonKey) -> bool {
     }
 }
 
-/// The shift of `b`'s colleague at table index `i` (`[0; 3]` in free
-/// space).
+/// The shift of a box's colleague at table index `i` (`[0; 3]` in free
+/// space); `own` and `level` are the box's level coordinates ([`coords`])
+/// and level.
 #[inline]
-fn colleague_shift<E: Entry>(tree: &Octree, b: usize, i: usize) -> [i8; 3] {
+fn colleague_shift<E: Entry>(own: [i64; 3], level: u32, i: usize) -> [i8; 3] {
     if E::PERIODIC {
-        let own = level_coords(tree, b);
         let o = index_offset(i);
-        image(std::array::from_fn(|a| own[a] + o[a] as i64), tree.level(b))
+        image(std::array::from_fn(|a| own[a] + o[a] as i64), level)
     } else {
         [0; 3]
     }
 }
 
-fn cover<E: Entry>(tree: &Octree, b: usize, i: usize) -> Cover {
+/// The level coordinates of `b` when entries carry shifts (computed once
+/// per row), else unused zeros.
+#[inline]
+fn coords<E: Entry>(tree: &Octree, b: usize) -> [i64; 3] {
+    if E::PERIODIC {
+        level_coords(tree, b)
+    } else {
+        [0; 3]
+    }
+}
+
+/// `own`: [`coords`] of `b`.
+fn cover<E: Entry>(tree: &Octree, b: usize, own: [i64; 3], i: usize) -> Cover {
+    let level = tree.level(b);
     if let Some(n) = tree.colleague_at(b, i) {
-        return Cover::Same(n, colleague_shift::<E>(tree, b, i));
+        return Cover::Same(n, colleague_shift::<E>(own, level, i));
     }
     let o = index_offset(i);
-    let level = tree.level(b);
-    let own = level_coords(tree, b);
+    let own = if E::PERIODIC {
+        own
+    } else {
+        level_coords(tree, b)
+    };
     let c: [i64; 3] = std::array::from_fn(|a| own[a] + o[a] as i64);
     let s = if E::PERIODIC { image(c, level) } else { [0; 3] };
     let size = 1i64 << level;
@@ -301,9 +317,10 @@ fn cover<E: Entry>(tree: &Octree, b: usize, i: usize) -> Cover {
 /// coarse leaf may appear more than once), with its shift.
 pub(crate) fn adjacent_leaves<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     let key = tree.key(b);
+    let own = coords::<E>(tree, b);
     let mut stack = Vec::new();
     for i in colleague_indices() {
-        let s = match cover::<E>(tree, b, i) {
+        let s = match cover::<E>(tree, b, own, i) {
             Cover::Same(n, s) => {
                 stack.push(n);
                 s
@@ -418,9 +435,10 @@ fn v_fill<E: Entry>(
         let (mut colleagues, n) = parent_colleagues(tree, parent);
         colleagues[..n].sort_unstable();
         let mut s = [[0; 3]; 26];
+        let (own, level) = (coords::<E>(tree, parent), tree.level(parent));
         if E::PERIODIC {
             for (s, &(_, i)) in s.iter_mut().zip(&colleagues[..n]) {
-                *s = colleague_shift::<E>(tree, parent, i);
+                *s = colleague_shift::<E>(own, level, i);
             }
         }
         *scratch = VScratch {
@@ -471,12 +489,13 @@ fn w_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     }
     let start = out.len();
     let key = tree.key(b);
+    let (own, level) = (coords::<E>(tree, b), tree.level(b));
     let mut stack = Vec::new();
     for i in colleague_indices() {
         let Some(c) = tree.colleague_at(b, i) else {
             continue;
         };
-        let s = colleague_shift::<E>(tree, b, i);
+        let s = colleague_shift::<E>(own, level, i);
         // The children that touch `b` are walked further, the others
         // are W entries.
         let touching = touching_children(i);
@@ -507,8 +526,9 @@ fn x_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     }
     let start = out.len();
     let key: MortonKey = tree.key(b);
+    let own = coords::<E>(tree, parent);
     for i in colleague_indices() {
-        let (a, s) = match cover::<E>(tree, parent, i) {
+        let (a, s) = match cover::<E>(tree, parent, own, i) {
             Cover::Same(n, s) if tree.is_leaf(n) => (n, s),
             Cover::CoarseLeaf(m, s) => (m, s),
             _ => continue,

@@ -690,7 +690,7 @@ impl Octree {
             // At level 0 the root's images are its neighbours.
             shifted
                 .into_iter()
-                .map(|e| e.0)
+                .map(crate::csr::Entry::index)
                 .filter(|&a| a != b)
                 .collect()
         } else {
