@@ -218,8 +218,7 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
     max_sample: usize,
 ) -> ErrorReport {
     sample_sums(
-        kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample,
-        None,
+        kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample, None,
     )
     .0
     .report(mode)

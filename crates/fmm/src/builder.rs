@@ -13,8 +13,8 @@ use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 
 use crate::coordinates::Coordinates;
 use crate::fmm::ChosenScheme;
-use crate::tuning::{ChosenParameters, TuningModel};
 use crate::periodic::Periodic;
+use crate::tuning::{ChosenParameters, TuningModel};
 use crate::{Fmm, FmmError, validate};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
@@ -607,7 +607,10 @@ fn check_periodic_problem<K: Kernel>(
                 .to_string(),
         ));
     }
-    if (kernel as &dyn std::any::Any).downcast_ref::<Laplace3d>().is_none() {
+    if (kernel as &dyn std::any::Any)
+        .downcast_ref::<Laplace3d>()
+        .is_none()
+    {
         return Err(FmmError::InvalidParameter(format!(
             "periodic boundaries run the Laplace kernel only in this release, not {}",
             kernel.name()

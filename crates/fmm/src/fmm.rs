@@ -11,10 +11,10 @@ use ferrofmm_tree::{Domain, Octree};
 use crate::builder::FmmBuilder;
 use crate::coordinates::Coordinates;
 use crate::memory::MemoryReport;
-use crate::periodic::FarImages;
 use crate::part::{
     Body, Part, PartInput, TreePart, build_tree_part, clusters_of, gather, points_part,
 };
+use crate::periodic::FarImages;
 use crate::precompute::build_operators;
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::tuning::{self, ChosenParameters, ErrorModel, Tuner};

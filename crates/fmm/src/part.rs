@@ -166,8 +166,9 @@ pub(crate) fn image_points<'a, T: Real>(
     let offset: [f64; 3] = std::array::from_fn(|a| f64::from(shift[a]) * width);
     buffer.clear();
     buffer.extend(
-        x.chunks_exact(3)
-            .flat_map(|p| std::array::from_fn::<T, 3, _>(|a| T::from_f64(p[a].to_f64() + offset[a]))),
+        x.chunks_exact(3).flat_map(|p| {
+            std::array::from_fn::<T, 3, _>(|a| T::from_f64(p[a].to_f64() + offset[a]))
+        }),
     );
     buffer
 }

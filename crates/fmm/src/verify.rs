@@ -46,9 +46,9 @@ use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::accuracy::{ErrorReport, Truth, estimate_errors_population};
-use ferrofmm_kernels::{EwaldOptions, EwaldSum, PeriodicCell};
 use crate::tuning::{ChosenParameters, ErrorModel, Occupancy, Scene};
 use crate::{EvalTimings, Fmm, FmmError};
+use ferrofmm_kernels::{EwaldOptions, EwaldSum, PeriodicCell};
 
 /// The accuracy of a periodic run's Ewald truth, as a share of the
 /// tolerance checked.
@@ -251,8 +251,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let mut fitted: Option<ErrorModel> = None;
         let truth = self.periodic_truth(&points, charges, eps)?;
         loop {
-            let attempt =
-                self.check_attempt(&points, charges, &values, &timings, &chosen, truth.as_deref());
+            let attempt = self.check_attempt(
+                &points,
+                charges,
+                &values,
+                &timings,
+                &chosen,
+                truth.as_deref(),
+            );
             let measured = attempt.measured.worst() * noise_margin(attempt.measured.n_sampled);
             verification.attempts.push(attempt);
             if measured <= eps {
@@ -329,7 +335,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             return Ok(None);
         };
         let cell = PeriodicCell::new(cell.origin(), cell.lengths())?;
-        let q: Vec<f64> = charges[..self.n_sources].iter().map(|q| q.to_f64()).collect();
+        let q: Vec<f64> = charges[..self.n_sources]
+            .iter()
+            .map(|q| q.to_f64())
+            .collect();
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
         let options = EwaldOptions::new(tolerance).expected_targets(MAX_VERIFY_SAMPLE);
         let ewald = EwaldSum::with_options(cell, sources, &q, options)?;

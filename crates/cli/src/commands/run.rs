@@ -352,13 +352,18 @@ where
         } => with_stage(
             format!("generating {n} points ({})", geometry.name()),
             || {
-                let mut q = charges.generate(n * settings.kernel.components(), seed);
+                let mut q: Vec<f64> = charges.generate(n * settings.kernel.components(), seed);
                 if settings.periodic.is_some() {
                     // A periodic cell must be neutral.
                     let mean = q.iter().sum::<f64>() / q.len().max(1) as f64;
                     q.iter_mut().for_each(|x| *x -= mean);
                 }
-                (geometry.points(n, seed), None, SourceKind::Charge, q)
+                (
+                    geometry.points(n, seed),
+                    None,
+                    SourceKind::Charge,
+                    convert(q),
+                )
             },
         ),
         Input::Given {
@@ -465,7 +470,11 @@ where
             )?,
             None => with_stage(
                 format!("direct summation on {} sampled targets", sample.len()),
-                || relative_errors_sources(&kernel, kind, mode, &sources, &q, tgt, &values, &sample),
+                || {
+                    relative_errors_sources(
+                        &kernel, kind, mode, &sources, &q, tgt, &values, &sample,
+                    )
+                },
             ),
         };
         let figures = ErrorFigures {

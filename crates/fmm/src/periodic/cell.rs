@@ -276,7 +276,10 @@ mod tests {
         ] {
             let w = cell.wrap(p);
             for a in 0..3 {
-                assert!(w[a] >= cell.origin[a] && w[a] < cell.origin[a] + 1.0, "{p:?} -> {w:?}");
+                assert!(
+                    w[a] >= cell.origin[a] && w[a] < cell.origin[a] + 1.0,
+                    "{p:?} -> {w:?}"
+                );
             }
         }
     }
@@ -285,12 +288,25 @@ mod tests {
     fn bad_cells_are_refused() {
         assert!(Periodic::cube(0.0).validate().is_err());
         assert!(Periodic::cube(f64::NAN).validate().is_err());
-        assert!(Periodic::cube(1.0).with_origin([f64::INFINITY, 0.0, 0.0]).validate().is_err());
+        assert!(
+            Periodic::cube(1.0)
+                .with_origin([f64::INFINITY, 0.0, 0.0])
+                .validate()
+                .is_err()
+        );
         assert!(Periodic::with_lengths([1.0, 2.0, 1.0]).validate().is_err());
-        assert!(Periodic::cube(1.0).with_axes(PeriodicAxes::Xy).validate().is_err());
+        assert!(
+            Periodic::cube(1.0)
+                .with_axes(PeriodicAxes::Xy)
+                .validate()
+                .is_err()
+        );
         assert!(Periodic::cube(1.0).validate().is_ok());
         assert!("xz".parse::<PeriodicAxes>().is_err());
         assert_eq!("XY".parse::<PeriodicAxes>().unwrap(), PeriodicAxes::Xy);
-        assert_eq!("vacuum".parse::<SurfaceTerm>().unwrap(), SurfaceTerm::Vacuum);
+        assert_eq!(
+            "vacuum".parse::<SurfaceTerm>().unwrap(),
+            SurfaceTerm::Vacuum
+        );
     }
 }

@@ -121,7 +121,9 @@ impl FarImages {
             }
         };
         for (p, o) in y.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
-            let lin: f64 = (0..3).map(|a| dipole[a] * (p[a].to_f64() - centre[a])).sum();
+            let lin: f64 = (0..3)
+                .map(|a| dipole[a] * (p[a].to_f64() - centre[a]))
+                .sum();
             o[0] += T::from_f64(constant + lin);
             if w >= 4 {
                 for a in 0..3 {
