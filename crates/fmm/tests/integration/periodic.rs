@@ -37,7 +37,10 @@ fn crystal(basis: &[([f64; 3], f64)], n: usize) -> (Vec<f64>, Vec<f64>) {
     (points, charges)
 }
 
-fn nacl() -> Vec<([f64; 3], f64)> {
+/// Fractional positions and charges of a unit cell's ions.
+type Basis = Vec<([f64; 3], f64)>;
+
+fn nacl() -> Basis {
     let mut b = Vec::new();
     for f in [
         [0.0, 0.0, 0.0],
@@ -51,7 +54,7 @@ fn nacl() -> Vec<([f64; 3], f64)> {
     b
 }
 
-fn zincblende() -> Vec<([f64; 3], f64)> {
+fn zincblende() -> Basis {
     let mut b = Vec::new();
     for f in [
         [0.0, 0.0, 0.0],
@@ -81,7 +84,7 @@ const ZNS: f64 = 1.638_055_053_388_8;
 #[test]
 fn madelung_constants_of_three_lattices() {
     // A supercell deep enough for V, W and X lists across the faces.
-    let cases: [(&str, Vec<([f64; 3], f64)>, usize, f64, f64); 3] = [
+    let cases: [(&str, Basis, usize, f64, f64); 3] = [
         ("NaCl", nacl(), 4, 0.5, NACL),
         (
             "CsCl",

@@ -1,0 +1,115 @@
+//! Periodic Laplace runs against a converged Ewald reference (issue 32):
+//! the figures behind docs/periodic.md, and the files a peer (OpenMM) is
+//! run on.
+//!
+//! `cargo run --release --features sweeps --example periodic_bench -- N L DIR [EPS...]`
+//!
+//! Writes to `DIR`: `points.f64` (N x 3), `charges.f64` (N, +-1, neutral),
+//! `sample.f64` (the indices of the sampled ions), `reference.f64` (at
+//! each sampled ion `phi, dphi/dx, dphi/dy, dphi/dz` of the Ewald sum to
+//! `1e-14`, kernel `1 / (4 pi r)`), all raw little-endian `f64`; then
+//! prints one JSON line per tolerance: the chosen order and leaf size,
+//! setup and evaluation seconds, the potential and gradient errors at the
+//! sample (relative L2) and the energy `1/2 sum q phi`.
+
+use std::io::Write;
+use std::path::PathBuf;
+use std::time::Instant;
+
+use ferrofmm_fmm::{FmmBuilder, Geometry, Periodic, random_sample};
+use ferrofmm_kernels::{EvalMode, EwaldOptions, EwaldSum, PeriodicCell};
+
+/// Ions whose reference values are computed.
+const SAMPLE: usize = 1000;
+
+fn write(path: PathBuf, values: &[f64]) {
+    let mut f = std::fs::File::create(&path).expect("create output");
+    for v in values {
+        f.write_all(&v.to_le_bytes()).expect("write output");
+    }
+}
+
+fn rel(a: &[f64], b: &[f64]) -> f64 {
+    let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
+    let n: f64 = b.iter().map(|y| y * y).sum();
+    (d / n).sqrt()
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().collect();
+    if args.len() < 4 {
+        eprintln!("usage: periodic_bench N L DIR [EPS...]");
+        std::process::exit(2);
+    }
+    let n: usize = args[1].parse().expect("N");
+    let side: f64 = args[2].parse().expect("L");
+    let dir = PathBuf::from(&args[3]);
+    let tolerances: Vec<f64> = args[4..].iter().map(|e| e.parse().expect("EPS")).collect();
+    std::fs::create_dir_all(&dir).expect("output folder");
+
+    let points: Vec<f64> = Geometry::Cube
+        .points::<f64>(n, 1)
+        .iter()
+        .map(|x| x * side)
+        .collect();
+    let charges: Vec<f64> = (0..n).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let sample = random_sample(n, SAMPLE);
+    write(dir.join("points.f64"), &points);
+    write(dir.join("charges.f64"), &charges);
+    write(
+        dir.join("sample.f64"),
+        &sample.iter().map(|&i| i as f64).collect::<Vec<_>>(),
+    );
+
+    let t = Instant::now();
+    let cell = PeriodicCell::new([0.0; 3], [side; 3]).expect("cell");
+    let options = EwaldOptions::new(1e-14).expected_targets(sample.len());
+    let ewald = EwaldSum::with_options(cell, &points, &charges, options).expect("ewald");
+    let reference = ewald
+        .at_sources(&sample, EvalMode::PotentialGradient)
+        .expect("reference");
+    let reference_s = t.elapsed().as_secs_f64();
+    write(dir.join("reference.f64"), &reference);
+    println!(
+        "{{\"code\": \"ewald reference\", \"n\": {n}, \"box\": {side}, \"sample\": {}, \"seconds\": {reference_s:.3}}}",
+        sample.len()
+    );
+
+    let pick = |v: &[f64], grad: bool| -> Vec<f64> {
+        v.chunks_exact(4)
+            .flat_map(|c| if grad { c[1..].to_vec() } else { vec![c[0]] })
+            .collect()
+    };
+    for eps in tolerances {
+        let t = Instant::now();
+        let fmm = FmmBuilder::new(&points)
+            .periodic(Periodic::cube(side))
+            .mode(EvalMode::PotentialGradient)
+            .tolerance(eps)
+            .verify(false)
+            .default_cache()
+            .build_with::<ferrofmm_field::FftM2l<f64>>(Default::default())
+            .expect("build");
+        let setup_s = t.elapsed().as_secs_f64();
+        let mut best = f64::INFINITY;
+        let mut values = Vec::new();
+        for _ in 0..2 {
+            let t = Instant::now();
+            values = fmm.evaluate(&charges).expect("evaluate");
+            best = best.min(t.elapsed().as_secs_f64());
+        }
+        let at: Vec<f64> = sample
+            .iter()
+            .flat_map(|&i| values[4 * i..4 * i + 4].to_vec())
+            .collect();
+        let energy = fmm.energy(&charges, &values).expect("energy");
+        let c = fmm.chosen_parameters().expect("chosen");
+        println!(
+            "{{\"code\": \"ferrofmm\", \"n\": {n}, \"eps\": {eps:e}, \"order\": {}, \"leaf\": {}, \"setup_s\": {setup_s:.3}, \"eval_s\": {best:.3}, \"pot_err\": {:.3e}, \"grad_err\": {:.3e}, \"energy\": {energy:.15e}}}",
+            c.order,
+            c.leaf_size,
+            rel(&pick(&at, false), &pick(&reference, false)),
+            rel(&pick(&at, true), &pick(&reference, true)),
+        );
+    }
+}
