@@ -52,7 +52,9 @@ fn main() {
         .iter()
         .map(|x| x * side)
         .collect();
-    let charges: Vec<f64> = (0..n).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+    let charges: Vec<f64> = (0..n)
+        .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
     let sample = random_sample(n, SAMPLE);
     write(dir.join("points.f64"), &points);
     write(dir.join("charges.f64"), &charges);
