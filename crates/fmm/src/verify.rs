@@ -413,14 +413,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let mut measured =
             self.estimate_error_at(points, charges, values, budget, min_sample, truth);
         // Within the noise band (at most eps, but not with the margin):
-        // a larger sample decides, which is far cheaper than a retry.
+        // a larger sample decides, which is far cheaper than a retry. A
+        // sample that cannot grow (every target sampled already) stops it:
+        // the budget would grow until the duration overflows.
         while measured.worst() <= eps
             && measured.worst() * noise_margin(measured.n_sampled) > eps
             && measured.n_sampled < MAX_VERIFY_SAMPLE
         {
-            budget *= RESAMPLE_FACTOR as u32;
+            let before = measured.n_sampled;
+            budget = budget.saturating_mul(RESAMPLE_FACTOR as u32);
             min_sample = (RESAMPLE_FACTOR * measured.n_sampled).min(MAX_VERIFY_SAMPLE);
             measured = self.estimate_error_at(points, charges, values, budget, min_sample, truth);
+            if measured.n_sampled <= before {
+                break;
+            }
         }
         VerificationAttempt {
             order: self.order,

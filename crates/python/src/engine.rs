@@ -10,7 +10,8 @@ use ferrofmm_field::{
     PrecomputeMonitor,
 };
 use ferrofmm_fmm::{
-    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, SchemeChoice, SetupTimings, Verification,
+    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, Periodic, PeriodicAxes, SchemeChoice,
+    SetupTimings, SurfaceTerm, Verification,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, Real, SourceKind};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
@@ -82,6 +83,11 @@ impl Floats {
         }
     }
 
+    /// The values in `f64` (f32 widens exactly).
+    pub(crate) fn into_f64(self) -> Vec<f64> {
+        f64::unwrap(self)
+    }
+
     fn len(&self) -> usize {
         match self {
             Floats::F32(v) => v.len(),
@@ -114,11 +120,14 @@ fn contiguous<'a, T: Element>(what: &str, a: &'a PyReadonlyArray1<'_, T>) -> PyR
     })
 }
 
-/// What one evaluation returns: the values, their timings and, for the
-/// first evaluation of a tolerance, its verification.
+/// What one evaluation returns: the values, their timings, the energy of
+/// each vector ([`Fmm::energy`]: charges of a scalar kernel at the
+/// sources themselves, else `None`) and, for the first evaluation of a
+/// tolerance, its verification.
 struct Evaluated {
     values: Floats,
     timings: EvalTimings,
+    energies: Vec<Option<f64>>,
     verification: Option<Verification>,
 }
 
@@ -148,17 +157,20 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         let q = T::unwrap(charges);
         let per_vector = self.n_targets() * self.kernel().values_per_target(self.mode());
         let mut values = Vec::with_capacity(n_vectors * per_vector);
+        let mut energies = Vec::with_capacity(n_vectors);
         let mut timings = EvalTimings::default();
         for one in
             q.chunks_exact(self.n_sources() * self.kernel().values_per_source(self.source_kind()))
         {
             let (v, t) = self.evaluate_timed(one)?;
+            energies.push(self.energy(one, &v).ok());
             values.extend_from_slice(&v);
             timings.accumulate(&t);
         }
         Ok(Evaluated {
             values: T::wrap(values),
             timings,
+            energies,
             verification: None,
         })
     }
@@ -171,16 +183,19 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
         let q = T::unwrap(charges);
         let n = self.n_sources() * self.kernel().values_per_source(self.source_kind());
         let first = Fmm::evaluate_verified(self, &q[..n])?;
+        let mut energies = vec![self.energy(&q[..n], &first.values).ok()];
         let mut values = first.values;
         let mut timings = first.timings;
         if n_vectors > 1 {
             let rest = Engine::evaluate(self, T::wrap(q[n..].to_vec()), n_vectors - 1)?;
             values.extend(T::unwrap(rest.values));
+            energies.extend(rest.energies);
             timings.accumulate(&rest.timings);
         }
         Ok(Evaluated {
             values: T::wrap(values),
             timings,
+            energies,
             verification: first.verification,
         })
     }
@@ -238,6 +253,9 @@ struct BuildOptions {
     verify: bool,
     /// `cache_dir=` / `cache="path"`, `cache=False`, else the default.
     cache: CacheSetting,
+    /// `box=` (with `box_origin=`, `periodic=`, `surface=`): the periodic
+    /// cell, `None` for free space.
+    periodic: Option<Periodic>,
 }
 
 /// Build for float type `T` from points held in `f64`: they are rounded to
@@ -300,10 +318,22 @@ fn build_with<T: Float, K: Kernel>(
     if let Some(l) = o.leaf_size {
         b = b.leaf_size(l);
     }
+    if let Some(cell) = o.periodic {
+        b = b.periodic(cell);
+    }
     b = b.cache(o.cache.clone());
     // The SVD precomputation counts as free only with a folder the user
     // named (the default folder may be cold).
     let cached = matches!(o.cache, CacheSetting::Dir(_));
+    // A periodic run's tree is built on the points wrapped into its cell:
+    // the cost model sees those.
+    let wrapped = o
+        .periodic
+        .map(|cell| (cell.wrap_all(sources), targets.map(|t| cell.wrap_all(t))));
+    let (sources, targets) = match &wrapped {
+        Some((s, t)) => (s.as_slice(), t.as_deref()),
+        None => (sources, targets),
+    };
     let scheme = o.scheme.resolve(
         o.kernel,
         ferrofmm_fmm::effective_tolerance(o.eps, o.order, T::PRECISION),
@@ -342,7 +372,7 @@ pub(crate) struct NativeFmm {
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true, cell_lengths=None, cell_origin=None, periodic=None, surface=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -362,7 +392,12 @@ impl NativeFmm {
         source: &str,
         dtype: Option<&str>,
         cache: bool,
+        cell_lengths: Option<Vec<f64>>,
+        cell_origin: Option<Vec<f64>>,
+        periodic: Option<&str>,
+        surface: Option<&str>,
     ) -> PyResult<Self> {
+        let periodic = periodic_cell(cell_lengths, cell_origin, periodic, surface)?;
         let source_kind = match source {
             "charge" => SourceKind::Charge,
             "dipole" => SourceKind::Dipole,
@@ -435,6 +470,7 @@ impl NativeFmm {
                 (None, true) => CacheSetting::Default,
                 (None, false) => CacheSetting::Off,
             },
+            periodic,
         };
         // A folder the caller named must be usable; the default one may
         // not be (read-only home): the operators then stay in memory.
@@ -550,7 +586,10 @@ impl NativeFmm {
         if evaluated.verification.is_some() {
             last.clone_from(&evaluated.verification);
         }
-        let info = self.info(&evaluated.timings, last.as_ref(), n_vectors);
+        let mut info = self.info(&evaluated.timings, last.as_ref(), n_vectors);
+        if let Value::Object(map) = &mut info {
+            map.insert("energy".into(), json!(evaluated.energies));
+        }
         Ok((evaluated.values.into_numpy(py), info.to_string()))
     }
 
@@ -647,11 +686,87 @@ impl NativeFmm {
             "clusters": s.clusters,
             "cache": cache,
             "cache_dir": self.cache.dir().map(|d| d.display().to_string()),
+            "periodic": self.options.periodic.as_ref().map(periodic_info),
             "timings": {
                 "setup": setup_seconds(&setup),
                 "evaluate": eval_seconds(timings),
             },
         })
+    }
+}
+
+/// The periodic cell of `box=`, `box_origin=`, `periodic=` and `surface=`
+/// (as the command line's `--box`, `--box-origin`, `--periodic`,
+/// `--surface`), checked; `None` without a box.
+fn periodic_cell(
+    lengths: Option<Vec<f64>>,
+    origin: Option<Vec<f64>>,
+    axes: Option<&str>,
+    surface: Option<&str>,
+) -> PyResult<Option<Periodic>> {
+    let Some(lengths) = lengths else {
+        let given = [
+            ("box_origin", origin.is_some()),
+            ("periodic", axes.is_some()),
+            ("surface", surface.is_some()),
+        ];
+        if let Some((name, _)) = given.iter().find(|(_, g)| *g) {
+            return Err(PyValueError::new_err(format!(
+                "{name}= needs box= (the side L of the periodic cell, or its sides (Lx, Ly, Lz))"
+            )));
+        }
+        return Ok(None);
+    };
+    let lengths = match lengths[..] {
+        [l] => [l; 3],
+        [a, b, c] => [a, b, c],
+        _ => {
+            return Err(PyValueError::new_err(format!(
+                "box takes one side or three (Lx, Ly, Lz), got {} values",
+                lengths.len()
+            )));
+        }
+    };
+    let mut cell = Periodic::with_lengths(lengths);
+    if let Some(o) = origin {
+        match o[..] {
+            [x, y, z] => cell = cell.with_origin([x, y, z]),
+            _ => {
+                return Err(PyValueError::new_err(format!(
+                    "box_origin takes three numbers (x, y, z), got {} values",
+                    o.len()
+                )));
+            }
+        }
+    }
+    if let Some(a) = axes {
+        let axes: PeriodicAxes = a.parse().map_err(fmm_error)?;
+        cell = cell.with_axes(axes);
+    }
+    if let Some(s) = surface {
+        let surface: SurfaceTerm = s.parse().map_err(fmm_error)?;
+        cell = cell.with_surface(surface);
+    }
+    cell.validate()
+        .map_err(|e| PyValueError::new_err(format!("box: {e}")))?;
+    Ok(Some(cell))
+}
+
+/// `info["periodic"]`: the cell of a periodic run.
+fn periodic_info(cell: &Periodic) -> Value {
+    json!({
+        "box": cell.lengths(),
+        "origin": cell.origin(),
+        "axes": cell.axes().name(),
+        "surface": surface_name(cell.surface()),
+    })
+}
+
+/// `"tin-foil"` or `"vacuum"`.
+fn surface_name(s: SurfaceTerm) -> &'static str {
+    match s {
+        SurfaceTerm::TinFoil => "tin-foil",
+        SurfaceTerm::Vacuum => "vacuum",
     }
 }
 

@@ -9,7 +9,7 @@
 //! and writer ([`files`]: `ferrofmm.load`, `ferrofmm.save`).
 //!
 //! The public Python API (`ferrofmm.laplace`, `ferrofmm.yukawa`,
-//! `ferrofmm.Fmm`, `ferrofmm.Octree`) lives in `python/ferrofmm/__init__.py`:
+//! `ferrofmm.Fmm`, `ferrofmm.Octree`, `ferrofmm.ewald`) lives in `python/ferrofmm/__init__.py`:
 //! it turns whatever the caller passes (any float dtype the run accepts, C
 //! or Fortran order, any strides) into the flat arrays this module reads,
 //! and shapes the results. Everything that can fail on values (NaN
@@ -25,6 +25,7 @@
 
 mod engine;
 mod errors;
+mod ewald;
 mod files;
 mod limits;
 mod octree;
@@ -38,6 +39,7 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<engine::NativeFmm>()?;
     m.add_class::<octree::NativeOctree>()?;
     m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(ewald::ewald_sum, m)?)?;
     m.add_function(wrap_pyfunction!(files::read_file, m)?)?;
     m.add_function(wrap_pyfunction!(files::write_file, m)?)?;
     m.add_function(wrap_pyfunction!(files::column_names, m)?)?;

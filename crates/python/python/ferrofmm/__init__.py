@@ -27,6 +27,12 @@ Build once, evaluate many times (iterative solvers)::
     for q in charge_vectors:
         phi = fmm.evaluate(q).potential
 
+Periodic boundaries (Laplace, a neutral cubic cell of side L; points are wrapped into it)::
+
+    r = ferrofmm.laplace(x, q - q.mean(), box=1.0, eps=1e-8, gradient=True)
+    r.energy               # 1/2 sum q phi, per cell
+    ferrofmm.ewald(x, q - q.mean(), 1.0)     # the Ewald reference sum
+
 The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
 
 Files as the ``ferrofmm`` command reads and writes them (``.csv``, ``.npy``, raw ``.f64``)::
@@ -50,6 +56,7 @@ from ._fmm import (
     AccuracyWarning,
     Fmm,
     FmmResult,
+    ewald,
     helmholtz,
     laplace,
     stokes,
@@ -69,6 +76,7 @@ __all__ = [
     "yukawa",
     "helmholtz",
     "stokes",
+    "ewald",
     "Fmm",
     "FmmResult",
     "Octree",

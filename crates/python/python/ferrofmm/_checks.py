@@ -269,3 +269,50 @@ def _check_densities(
         )
     k, batched = shapes.pop()
     return out, k, batched
+
+
+def _numbers(name: str, value: Any, counts: Tuple[int, ...], shape: str) -> List[float]:
+    """``value`` as a list of ``counts`` real numbers (a single number counts as one), else
+    ValueError naming ``shape`` (the forms allowed)."""
+    if isinstance(value, (bool, np.bool_)):
+        raise TypeError(f"{name} must be {shape}, got {value!r}")
+    if isinstance(value, (int, float, np.integer, np.floating)):
+        values = [value]
+    else:
+        try:
+            a = np.asarray(value)
+        except Exception as e:  # noqa: BLE001 - anything numpy cannot take
+            raise TypeError(f"{name} must be {shape}: {e}") from None
+        if a.dtype.kind not in "iuf":
+            raise TypeError(f"{name} must be {shape}, got {value!r}")
+        if a.ndim > 1:
+            raise ValueError(f"{name} must be {shape}, got shape {a.shape}")
+        values = list(a.reshape(-1))
+    if len(values) not in counts:
+        raise ValueError(f"{name} must be {shape}, got {len(values)} values")
+    return [float(v) for v in values]
+
+
+def _cell(
+    box: Any, box_origin: Any, periodic: Any, surface: Any
+) -> Tuple[Optional[List[float]], Optional[List[float]], Optional[str], Optional[str]]:
+    """The periodic cell's arguments for the native module: ``box`` (one side, or three),
+    ``box_origin`` (three numbers), ``periodic`` (axes) and ``surface`` (names the library
+    parses and checks; its messages). Without ``box``, the others are an error."""
+    if box is None:
+        for name, value in (("box_origin", box_origin), ("periodic", periodic),
+                            ("surface", surface)):
+            if value is not None:
+                raise ValueError(
+                    f"{name}= needs box= (the side L of the periodic cell, or its sides "
+                    "(Lx, Ly, Lz))"
+                )
+        return None, None, None, None
+    lengths = _numbers("box", box, (1, 3), "a side L or three sides (Lx, Ly, Lz)")
+    origin = None if box_origin is None else _numbers(
+        "box_origin", box_origin, (3,), "three numbers (x, y, z)"
+    )
+    for name, value in (("periodic", periodic), ("surface", surface)):
+        if value is not None and not isinstance(value, str):
+            raise TypeError(f"{name} must be a string, got {type(value).__name__}")
+    return lengths, origin, periodic, surface

@@ -28,6 +28,23 @@ def check_run_memory(
     build: bool = ...,
 ) -> None: ...
 
+def ewald_sum(
+    sources: npt.NDArray[np.floating],
+    charges: npt.NDArray[np.floating],
+    lengths: List[float],
+    origin: List[float],
+    targets: Optional[npt.NDArray[np.floating]],
+    gradient: bool,
+    eps: float,
+    threads: Optional[int] = ...,
+) -> Tuple[npt.NDArray[np.float64], Optional[float], str]:
+    """The Ewald sum (tin-foil) of ``charges`` at ``sources`` (flat, x y z
+    interleaved) in the cell ``origin + [0, lengths)``, at the sources or
+    at ``targets``: the flat values (``phi`` or ``phi, gx, gy, gz`` per
+    target), the energy ``1/2 sum q phi`` (at the sources, else ``None``)
+    and a JSON report. The GIL is released during the sum."""
+    ...
+
 def read_file(
     path: str, what: str, components: int, complex: bool
 ) -> Tuple[npt.NDArray[np.float64], int, bool]: ...
@@ -55,7 +72,16 @@ class NativeFmm:
         source: str = ...,
         dtype: Optional[str] = ...,
         cache: bool = ...,
-    ) -> None: ...
+        cell_lengths: Optional[List[float]] = ...,
+        cell_origin: Optional[List[float]] = ...,
+        periodic: Optional[str] = ...,
+        surface: Optional[str] = ...,
+    ) -> None:
+        """``cell_lengths`` (one side or three), ``cell_origin``, ``periodic``
+        (``"xyz"``, ``"xy"``, ``"x"``) and ``surface`` (``"tin-foil"``,
+        ``"vacuum"``): the periodic cell of ``box=`` (``None``: free space).
+        The JSON of ``evaluate`` then holds ``periodic`` (the cell) and
+        ``energy`` (per vector: ``1/2 sum q phi`` or ``null``)."""
     def evaluate(
         self, charges: npt.NDArray[np.floating], n_vectors: int
     ) -> Tuple[npt.NDArray[np.floating], str]: ...

@@ -1,5 +1,6 @@
 """The FMM classes and one-call functions of the package: :class:`Fmm`, :class:`FmmResult`,
-:func:`laplace`, :func:`yukawa`, :func:`helmholtz`, :func:`stokes`."""
+:func:`laplace`, :func:`yukawa`, :func:`helmholtz`, :func:`stokes`, and the Ewald reference sum
+:func:`ewald`."""
 
 from __future__ import annotations
 
@@ -14,6 +15,7 @@ from ._checks import (
     _as_complex_array,
     _bool,
     _cache,
+    _cell,
     _check_densities,
     _check_eps_order,
     _check_float32_range,
@@ -75,16 +77,25 @@ class FmmResult:
         With ``at_sources=True`` and separate targets: the values at the
         sources (each excluding itself) from the same run, as an
         ``FmmResult`` of their own (FMM3D's ``pg`` with ``pgt``).
+    energy : float or numpy.ndarray or None
+        ``E = 1/2 sum_i q_i phi_i`` when charges of a scalar kernel
+        (Laplace, Yukawa) were evaluated at the sources themselves (no
+        ``targets``, no dipoles): a float, or ``(k,)`` for ``k`` charge
+        vectors; in a periodic cell, the energy per cell. ``None``
+        otherwise.
     info : dict
         ``order``, ``leaf_size``, ``scheme``, ``kernel``, ``kernel_name``
         (the name in :data:`KERNELS`), ``dtype``,
         ``eps``, ``predicted_error``, ``measured_error`` (estimated on a
         sample of targets against direct summation, for the first
         evaluation of a tolerance), ``verified``, ``threads``, tree figures
-        and ``timings`` (seconds, ``setup`` and ``evaluate`` per operator).
+        and ``timings`` (seconds, ``setup`` and ``evaluate`` per operator);
+        ``periodic``: ``None`` in free space, else the cell (``box``, the
+        three sides; ``origin``; ``axes``, e.g. ``"xyz"``; ``surface``,
+        ``"tin-foil"`` or ``"vacuum"``).
     """
 
-    __slots__ = ("potential", "gradient", "hessian", "info", "at_sources")
+    __slots__ = ("potential", "gradient", "hessian", "info", "at_sources", "energy")
 
     def __init__(
         self,
@@ -92,18 +103,21 @@ class FmmResult:
         gradient: Optional[np.ndarray],
         info: Dict[str, Any],
         hessian: Optional[np.ndarray] = None,
+        energy: Any = None,
     ):
         self.potential = potential
         self.gradient = gradient
         self.hessian = hessian
         self.info = info
         self.at_sources: Optional["FmmResult"] = None
+        self.energy = energy
 
     def __repr__(self) -> str:
         g = None if self.gradient is None else self.gradient.shape
         h = "" if self.hessian is None else f", hessian={self.hessian.shape}"
+        e = "" if self.energy is None or np.ndim(self.energy) else f", energy={self.energy:.6g}"
         return (
-            f"FmmResult(potential={self.potential.shape}, gradient={g}{h}, "
+            f"FmmResult(potential={self.potential.shape}, gradient={g}{h}{e}, "
             f"order={self.info.get('order')}, dtype={self.info.get('dtype')})"
         )
 
@@ -180,6 +194,27 @@ class Fmm:
         With ``targets``: also evaluate at the sources in the same run
         (each source excluding itself); ``evaluate`` then returns them as
         ``result.at_sources``. The sources are added as targets.
+    box : float or sequence of 3 floats, optional
+        Periodic boundaries (Laplace kernel, charges): the side ``L`` of
+        the cubic cell ``[box_origin, box_origin + L)^3`` that repeats
+        along ``periodic``; every target sees every image of every source
+        (the Ewald convention). Points outside the cell are wrapped into
+        it; results come in the caller's order. The charges of each
+        vector must sum to zero (``ValueError`` at evaluation otherwise).
+        Three sides are accepted but only cubes run in this release; other
+        kernels, dipoles and Hessians with a box are refused
+        (``ValueError``). ``eps`` is chosen and verified as in free space,
+        against an Ewald sum.
+    box_origin : sequence of 3 floats, optional
+        The cell's lower corner (default ``(0, 0, 0)``); needs ``box``.
+    periodic : {"xyz", "xy", "x"}, optional
+        Axes that repeat (default ``"xyz"`` with ``box``); only ``"xyz"``
+        runs in this release. Needs ``box``.
+    surface : {"tin-foil", "vacuum"}, optional
+        How the lattice sum is closed at infinity: ``"tin-foil"``
+        (default; conducting surroundings, Ewald without its ``k = 0``
+        term, as particle-mesh Ewald codes) or ``"vacuum"`` (adds the
+        cell's dipole term). Needs ``box``.
     """
 
     def __init__(
@@ -203,7 +238,12 @@ class Fmm:
         charges: bool = True,
         dipoles: bool = False,
         at_sources: bool = False,
+        box: Any = None,
+        box_origin: Any = None,
+        periodic: Optional[str] = None,
+        surface: Optional[str] = None,
     ) -> None:
+        cell = _cell(box, box_origin, periodic, surface)
         charges, dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
         gradient, hessian = _bool("gradient", gradient), _bool("hessian", hessian)
         verify, at_sources = _bool("verify", verify), _bool("at_sources", at_sources)
@@ -258,6 +298,7 @@ class Fmm:
             source,
             str(run),
             default_cache,
+            *cell,
         )
         self._dtype = run
         self._kernel = kernel
@@ -343,6 +384,10 @@ class Fmm:
         values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
         info = json.loads(info_json)
         info["kernel_name"] = self._kernel
+        energies = info.pop("energy", None) or []
+        energy: Any = None
+        if energies and all(e is not None for e in energies):
+            energy = float(energies[0]) if not batched else np.array(energies, dtype=np.float64)
         self._last_info = info
         if info.get("verified") is False and not self._accuracy_warned:
             self._accuracy_warned = True
@@ -385,7 +430,7 @@ class Fmm:
             hessian = None if hessian is None else hessian[0]
         ns = self._n_at_sources
         if not ns:
-            return FmmResult(potential, gradient, info, hessian)
+            return FmmResult(potential, gradient, info, hessian, energy)
 
         # The target axis is the last of the potential's axes.
         def split(a: Optional[np.ndarray], lo: int, hi: Optional[int]) -> Optional[np.ndarray]:
@@ -456,6 +501,10 @@ def laplace(
     scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
+    box: Any = None,
+    box_origin: Any = None,
+    periodic: Optional[str] = None,
+    surface: Optional[str] = None,
 ) -> FmmResult:
     """Laplace potentials ``phi(y) = sum_i q_i / (4 pi |y - x_i|)`` by the FMM.
 
@@ -498,12 +547,25 @@ def laplace(
         With ``targets``: also the values at the sources (each excluding
         itself) from the same run, as ``result.at_sources`` (FMM3D's ``pg``
         with ``pgt``).
+    box : float or sequence of 3 floats, optional
+        Periodic boundaries: the side ``L`` of the cubic cell that repeats
+        (three equal sides are accepted too); every target sees every
+        image of every source, points outside the cell are wrapped into
+        it, and each charge vector must sum to zero. Charges only, no
+        Hessians. See :class:`Fmm` and :func:`ewald` (the reference sum).
+    box_origin : sequence of 3 floats, optional
+        The cell's lower corner (default ``(0, 0, 0)``).
+    periodic : {"xyz", "xy", "x"}, optional
+        Repeating axes (default ``"xyz"``; only ``"xyz"`` runs in this release).
+    surface : {"tin-foil", "vacuum"}, optional
+        How the lattice sum is closed (default ``"tin-foil"``).
 
     Returns
     -------
     FmmResult
         ``.potential`` (m,) or (k, m), ``.gradient`` (m, 3) or (k, m, 3)
-        or None, ``.hessian`` (m, 6) or (k, m, 6) or None, ``.info`` (dict).
+        or None, ``.hessian`` (m, 6) or (k, m, 6) or None, ``.energy``
+        (``1/2 sum q phi`` without ``targets``, else None), ``.info`` (dict).
 
     Examples
     --------
@@ -512,11 +574,21 @@ def laplace(
     >>> r = ferrofmm.laplace(x, np.ones(2000), eps=1e-6)
     >>> r.potential.shape
     (2000,)
+
+    The Madelung constant of rock salt (8 ions in the conventional cell of
+    side 1, nearest neighbours 0.5 apart):
+
+    >>> ions = np.array([[i, j, k] for i in (0, .5) for j in (0, .5) for k in (0, .5)])
+    >>> q = np.where(ions.sum(axis=1) * 2 % 2 == 0, 1.0, -1.0)
+    >>> r = ferrofmm.laplace(ions, q, box=1.0, eps=1e-8)
+    >>> round(float(-r.potential[0] * 4 * np.pi * 0.5), 7)
+    1.7475646
     """
     return _one_call(
         "laplace", None, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
         leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
+        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
     )
 
 
@@ -537,16 +609,23 @@ def yukawa(
     scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
+    box: Any = None,
+    box_origin: Any = None,
+    periodic: Optional[str] = None,
+    surface: Optional[str] = None,
 ) -> FmmResult:
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
 
     ``r = |y - x_i|`` and ``k >= 0`` is the screening wavenumber (inverse
-    length). The other parameters and the result are as for :func:`laplace`.
+    length). The other parameters and the result are as for :func:`laplace`;
+    periodic boundaries (``box``) run the Laplace kernel only in this
+    release (``ValueError``).
     """
     return _one_call(
         "yukawa", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
         leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
+        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
     )
 
 
@@ -566,6 +645,10 @@ def helmholtz(
     scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
+    box: Any = None,
+    box_origin: Any = None,
+    periodic: Optional[str] = None,
+    surface: Optional[str] = None,
 ) -> FmmResult:
     """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
 
@@ -591,6 +674,7 @@ def helmholtz(
         "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
+        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
     )
 
 
@@ -608,6 +692,10 @@ def stokes(
     scheme: str = "auto",
     verify: bool = True,
     at_sources: bool = False,
+    box: Any = None,
+    box_origin: Any = None,
+    periodic: Optional[str] = None,
+    surface: Optional[str] = None,
 ) -> FmmResult:
     """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
 
@@ -634,4 +722,100 @@ def stokes(
         "stokes", None, sources, forces, None, targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
+        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
     )
+
+
+def ewald(
+    points: Any,
+    charges: Any,
+    box: Any,
+    *,
+    targets: Any = None,
+    box_origin: Any = (0.0, 0.0, 0.0),
+    gradient: bool = False,
+    eps: float = 1e-12,
+    threads: Optional[int] = None,
+) -> FmmResult:
+    """The Ewald sum of charges in a periodic cell: the reference of ``laplace(..., box=)``.
+
+    ``phi(y) = sum_i sum_n q_i / (4 pi |y - x_i - n L|)`` over every image
+    ``n`` of every charge (a source leaves out its own direct term, its
+    images kept), closed with tin-foil (conducting) surroundings as
+    :func:`laplace` with ``box`` and ``surface="tin-foil"``. Direct
+    summation split by Ewald's method, ``O(N^1.5)``: a reference for a
+    few thousand points, not a solver.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        Charge positions (float64 or float32; computed in float64).
+        Points outside the cell are wrapped into it.
+    charges : array_like, shape (n,)
+        One charge per point. A cell that is not neutral gets a uniform
+        background of total charge ``-sum q`` (Ewald's convention; the
+        periodic FMM refuses such a cell).
+    box : float or sequence of 3 floats
+        The cell's side ``L``, or its sides ``(Lx, Ly, Lz)``: orthorhombic
+        cells run here (the FMM takes cubes only).
+    targets : array_like, shape (m, 3), optional
+        Where to evaluate; the points themselves when ``None``.
+    box_origin : sequence of 3 floats
+        The cell's lower corner (default ``(0, 0, 0)``).
+    gradient : bool
+        Also the gradient with respect to the target.
+    eps : float
+        Relative truncation tolerance of the real and reciprocal sums, in
+        ``(0, 1)`` (the errors stay below it relative to the root mean
+        square of the values; the floor is a few ``1e-15``).
+    threads : int, optional
+        Threads (default: one per core, or ``RAYON_NUM_THREADS``).
+
+    Returns
+    -------
+    FmmResult
+        ``.potential`` (m,) float64, ``.gradient`` (m, 3) or None,
+        ``.energy`` (``1/2 sum q phi`` per cell without ``targets``, else
+        None), ``.info`` (``method`` ``"ewald"``, ``eps``, ``alpha``,
+        ``r_cut``, ``k_cut``, ``wave_vectors``, ``total_charge``,
+        ``periodic``, ``timings``).
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> x = np.array([[0.0, 0.0, 0.0], [0.5, 0.5, 0.5]])      # CsCl
+    >>> r = ferrofmm.ewald(x, [1.0, -1.0], 1.0)
+    >>> round(float(-r.potential[0] * 4 * np.pi * np.sqrt(3) / 2), 9)  # Madelung constant
+    1.762674773
+    """
+    gradient = _bool("gradient", gradient)
+    src = _points("points", points)
+    tgt = None if targets is None else _points("targets", targets)
+    q = np.asarray(charges) if not isinstance(charges, np.ndarray) else charges
+    if q.dtype.kind in "iu":
+        q = q.astype(np.float64)
+    checked, _, batched = _check_densities("laplace", len(src), [("charges", "charges", q)])
+    if batched:
+        raise ValueError(f"charges must have shape ({len(src)},): one charge vector")
+    lengths, origin, _, _ = _cell(box, box_origin, None, None)
+    eps_value = _real("eps", eps)
+    if eps_value is None:
+        raise TypeError("eps must be a float, got None")
+    threads = _positive_int("threads", threads)
+    wide = np.dtype(np.float64)
+    values, energy, info_json = _ferrofmm.ewald_sum(
+        _flat(src, wide),
+        _flat(checked[0][1], wide),
+        lengths,
+        origin if origin is not None else [0.0, 0.0, 0.0],
+        None if tgt is None else _flat(tgt, wide),
+        gradient,
+        eps_value,
+        threads,
+    )
+    info = json.loads(info_json)
+    info["kernel_name"] = "laplace"
+    v = values.reshape(-1, 4 if gradient else 1)
+    potential = np.ascontiguousarray(v[:, 0])
+    grad = np.ascontiguousarray(v[:, 1:4]) if gradient else None
+    return FmmResult(potential, grad, info, None, energy)
