@@ -44,7 +44,15 @@ fn main() {
     let n: usize = args[1].parse().expect("N");
     let side: f64 = args[2].parse().expect("L");
     let dir = PathBuf::from(&args[3]);
-    let tolerances: Vec<f64> = args[4..].iter().map(|e| e.parse().expect("EPS")).collect();
+    // `EPS` asks for a tolerance, `pORDER` for an order (the leaf size
+    // chosen for it): the f64 floor is beyond the tolerances.
+    let settings: Vec<(Option<f64>, Option<usize>)> = args[4..]
+        .iter()
+        .map(|a| match a.strip_prefix('p') {
+            Some(order) => (None, Some(order.parse().expect("pORDER"))),
+            None => (Some(a.parse().expect("EPS")), None),
+        })
+        .collect();
     std::fs::create_dir_all(&dir).expect("output folder");
 
     let points: Vec<f64> = Geometry::Cube
@@ -82,12 +90,18 @@ fn main() {
             .flat_map(|c| if grad { c[1..].to_vec() } else { vec![c[0]] })
             .collect()
     };
-    for eps in tolerances {
+    for (eps, order) in settings {
         let t = Instant::now();
-        let fmm = FmmBuilder::new(&points)
+        let mut builder = FmmBuilder::new(&points)
             .periodic(Periodic::cube(side))
-            .mode(EvalMode::PotentialGradient)
-            .tolerance(eps)
+            .mode(EvalMode::PotentialGradient);
+        if let Some(eps) = eps {
+            builder = builder.tolerance(eps);
+        }
+        if let Some(order) = order {
+            builder = builder.order(order);
+        }
+        let fmm = builder
             .verify(false)
             .default_cache()
             .build_with::<ferrofmm_field::FftM2l<f64>>(Default::default())
@@ -105,11 +119,11 @@ fn main() {
             .flat_map(|&i| values[4 * i..4 * i + 4].to_vec())
             .collect();
         let energy = fmm.energy(&charges, &values).expect("energy");
-        let c = fmm.chosen_parameters().expect("chosen");
+        let eps = eps.map_or("null".to_string(), |e| format!("{e:e}"));
         println!(
-            "{{\"code\": \"ferrofmm\", \"n\": {n}, \"eps\": {eps:e}, \"order\": {}, \"leaf\": {}, \"setup_s\": {setup_s:.3}, \"eval_s\": {best:.3}, \"pot_err\": {:.3e}, \"grad_err\": {:.3e}, \"energy\": {energy:.15e}}}",
-            c.order,
-            c.leaf_size,
+            "{{\"code\": \"ferrofmm\", \"n\": {n}, \"eps\": {eps}, \"order\": {}, \"leaf\": {}, \"setup_s\": {setup_s:.3}, \"eval_s\": {best:.3}, \"pot_err\": {:.3e}, \"grad_err\": {:.3e}, \"energy\": {energy:.15e}}}",
+            fmm.order(),
+            fmm.leaf_size(),
             rel(&pick(&at, false), &pick(&reference, false)),
             rel(&pick(&at, true), &pick(&reference, true)),
         );

@@ -264,7 +264,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 truth.as_deref(),
             );
             attempt.check_s += std::mem::take(&mut truth_s);
-            let measured = attempt.measured.worst() * noise_margin(attempt.measured.n_sampled);
+            // Every target sampled: the error is measured, not estimated.
+            let margin = if attempt.measured.n_sampled >= self.n_targets {
+                1.0
+            } else {
+                noise_margin(attempt.measured.n_sampled)
+            };
+            let measured = attempt.measured.worst() * margin;
             verification.attempts.push(attempt);
             if measured <= eps {
                 verification.met = true;
@@ -417,6 +423,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         // sample that cannot grow (every target sampled already) stops it:
         // the budget would grow until the duration overflows.
         while measured.worst() <= eps
+            && measured.n_sampled < self.n_targets
             && measured.worst() * noise_margin(measured.n_sampled) > eps
             && measured.n_sampled < MAX_VERIFY_SAMPLE
         {

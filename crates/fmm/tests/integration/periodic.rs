@@ -454,3 +454,30 @@ fn what_periodic_runs_refuse() {
         Err(FmmError::InvalidParameter(_))
     ));
 }
+
+#[test]
+fn a_tiny_cell_is_verified_on_every_ion() {
+    // Eight ions: the verification samples all of them, so what it
+    // measures is the error itself (no noise margin, no endless resampling).
+    let (points, q) = crystal(&nacl(), 1);
+    let mut fmm = FmmBuilder::new(&points)
+        .periodic(Periodic::cube(1.0))
+        .tolerance(1e-7)
+        .build_with::<FftM2l<f64>>(Default::default())
+        .unwrap();
+    let out = fmm.evaluate_verified(&q).unwrap();
+    let v = out.verification.unwrap();
+    let exact: Vec<f64> = q
+        .iter()
+        .map(|q| -q * NACL / (4.0 * std::f64::consts::PI * 0.5))
+        .collect();
+    let error = rel_l2(&out.values, &exact);
+    let measured = v.last().measured;
+    assert_eq!(measured.n_sampled, 8);
+    assert!(
+        (measured.potential - error).abs() <= 0.05 * error + 1e-13,
+        "measured {:e}, true {error:e}",
+        measured.potential
+    );
+    assert_eq!(v.met, error <= 1e-7, "{error:e}");
+}
