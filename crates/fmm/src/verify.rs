@@ -12,13 +12,19 @@
 //! `N` times a per-point constant for the whole FMM, so the sample holds a
 //! few hundred targets at any N.
 //!
+//! In a periodic cell ([`crate::periodic`]) the truth is the Ewald sum of
+//! the charges ([`ferrofmm_kernels::EwaldSum`], to a tenth of the
+//! tolerance, tuned for a few hundred targets); its set-up time counts as
+//! the first check's.
+//!
 //! The estimate has sampling noise: a relative L2 error over `s` targets
 //! varies by roughly `c / sqrt(s)` of itself ([`VERIFY_NOISE`]). So an
 //! estimate `m` counts as meeting `eps` only when
 //! `(1 + VERIFY_NOISE / sqrt(s)) m <= eps` ([`noise_margin`]: 1.28 for 200
 //! targets, 1.13 for 1000); an estimate between `eps / margin` and `eps`
 //! is repeated on [`RESAMPLE_FACTOR`] times the sample before a retry is
-//! decided. The relative errors' denominators come from the evaluated
+//! decided. A sample of every target measures the error itself: no margin,
+//! no resampling. The relative errors' denominators come from the evaluated
 //! values at every target, not from the sample's references (whose
 //! gradients are heavy-tailed: a small sample overestimated the error up
 //! to 14x). The chooser's safety factor

@@ -141,9 +141,20 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         || settings
             .scheme
             .needs_points(settings.kernel, settings.tolerance, settings.order);
-    let points = needs_points.then(|| points_of(&input));
+    // A periodic run's tree is built on the points wrapped into its cell:
+    // the choices see those.
+    let points = needs_points.then(|| {
+        let (s, t) = points_of(&input);
+        match &settings.periodic {
+            Some(cell) => (
+                std::borrow::Cow::Owned(cell.wrap_all(&s)),
+                t.map(|t| std::borrow::Cow::Owned(cell.wrap_all(t))),
+            ),
+            None => (s, t.map(std::borrow::Cow::Borrowed)),
+        }
+    });
     let precision = match (settings.precision, settings.tolerance, &points) {
-        (Auto, Some(eps), Some((s, t))) => auto_precision(s, *t, eps, mode)?,
+        (Auto, Some(eps), Some((s, t))) => auto_precision(s, t.as_deref(), eps, mode)?,
         (Auto, _, _) => F64,
         (p, _, _) => p,
     };
@@ -151,7 +162,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         settings.kernel,
         settings.tolerance,
         settings.order,
-        points.as_ref().map(|(s, t)| (s.as_ref(), *t)),
+        points.as_ref().map(|(s, t)| (s.as_ref(), t.as_deref())),
         mode,
         precision.float_type(),
         // The SVD precomputation counts as free only with a folder the

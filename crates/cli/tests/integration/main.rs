@@ -10,6 +10,7 @@ mod eval;
 mod file_forms;
 mod hostile;
 mod output_safety;
+mod periodic;
 mod physics;
 mod pipes;
 mod precompute;

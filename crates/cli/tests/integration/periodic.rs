@@ -1,0 +1,74 @@
+//! `--box`: periodic runs from the command line (issue 32).
+
+use crate::common;
+
+use common::{ferrofmm, scratch, texts, write_csv};
+
+#[test]
+fn a_periodic_demo_meets_its_tolerance_against_ewald() {
+    let out = ferrofmm(&[
+        "demo",
+        "--n",
+        "3000",
+        "--box",
+        "1",
+        "--tolerance",
+        "1e-5",
+        "--check",
+        "300",
+        "--json",
+    ]);
+    let (stdout, stderr) = texts(&out);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value =
+        serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+    let periodic = v["periodic"].as_str().expect("a periodic row");
+    assert!(
+        periodic.contains("xyz") && periodic.contains("tin-foil"),
+        "{periodic}"
+    );
+    assert!(v["energy"].as_f64().expect("an energy").is_finite());
+    let errors = &v["errors"];
+    assert!(errors["potential"].as_f64().unwrap() <= 1e-5, "{errors}");
+    assert!(errors["gradient"].as_f64().unwrap() <= 1e-5, "{errors}");
+}
+
+#[test]
+fn bad_boxes_and_charged_cells_are_refused() {
+    for args in [
+        vec!["demo", "--n", "100", "--box", "1,2,1"],
+        vec!["demo", "--n", "100", "--box", "0"],
+        vec!["demo", "--n", "100", "--box", "x"],
+        vec!["demo", "--n", "100", "--box", "1", "--periodic", "xy"],
+        vec!["demo", "--n", "100", "--periodic", "xyz"],
+        vec!["demo", "--n", "100", "--box", "1", "--surface", "metal"],
+        vec!["demo", "--n", "100", "--box", "1", "--kernel", "yukawa:2"],
+    ] {
+        let out = ferrofmm(&args);
+        let (_, stderr) = texts(&out);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(!stderr.contains("panicked"), "{args:?}: {stderr}");
+        assert!(!stderr.trim().is_empty(), "{args:?}: no message");
+    }
+    // Given charges that do not sum to zero.
+    let dir = scratch("periodic-charged");
+    let points = dir.path().join("p.csv");
+    let charges = dir.path().join("q.csv");
+    write_csv(&points, &[0.1, 0.2, 0.3, 0.6, 0.7, 0.8], 3, None);
+    write_csv(&charges, &[1.0, -0.5], 1, None);
+    let out_path = dir.path().join("out.csv");
+    let out = ferrofmm(&[
+        "eval",
+        "--sources",
+        points.to_str().unwrap(),
+        "--charges",
+        charges.to_str().unwrap(),
+        "--box",
+        "1",
+        "--out",
+        out_path.to_str().unwrap(),
+    ]);
+    let (_, stderr) = texts(&out);
+    assert!(!out.status.success());
+    assert!(stderr.contains("not neutral"), "{stderr}");
+}
