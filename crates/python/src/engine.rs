@@ -717,17 +717,7 @@ fn periodic_cell(
         }
         return Ok(None);
     };
-    let lengths = match lengths[..] {
-        [l] => [l; 3],
-        [a, b, c] => [a, b, c],
-        _ => {
-            return Err(PyValueError::new_err(format!(
-                "box takes one side or three (Lx, Ly, Lz), got {} values",
-                lengths.len()
-            )));
-        }
-    };
-    let mut cell = Periodic::with_lengths(lengths);
+    let mut cell = Periodic::with_lengths(box_lengths(&lengths)?);
     if let Some(o) = origin {
         match o[..] {
             [x, y, z] => cell = cell.with_origin([x, y, z]),
@@ -788,4 +778,16 @@ fn eval_seconds(t: &EvalTimings) -> Value {
     }
     map.insert("total".into(), json!(t.total.as_secs_f64()));
     Value::Object(map)
+}
+
+/// `box=` as three sides: one side `L` (a cube) or three.
+pub(crate) fn box_lengths(lengths: &[f64]) -> PyResult<[f64; 3]> {
+    match lengths[..] {
+        [l] => Ok([l; 3]),
+        [a, b, c] => Ok([a, b, c]),
+        _ => Err(PyValueError::new_err(format!(
+            "box takes one side or three (Lx, Ly, Lz), got {} values",
+            lengths.len()
+        ))),
+    }
 }

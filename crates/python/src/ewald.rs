@@ -36,16 +36,7 @@ pub(crate) fn ewald_sum<'py>(
     eps: f64,
     threads: Option<usize>,
 ) -> PyResult<(Bound<'py, PyAny>, Option<f64>, String)> {
-    let lengths = match lengths[..] {
-        [l] => [l; 3],
-        [a, b, c] => [a, b, c],
-        _ => {
-            return Err(PyValueError::new_err(format!(
-                "box takes one side or three (Lx, Ly, Lz), got {} values",
-                lengths.len()
-            )));
-        }
-    };
+    let lengths = crate::engine::box_lengths(&lengths)?;
     let origin: [f64; 3] = origin.try_into().map_err(|o: Vec<f64>| {
         PyValueError::new_err(format!(
             "box_origin takes three numbers (x, y, z), got {} values",

@@ -40,32 +40,26 @@ fn crystal(basis: &[([f64; 3], f64)], n: usize) -> (Vec<f64>, Vec<f64>) {
 /// Fractional positions and charges of a unit cell's ions.
 type Basis = Vec<([f64; 3], f64)>;
 
-fn nacl() -> Basis {
-    let mut b = Vec::new();
-    for f in [
+/// Four cations on the fcc sites of the unit cell and four anions at
+/// `anion(site)`.
+fn fcc_pairs(anion: impl Fn([f64; 3]) -> [f64; 3]) -> Basis {
+    [
         [0.0, 0.0, 0.0],
         [0.5, 0.5, 0.0],
         [0.5, 0.0, 0.5],
         [0.0, 0.5, 0.5],
-    ] {
-        b.push((f, 1.0));
-        b.push(([f[0] + 0.5, f[1], f[2]].map(|x: f64| x % 1.0), -1.0));
-    }
-    b
+    ]
+    .into_iter()
+    .flat_map(|f| [(f, 1.0), (anion(f), -1.0)])
+    .collect()
+}
+
+fn nacl() -> Basis {
+    fcc_pairs(|f| [(f[0] + 0.5) % 1.0, f[1], f[2]])
 }
 
 fn zincblende() -> Basis {
-    let mut b = Vec::new();
-    for f in [
-        [0.0, 0.0, 0.0],
-        [0.5, 0.5, 0.0],
-        [0.5, 0.0, 0.5],
-        [0.0, 0.5, 0.5],
-    ] {
-        b.push((f, 1.0));
-        b.push((f.map(|x| x + 0.25), -1.0));
-    }
-    b
+    fcc_pairs(|f| f.map(|x| x + 0.25))
 }
 
 /// `-phi_i q_i 4 pi d` at every ion (`d` the nearest-neighbour distance in

@@ -158,23 +158,15 @@ impl PeriodicGreen {
         let l = self.cell.lengths();
         let (lo, hi) = self.image_range(r, false);
         let mut real = 0.0;
-        for nz in lo[2]..=hi[2] {
-            for ny in lo[1]..=hi[1] {
-                for nx in lo[0]..=hi[0] {
-                    let d = [
-                        r[0] + nx as f64 * l[0],
-                        r[1] + ny as f64 * l[1],
-                        r[2] + nz as f64 * l[2],
-                    ];
-                    let rho = norm(d);
-                    if rho < self.r_cut {
-                        if rho == 0.0 {
-                            return f64::INFINITY;
-                        }
-                        real += libm::erfc(self.alpha * rho) / rho;
-                    }
-                }
+        let mut at_lattice_point = false;
+        for_images(r, l, lo, hi, |_, rho| {
+            if rho < self.r_cut {
+                at_lattice_point |= rho == 0.0;
+                real += libm::erfc(self.alpha * rho) / rho;
             }
+        });
+        if at_lattice_point {
+            return f64::INFINITY;
         }
         INV_4PI * real + self.reciprocal(r) + self.background
     }
@@ -186,28 +178,17 @@ impl PeriodicGreen {
         let l = self.cell.lengths();
         let (lo, hi) = self.image_range(r, true);
         let mut real = 0.0;
-        for nz in lo[2]..=hi[2] {
-            for ny in lo[1]..=hi[1] {
-                for nx in lo[0]..=hi[0] {
-                    let d = [
-                        r[0] + nx as f64 * l[0],
-                        r[1] + ny as f64 * l[1],
-                        r[2] + nz as f64 * l[2],
-                    ];
-                    let rho = norm(d);
-                    let near = nx.abs() <= 1 && ny.abs() <= 1 && nz.abs() <= 1;
-                    if near {
-                        real -= if rho < 1e-300 {
-                            TWO_OVER_SQRT_PI * self.alpha
-                        } else {
-                            libm::erf(self.alpha * rho) / rho
-                        };
-                    } else if rho < self.r_cut {
-                        real += libm::erfc(self.alpha * rho) / rho;
-                    }
-                }
+        for_images(r, l, lo, hi, |n, rho| {
+            if n.iter().all(|c| c.abs() <= 1) {
+                real -= if rho < 1e-300 {
+                    TWO_OVER_SQRT_PI * self.alpha
+                } else {
+                    libm::erf(self.alpha * rho) / rho
+                };
+            } else if rho < self.r_cut {
+                real += libm::erfc(self.alpha * rho) / rho;
             }
-        }
+        });
         INV_4PI * real + self.reciprocal(r) + self.background
     }
 
@@ -305,4 +286,26 @@ fn near_images() -> impl Iterator<Item = [i64; 3]> {
 
 fn norm(d: [f64; 3]) -> f64 {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
+}
+
+/// Calls `f(n, |r + n L|)` for every image `n` in `lo..=hi` (per axis).
+fn for_images(
+    r: [f64; 3],
+    l: [f64; 3],
+    lo: [i64; 3],
+    hi: [i64; 3],
+    mut f: impl FnMut([i64; 3], f64),
+) {
+    for nz in lo[2]..=hi[2] {
+        for ny in lo[1]..=hi[1] {
+            for nx in lo[0]..=hi[0] {
+                let d = [
+                    r[0] + nx as f64 * l[0],
+                    r[1] + ny as f64 * l[1],
+                    r[2] + nz as f64 * l[2],
+                ];
+                f([nx, ny, nz], norm(d));
+            }
+        }
+    }
 }
