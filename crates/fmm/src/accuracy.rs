@@ -144,6 +144,57 @@ pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
     sums.report(mode)
 }
 
+/// The Ewald truth of a periodic Laplace problem: the charges at the
+/// sources (`f64`, wrapped or not) in `cell`, at the `targets` (`None`:
+/// the sources themselves, each leaving out only itself), to
+/// `tolerance`, tuned for about `expected` targets. The one truth of a
+/// periodic run's verification and of [`relative_errors_periodic`].
+pub(crate) struct PeriodicTruth<'a> {
+    ewald: ferrofmm_kernels::EwaldSum,
+    targets: Option<&'a [f64]>,
+    mode: EvalMode,
+}
+
+impl<'a> PeriodicTruth<'a> {
+    /// # Errors
+    /// What [`ferrofmm_kernels::EwaldSum::with_options`] refuses.
+    pub(crate) fn new<T: Real>(
+        cell: &crate::Periodic,
+        sources: &[f64],
+        charges: &[T],
+        targets: Option<&'a [f64]>,
+        mode: EvalMode,
+        tolerance: f64,
+        expected: usize,
+    ) -> Result<Self, crate::FmmError> {
+        let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
+        let cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
+        let options = ferrofmm_kernels::EwaldOptions::new(tolerance).expected_targets(expected);
+        Ok(PeriodicTruth {
+            ewald: ferrofmm_kernels::EwaldSum::with_options(cell, sources, &q, options)?,
+            targets,
+            mode,
+        })
+    }
+
+    /// The values at the targets `sample`.
+    ///
+    /// # Errors
+    /// An index out of range, or a mode the Ewald sum does not give.
+    pub(crate) fn at(&self, sample: &[usize]) -> Result<Vec<f64>, crate::FmmError> {
+        Ok(match self.targets {
+            Some(t) => {
+                let at: Vec<f64> = sample
+                    .iter()
+                    .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
+                    .collect();
+                self.ewald.at_points(&at, self.mode)?
+            }
+            None => self.ewald.at_sources(sample, self.mode)?,
+        })
+    }
+}
+
 /// [`relative_errors`] of a periodic Laplace run ([`crate::Periodic`]):
 /// the truth at the sampled targets is the Ewald sum
 /// ([`ferrofmm_kernels::EwaldSum`], to `1e-13`) of the charges at the
@@ -152,7 +203,7 @@ pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
 ///
 /// # Errors
 /// What [`ferrofmm_kernels::EwaldSum::new`] refuses (a bad cell, points or
-/// charges that do not match).
+/// charges that do not match, Hessians).
 #[allow(clippy::too_many_arguments)]
 pub fn relative_errors_periodic<T: Real>(
     cell: &crate::Periodic,
@@ -163,20 +214,8 @@ pub fn relative_errors_periodic<T: Real>(
     values: &[T],
     sample: &[usize],
 ) -> Result<ErrorReport, crate::FmmError> {
-    let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
-    let green_cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
-    let options = ferrofmm_kernels::EwaldOptions::new(1e-13).expected_targets(sample.len());
-    let ewald = ferrofmm_kernels::EwaldSum::with_options(green_cell, sources, &q, options)?;
-    let exact = match targets {
-        Some(t) => {
-            let at: Vec<f64> = sample
-                .iter()
-                .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
-                .collect();
-            ewald.at_points(&at, mode)?
-        }
-        None => ewald.at_sources(sample, mode)?,
-    };
+    let exact = PeriodicTruth::new(cell, sources, charges, targets, mode, 1e-13, sample.len())?
+        .at(sample)?;
     let truth = |_: &[usize]| -> Vec<f64> { exact.clone() };
     let laplace = ferrofmm_kernels::Laplace3d;
     let mut problem = Comparison::new(

@@ -45,12 +45,12 @@ pub fn m2l_usage(tree: &Octree) -> M2lUsage {
 /// cells, `2^level s` boxes.
 pub(crate) fn v_entries(tree: &Octree, b: usize) -> impl Iterator<Item = (usize, [i32; 3])> + '_ {
     let key = tree.key(b);
-    let side = 1i32 << tree.level(b);
     let shifts = tree.v_shifts(b);
     tree.v_list(b).iter().enumerate().map(move |(k, &a)| {
-        let v = key.transfer_vector(tree.key(a));
-        let s = shift_at(shifts, k);
-        (a, std::array::from_fn(|i| v[i] + side * i32::from(s[i])))
+        (
+            a,
+            key.shifted_transfer_vector(tree.key(a), shift_at(shifts, k)),
+        )
     })
 }
 

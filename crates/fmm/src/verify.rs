@@ -51,10 +51,9 @@ use std::time::{Duration, Instant};
 use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
 
-use crate::accuracy::{ErrorReport, Truth, estimate_errors_population};
+use crate::accuracy::{ErrorReport, PeriodicTruth, Truth, estimate_errors_population};
 use crate::tuning::{ChosenParameters, ErrorModel, Occupancy, Scene};
 use crate::{EvalTimings, Fmm, FmmError};
-use ferrofmm_kernels::{EwaldOptions, EwaldSum, PeriodicCell};
 
 /// The accuracy of a periodic run's Ewald truth, as a share of the
 /// tolerance checked.
@@ -321,12 +320,19 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     ///
     /// In a periodic cell the truth is an Ewald sum ([`ferrofmm_kernels::EwaldSum`]);
     /// should it fail (it does not for charges the FMM accepted), the
-    /// report is of zero targets.
+    /// report is of zero targets with NaN errors (never a passing one).
     pub fn estimate_error(&self, charges: &[T], values: &[T], eval_time: Duration) -> ErrorReport {
         let points = self.original_points();
         let truth = match self.periodic_truth(&points, charges, PERIODIC_ESTIMATE_TOLERANCE) {
             Ok(t) => t,
-            Err(_) => return ErrorReport::default(),
+            Err(_) => {
+                return ErrorReport {
+                    n_sampled: 0,
+                    potential: f64::NAN,
+                    gradient: self.mode.has_gradient().then_some(f64::NAN),
+                    hessian: self.mode.has_hessian().then_some(f64::NAN),
+                };
+            }
         };
         self.estimate_error_at(
             &points,
@@ -351,31 +357,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let Some(cell) = self.periodic() else {
             return Ok(None);
         };
-        let cell = PeriodicCell::new(cell.origin(), cell.lengths())?;
-        let q: Vec<f64> = charges[..self.n_sources]
-            .iter()
-            .map(|q| q.to_f64())
-            .collect();
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
-        let options = EwaldOptions::new(tolerance).expected_targets(2 * MIN_VERIFY_SAMPLE);
-        let ewald = EwaldSum::with_options(cell, sources, &q, options)?;
-        let mode = self.mode;
-        let w = self.kernel.values_per_target(mode);
-        let separate = self.separate_targets;
+        let truth = PeriodicTruth::new(
+            cell,
+            sources,
+            &charges[..self.n_sources],
+            self.separate_targets.then_some(&targets[..]),
+            self.mode,
+            tolerance,
+            2 * MIN_VERIFY_SAMPLE,
+        )?;
+        let w = self.kernel.values_per_target(self.mode);
+        // The sample and the mode are the FMM's own, which the Ewald sum
+        // accepts; should it not, the check fails (NaN), never passes.
         Ok(Some(Box::new(move |sample: &[usize]| {
-            let values = if separate {
-                let at: Vec<f64> = sample
-                    .iter()
-                    .flat_map(|&j| [targets[3 * j], targets[3 * j + 1], targets[3 * j + 2]])
-                    .collect();
-                ewald.at_points(&at, mode)
-            } else {
-                ewald.at_sources(sample, mode)
-            };
-            // The sample and the mode are the FMM's own, which the Ewald
-            // sum accepts; should it not, the check fails (NaN), never
-            // passes.
-            values.unwrap_or_else(|_| vec![f64::NAN; w * sample.len()])
+            truth
+                .at(sample)
+                .unwrap_or_else(|_| vec![f64::NAN; w * sample.len()])
         })))
     }
 
