@@ -77,19 +77,24 @@ impl FarImages {
             .chunks_exact(n)
             .map(|row| T::from_f64(row.iter().zip(&u).map(|(a, b)| a * b).sum()))
             .collect();
-        let second = |p: &[f64], w: &[f64]| -> f64 {
-            p.chunks_exact(3)
-                .zip(w)
-                .map(|(p, w)| w * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]))
-                .sum()
-        };
-        let rel: Vec<f64> = x
+        // Second moments `sum w |p - c|^2` of the charges and of `u`.
+        let charges: f64 = x
             .chunks_exact(3)
-            .flat_map(|p| std::array::from_fn::<f64, 3, _>(|a| p[a].to_f64() - centre[a]))
-            .collect();
-        let q64: Vec<f64> = q.iter().map(|v| v.to_f64()).collect();
-        let constant =
-            (second(&rel, &q64) - second(&self.equivalent, &u)) / (6.0 * self.cell.volume());
+            .zip(q)
+            .map(|(p, q)| {
+                q.to_f64()
+                    * (0..3)
+                        .map(|a| (p[a].to_f64() - centre[a]).powi(2))
+                        .sum::<f64>()
+            })
+            .sum();
+        let equivalent: f64 = self
+            .equivalent
+            .chunks_exact(3)
+            .zip(&u)
+            .map(|(p, u)| u * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]))
+            .sum();
+        let constant = (charges - equivalent) / (6.0 * self.cell.volume());
         (check, constant)
     }
 
