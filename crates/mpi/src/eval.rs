@@ -7,28 +7,16 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use ferrofmm_field::{
-    CacheLocation, CacheOff, CacheSetting, CacheStatus, DenseM2l, FftM2l, M2lScheme, SvdConfig,
-    SvdM2l,
-};
-use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice, effective_tolerance};
-use ferrofmm_kernels::{
-    EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
-};
-use ferrofmm_mpi::{
-    DistChoice, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry,
-    agree_options, agree_text, choose_parameters, sampled_errors,
-};
+use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting};
+use ferrofmm_fmm::SchemeChoice;
+use ferrofmm_kernels::{EvalMode, KernelChoice, Precision, SourceKind};
+use ferrofmm_mpi::{DistError, DistRequest, DistSolver, Geometry, agree_options, agree_text};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 
 use crate::eval_io::{my_rows, read_slice, reader, write_out};
 use crate::eval_report::{Attempt, FIGURES, RunInfo, figures, report};
 use ferrofmm_io::Contents;
-
-/// Targets a verification samples when `--check` does not say.
-const VERIFY_SAMPLE: usize = 200;
 
 /// Arguments of `eval`.
 #[derive(Args)]
@@ -314,368 +302,179 @@ pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
     if let Err(e) = agree_text(world, check_output(a)) {
         return fail(e);
     }
-    match kernel.visit(WithKernel { world, a, threads }) {
+    match go(world, a, kernel, threads) {
         Ok(()) => 0,
         Err(e) => fail(e),
     }
 }
 
-/// The rest of `eval` for the kernel `--kernel` names.
-struct WithKernel<'a> {
-    world: &'a SimpleCommunicator,
-    a: &'a EvalArgs,
-    threads: usize,
-}
-
-/// What the parameters were: given, or chosen for a tolerance.
-#[derive(Clone)]
-struct Plan {
-    pub(crate) order: usize,
-    pub(crate) leaf_size: usize,
-    pub(crate) scheme: &'static str,
-    pub(crate) svd_tolerance: Option<f64>,
-    pub(crate) choice: Option<DistChoice>,
-    /// The tolerance asked for or the default one (`None`: an order, or an
-    /// order and a leaf size, given without one).
-    pub(crate) tolerance: Option<f64>,
-}
-
-impl KernelVisitor for WithKernel<'_> {
-    type Output = Result<(), String>;
-
-    fn visit<K: Kernel>(self, kernel: K) -> Result<(), String> {
-        let (world, a) = (self.world, self.a);
-        let me = world.rank() as usize;
-        let size = world.size() as usize;
-        let t0 = std::time::Instant::now();
-        let c = kernel.components();
-        let input = agree_text(world, inputs(world, a, c, me, size))?;
-        let read_s = t0.elapsed().as_secs_f64();
-        let mode = if a.gradients {
+/// The request of `eval`'s arguments (clap checked the names).
+fn request(a: &EvalArgs, kernel: KernelChoice, kind: SourceKind) -> Result<DistRequest, String> {
+    Ok(DistRequest {
+        mode: if a.gradients {
             EvalMode::PotentialGradient
         } else {
             EvalMode::Potential
-        };
-        if !kernel.supports(input.kind, mode) {
-            return Err(format!(
-                "kernel {} does not take {} sources",
-                kernel.name(),
-                input.kind.name()
-            ));
-        }
-        let precision = if a.precision == "f32" {
+        },
+        sources: kind,
+        precision: if a.precision == "f32" {
             Precision::F32
         } else {
             Precision::F64
-        };
-        // clap checked the name.
-        let scheme = SchemeChoice::parse(&a.scheme)?;
-        // The one default rule: no order and no tolerance means the
-        // default tolerance; an order alone gets its leaf size and scheme
-        // from the cost model; an order and a leaf size are used as given.
-        let eps = effective_tolerance(
-            a.tolerance,
-            a.order.or(a.leaf_size.map(|_| DEFAULT_ORDER)),
-            precision,
-        );
-        let plan = match (eps, a.order, a.leaf_size) {
-            (None, Some(_), Some(_)) | (None, None, _) => Plan {
-                order: a.order.unwrap_or(DEFAULT_ORDER),
-                leaf_size: a.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
-                scheme: match scheme {
-                    SchemeChoice::Auto if SchemeChoice::auto_is_fft(&kernel) => "fft",
-                    SchemeChoice::Auto => "svd",
-                    s => s.name(),
-                },
-                svd_tolerance: None,
-                choice: None,
-                tolerance: None,
-            },
-            (eps, order, _) => {
-                let shape = scheme.shape();
-                let choice = choose_parameters(
-                    world,
-                    &input.points,
-                    &kernel,
-                    eps,
-                    order,
-                    precision,
-                    mode,
-                    shape,
-                    a.cache_dir.is_some(),
-                )
-                .map_err(|e| e.to_string())?;
-                Plan {
-                    order: choice.order,
-                    leaf_size: choice.leaf_size,
-                    scheme: SchemeChoice::of_shape(choice.shape).name(),
-                    svd_tolerance: Some(choice.svd_tolerance),
-                    choice: Some(choice),
-                    tolerance: eps,
-                }
-            }
-        };
-        let run = Run {
-            world,
-            a,
-            kernel,
-            input,
-            mode,
-            plan,
-            read_s,
-            threads: self.threads,
-        };
-        match (precision, run.plan.scheme) {
-            (Precision::F64, "svd") => run.go::<f64, SvdM2l<f64>>(),
-            (Precision::F64, "dense") => run.go::<f64, DenseM2l<f64>>(),
-            (Precision::F64, _) => run.go::<f64, FftM2l<f64>>(),
-            (_, "svd") => run.go::<f32, SvdM2l<f32>>(),
-            (_, "dense") => run.go::<f32, DenseM2l<f32>>(),
-            (_, _) => run.go::<f32, FftM2l<f32>>(),
-        }
-    }
-}
-
-/// The configuration of a scheme for an SVD tolerance (`None`: the
-/// scheme's default; only the SVD scheme has one).
-trait SchemeConfig<T: Real>: M2lScheme<T> {
-    fn config(svd_tolerance: Option<f64>) -> Self::Config;
-}
-
-impl<T: Real> SchemeConfig<T> for SvdM2l<T> {
-    fn config(svd_tolerance: Option<f64>) -> SvdConfig {
-        SvdConfig {
-            rank: None,
-            tolerance: svd_tolerance.unwrap_or(0.0),
-        }
-    }
-}
-
-impl<T: Real> SchemeConfig<T> for DenseM2l<T> {
-    fn config(_: Option<f64>) -> Self::Config {
-        Default::default()
-    }
-}
-
-impl<T: Real> SchemeConfig<T> for FftM2l<T> {
-    fn config(_: Option<f64>) -> Self::Config {
-        Default::default()
-    }
-}
-
-/// [`ferrofmm_fmm::check_finite_output`] on this rank's values (the
-/// target index made global: input rows before this rank added; the
-/// largest density over all ranks), agreed by every rank (a collective).
-fn finite_output<T: Real>(
-    world: &SimpleCommunicator,
-    dtree: &DistributedTree,
-    values: &[T],
-    per_target: usize,
-    densities: &[T],
-) -> Result<(), String> {
-    let local_max = densities
-        .iter()
-        .map(|q| q.to_f64().abs())
-        .fold(0.0, f64::max);
-    let mut largest = 0.0f64;
-    world.all_reduce_into(
-        &local_max,
-        &mut largest,
-        mpi::collective::SystemOperation::max(),
-    );
-    let me = world.rank() as usize;
-    let first: u64 = dtree.input_counts[..me].iter().sum();
-    let local = ferrofmm_fmm::check_finite_output(values, per_target, densities).map_err(|e| {
-        match e {
-            FmmError::NonFiniteResult {
-                target,
-                component,
-                value,
-                precision,
-                ..
-            } => FmmError::NonFiniteResult {
-                target: target + first as usize,
-                component,
-                value,
-                largest_density: largest,
-                precision,
-            },
-            other => other,
-        }
-        .to_string()
-    });
-    agree_text(world, local)
-}
-
-/// One `eval` with its inputs and parameters settled.
-struct Run<'a, K> {
-    world: &'a SimpleCommunicator,
-    a: &'a EvalArgs,
-    kernel: K,
-    input: Inputs,
-    mode: EvalMode,
-    plan: Plan,
-    read_s: f64,
-    threads: usize,
-}
-
-impl<K: Kernel> Run<'_, K> {
-    fn go<T: Real, S: SchemeConfig<T>>(self) -> Result<(), String> {
-        let Run {
-            world,
-            a,
-            kernel,
-            input,
-            mode,
-            mut plan,
-            read_s,
-            threads,
-        } = self;
-        let me = world.rank() as usize;
-        let size = world.size() as usize;
-        let dtree =
-            DistributedTree::build(world, &input.points, &DistOptions::adaptive(plan.leaf_size))
-                .map_err(|e| e.to_string())?;
-        let q_t: Vec<T> = input.densities.iter().map(|&x| T::from_f64(x)).collect();
-        let verify = plan.tolerance.filter(|_| a.verify == "on");
-        // At most every point (the report names the number compared).
-        let total_points: u64 = dtree.input_counts.iter().sum();
-        let samples = if a.check > 0 {
-            a.check
-        } else if verify.is_some() {
-            VERIFY_SAMPLE
-        } else {
-            0
-        }
-        .min(usize::try_from(total_points).unwrap_or(usize::MAX));
-        let mut attempts = Vec::new();
+        },
+        tolerance: a.tolerance,
+        order: a.order,
+        leaf_size: a.leaf_size,
+        scheme: SchemeChoice::parse(&a.scheme)?,
+        verify: a.verify == "on",
+        samples: a.check,
         // The one resolution of the cache folder (every rank reads the
         // same environment, so a bad FERROFMM_CACHE_SIZE fails on all).
-        let cache_setting = match (&a.cache_dir, a.no_cache) {
+        cache: match (&a.cache_dir, a.no_cache) {
             (Some(dir), _) => CacheSetting::Dir(dir.clone()),
             (None, true) => CacheSetting::Off,
             (None, false) => CacheSetting::Default,
-        };
-        let cache = cache_setting.resolve().map_err(|e| e.to_string())?;
-        loop {
-            let options = DistFmmOptions {
-                sources: input.kind,
-                cache_dir: cache.dir().map(PathBuf::from),
-                cache_size_limit: cache.size_limit(),
-                ..DistFmmOptions::new(plan.order, mode)
-            };
-            let config = S::config(plan.svd_tolerance);
-            let dfmm =
-                DistributedFmm::<T, K, S>::build(world, &dtree, kernel.clone(), &config, &options)
-                    .map_err(|e| e.to_string())?;
-            let mut last = None;
-            for _ in 0..a.repeats.max(1) {
-                last = Some(dfmm.evaluate(world, &q_t).map_err(|e| e.to_string())?);
-            }
-            let Some((values, stats)) = last else {
-                return Err("no evaluation".into());
-            };
-            // Finite inputs can still overflow (charges near the float
-            // type's largest value): an error on every rank, naming the
-            // first bad value in the input order, and nothing written.
-            finite_output(world, &dtree, &values, dfmm.values_per_target(), &q_t)?;
-            let values: Vec<f64> = values.iter().map(|v| v.to_f64()).collect();
-            let errors = (samples > 0).then(|| {
-                sampled_errors(
-                    world,
-                    &kernel,
-                    input.kind,
-                    mode,
-                    &input.points,
-                    &input.densities,
-                    &values,
-                    samples,
-                )
-            });
-            let worst = errors.map_or(0.0, |e| e[0].max(e[1]));
-            attempts.push(Attempt {
-                order: plan.order,
-                errors,
-            });
-            let retry = verify.is_some_and(|eps| worst > eps)
-                && attempts.len() <= MAX_VERIFY_RETRIES
-                && plan.order < ferrofmm_field::MAX_ORDER;
-            if retry {
-                // The tree stays; the operators are rebuilt one order up
-                // (the SVD tolerance then the order's default).
-                plan.order += 1;
-                plan.svd_tolerance = None;
-                continue;
-            }
-            // A missed tolerance is a failure (exit status 1), with no
-            // output written: the values are not what was asked for.
-            if let Some(eps) = verify.filter(|&eps| worst > eps) {
-                return Err(format!(
-                    "tolerance {eps:e} not met: the error measured on {samples} sampled points \
-                     is {worst:.2e} after {} attempt(s) (last order {}); no output written \
-                     (ask for a larger tolerance{}, or --verify off to take the unchecked result)",
-                    attempts.len(),
-                    plan.order,
-                    if T::PRECISION == Precision::F32 {
-                        ", use --precision f64"
-                    } else {
-                        ""
-                    }
-                ));
-            }
-            if let Some(out) = &a.out {
-                let first: u64 = dtree.input_counts[..me].iter().sum();
-                let total: u64 = dtree.input_counts.iter().sum();
-                let components = KernelChoice::parse(&a.kernel)
-                    .map(|k| k.component_names())
-                    .map_err(|e| format!("--kernel {e}"))?;
-                let names = ferrofmm_io::column_names(mode.values_per_target(), components);
-                let names: Vec<&str> = names.iter().map(String::as_str).collect();
-                if names.len() != dfmm.values_per_target() {
-                    return Err(format!(
-                        "internal error: {} output columns named for {} values per target",
-                        names.len(),
-                        dfmm.values_per_target()
-                    ));
+        },
+        ..DistRequest::new(kernel)
+    })
+}
+
+/// The run: inputs, the solver ([`DistSolver`]: plan, build, evaluate,
+/// verify), the output and the report.
+fn go(
+    world: &SimpleCommunicator,
+    a: &EvalArgs,
+    kernel: KernelChoice,
+    threads: usize,
+) -> Result<(), String> {
+    let me = world.rank() as usize;
+    let size = world.size() as usize;
+    let t0 = std::time::Instant::now();
+    let c = kernel.component_names().len().max(1);
+    let input = agree_text(world, inputs(world, a, c, me, size))?;
+    let read_s = t0.elapsed().as_secs_f64();
+    let request = request(a, kernel, input.kind)?;
+    let Inputs {
+        points,
+        densities,
+        complex,
+        ..
+    } = input;
+    let mut solver = DistSolver::build(world, points, request).map_err(|e| e.to_string())?;
+    let mut last = None;
+    let mut verified = None;
+    for _ in 0..a.repeats.max(1) {
+        let solution = solver
+            .evaluate(world, &densities)
+            .map_err(|e| e.to_string())?;
+        // A missed tolerance is a failure (exit status 1), with no output
+        // written: the values are not what was asked for.
+        if let (Some(false), Some(e), Some(eps)) =
+            (solution.verified, solution.errors, solver.plan().tolerance)
+        {
+            return Err(format!(
+                "tolerance {eps:e} not met: the error measured on {} sampled points is {:.2e} \
+                 after {} attempt(s) (last order {}); no output written (ask for a larger \
+                 tolerance{}, or --verify off to take the unchecked result)",
+                solver.samples(),
+                e[0].max(e[1]),
+                solver.attempts().len(),
+                solver.plan().order,
+                if solver.request().precision == Precision::F32 {
+                    ", use --precision f64"
+                } else {
+                    ""
                 }
-                write_out(world, out, &values, &names, (first, total), input.complex)?;
-            }
-            let mut mine = figures(&dtree, &dfmm, &stats);
-            mine.push(stats.compute_cpu_seconds);
-            mine.push(dfmm.setup_stats().active_boxes as f64);
-            let mut all = vec![0.0f64; FIGURES * size];
-            world.all_gather_into(&mine[..], &mut all[..]);
-            if me == 0 {
-                let info = RunInfo {
-                    json: a.json,
-                    kernel: a.kernel.clone(),
-                    precision: &a.precision,
-                    gradients: a.gradients,
-                    input: a.generate.as_deref(),
-                    tolerance: plan.tolerance,
-                    order: plan.order,
-                    leaf_size: plan.leaf_size,
-                    scheme: plan.scheme,
-                    svd_tolerance: plan.svd_tolerance,
-                    choice: plan.choice.as_ref(),
-                    attempts: &attempts,
-                    samples,
-                    read_s,
-                    threads,
-                    cache: match &cache {
-                        CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
-                        CacheLocation::Off(why) => why.to_string(),
-                        CacheLocation::Folder { .. } => CacheStatus::summary(
-                            dfmm.local().operators().cache_status(),
-                            &dfmm.local().m2l_scheme().cache_status(),
-                        )
-                        .unwrap_or_else(|| "not needed".into()),
-                    },
-                    cache_dir: cache.dir().map(|d| d.display().to_string()),
-                };
-                report(&info, &all, size);
-            }
-            return Ok(());
+            ));
         }
+        verified = verified.or(solution.errors);
+        last = Some(solution);
     }
+    let Some(solution) = last else {
+        return Err("no evaluation".into());
+    };
+    // --check without a verification: measured on the last evaluation.
+    let samples = if a.check > 0 || verified.is_some() {
+        solver.samples()
+    } else {
+        0
+    };
+    let errors = verified.or_else(|| {
+        (samples > 0).then(|| solver.sampled_errors(world, &densities, &solution.values, samples))
+    });
+    // Every order verified, or the one evaluated (with its check, if any).
+    let mut attempts: Vec<Attempt> = solver
+        .attempts()
+        .iter()
+        .map(|t| Attempt {
+            order: t.order,
+            errors: Some(t.errors),
+        })
+        .collect();
+    if verified.is_none() {
+        attempts.push(Attempt {
+            order: solver.plan().order,
+            errors,
+        });
+    }
+    let tree = solver.tree();
+    if let Some(out) = &a.out {
+        let first: u64 = tree.input_counts[..me].iter().sum();
+        let total: u64 = tree.input_counts.iter().sum();
+        let names = ferrofmm_io::column_names(
+            solver.request().mode.values_per_target(),
+            kernel.component_names(),
+        );
+        let names: Vec<&str> = names.iter().map(String::as_str).collect();
+        if names.len() != solver.values_per_target() {
+            return Err(format!(
+                "internal error: {} output columns named for {} values per target",
+                names.len(),
+                solver.values_per_target()
+            ));
+        }
+        write_out(
+            world,
+            out,
+            &solution.values,
+            &names,
+            (first, total),
+            complex,
+        )?;
+    }
+    let mut mine = figures(tree, solver.setup_stats(), &solution.stats);
+    mine.push(solution.stats.compute_cpu_seconds);
+    mine.push(solver.setup_stats().active_boxes as f64);
+    let mut all = vec![0.0f64; FIGURES * size];
+    world.all_gather_into(&mine[..], &mut all[..]);
+    if me == 0 {
+        let plan = solver.plan();
+        let info = RunInfo {
+            json: a.json,
+            kernel: a.kernel.clone(),
+            precision: &a.precision,
+            gradients: a.gradients,
+            input: a.generate.as_deref(),
+            tolerance: plan.tolerance,
+            order: plan.order,
+            leaf_size: plan.leaf_size,
+            scheme: plan.scheme,
+            svd_tolerance: plan.svd_tolerance,
+            choice: plan.choice.as_ref(),
+            attempts: &attempts,
+            samples,
+            read_s,
+            threads,
+            cache: match solver.cache() {
+                CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
+                CacheLocation::Off(why) => why.to_string(),
+                CacheLocation::Folder { .. } => solver
+                    .cache_summary()
+                    .unwrap_or_else(|| "not needed".into()),
+            },
+            cache_dir: solver.cache().dir().map(|d| d.display().to_string()),
+        };
+        report(&info, &all, size);
+    }
+    Ok(())
 }

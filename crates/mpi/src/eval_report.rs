@@ -1,9 +1,7 @@
 //! Per-rank figures of the `eval` command, gathered on every rank, and
 //! their report (a table, or one JSON object) on rank 0.
 
-use ferrofmm_field::M2lScheme;
-use ferrofmm_kernels::{Kernel, Real};
-use ferrofmm_mpi::{DistChoice, DistributedFmm, DistributedTree, EVAL_PHASES, EvalStats, PHASES};
+use ferrofmm_mpi::{DistChoice, DistributedTree, EVAL_PHASES, EvalStats, PHASES, SetupStats};
 
 /// One evaluation of a run: its order and, when checked, the relative L2
 /// errors `[potential, gradient]` against direct summation.
@@ -51,12 +49,7 @@ pub(crate) struct RunInfo<'a> {
 /// whose expansions the rank computes.
 pub(crate) const FIGURES: usize = 5 + 6 + 6 + 3 + 1 + 8 + 8 + 8 + 1 + 1;
 
-pub(crate) fn figures<T: Real, K: Kernel, S: M2lScheme<T>>(
-    dtree: &DistributedTree,
-    dfmm: &DistributedFmm<T, K, S>,
-    stats: &EvalStats,
-) -> Vec<f64> {
-    let s = dfmm.setup_stats();
+pub(crate) fn figures(dtree: &DistributedTree, s: &SetupStats, stats: &EvalStats) -> Vec<f64> {
     let mut v = vec![
         dtree.points.len() as f64,
         s.ghost_points as f64,

@@ -60,6 +60,7 @@ mod exchange;
 pub mod ghosts;
 pub mod inputs;
 pub mod partition;
+pub mod solver;
 pub mod sort;
 pub mod stats;
 mod tree;
@@ -69,6 +70,7 @@ pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStat
 pub use error::{DistError, InputProblem, agree_message, agree_options, agree_text};
 pub use ghosts::{Ghost, GhostLayer};
 pub use inputs::{CHECK_GEOMETRIES, Geometry};
+pub use solver::{Attempt, DistPlan, DistRequest, DistSolution, DistSolver, VERIFY_SAMPLE};
 pub use sort::LocalPoints;
 pub use stats::{BuildStats, PHASES};
 pub use tree::{DistOptions, DistributedTree};

@@ -398,58 +398,10 @@ impl NativeFmm {
         surface: Option<&str>,
     ) -> PyResult<Self> {
         let periodic = periodic_cell(cell_lengths, cell_origin, periodic, surface)?;
-        let source_kind = match source {
-            "charge" => SourceKind::Charge,
-            "dipole" => SourceKind::Dipole,
-            "charge+dipole" => SourceKind::ChargeDipole,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown source kind {other:?}: use \"charge\", \"dipole\" or \"charge+dipole\""
-                )));
-            }
-        };
-        let kernel = KernelChoice::from_parts(kernel, k).map_err(|e| {
-            PyValueError::new_err(
-                match KernelChoice::registered().iter().find(|d| d.name == kernel) {
-                    Some(d) => match (d.parameter, k) {
-                        (Some(p), None) => format!(
-                            "the {kernel} kernel needs {} (its {}), e.g. {}={}",
-                            p.name, p.meaning, p.name, p.example
-                        ),
-                        (None, Some(_)) => {
-                            let with_k: Vec<&str> = KernelChoice::registered()
-                                .iter()
-                                .filter(|d| d.parameter.is_some_and(|p| p.name == "k"))
-                                .map(|d| d.name)
-                                .collect();
-                            format!(
-                                "k is a parameter of the {} kernels, not {kernel}",
-                                with_k.join(" and ")
-                            )
-                        }
-                        _ => e.why,
-                    },
-                    None => format!("unknown kernel {kernel:?}: {}", e.why),
-                },
-            )
-        })?;
+        let source_kind = source_kind(source)?;
+        let kernel = kernel_choice(kernel, k)?;
         let scheme = SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?;
-        match (eps, order, leaf_size) {
-            (Some(_), Some(_), _) => {
-                return Err(PyValueError::new_err(
-                    "give eps (the order and leaf size are then chosen) or order, not both",
-                ));
-            }
-            (Some(_), None, Some(_)) => {
-                return Err(PyValueError::new_err(
-                    "leaf_size is chosen from eps: give order instead of eps to set it",
-                ));
-            }
-            (None, None, _) => {
-                return Err(PyValueError::new_err("give eps (e.g. 1e-6) or order"));
-            }
-            _ => {}
-        }
+        parameters_given(eps, order, leaf_size)?;
         let options = BuildOptions {
             kernel,
             scheme,
@@ -789,5 +741,67 @@ pub(crate) fn box_lengths(lengths: &[f64]) -> PyResult<[f64; 3]> {
             "box takes one side or three (Lx, Ly, Lz), got {} values",
             lengths.len()
         ))),
+    }
+}
+
+/// The source kind a Python name means (`"charge"`, `"dipole"`,
+/// `"charge+dipole"`).
+pub(crate) fn source_kind(source: &str) -> PyResult<SourceKind> {
+    match source {
+        "charge" => Ok(SourceKind::Charge),
+        "dipole" => Ok(SourceKind::Dipole),
+        "charge+dipole" => Ok(SourceKind::ChargeDipole),
+        other => Err(PyValueError::new_err(format!(
+            "unknown source kind {other:?}: use \"charge\", \"dipole\" or \"charge+dipole\""
+        ))),
+    }
+}
+
+/// The kernel `kernel` names with its parameter `k`, or `ValueError`
+/// saying what is missing or misplaced.
+pub(crate) fn kernel_choice(kernel: &str, k: Option<f64>) -> PyResult<KernelChoice> {
+    KernelChoice::from_parts(kernel, k).map_err(|e| {
+        PyValueError::new_err(
+            match KernelChoice::registered().iter().find(|d| d.name == kernel) {
+                Some(d) => match (d.parameter, k) {
+                    (Some(p), None) => format!(
+                        "the {kernel} kernel needs {} (its {}), e.g. {}={}",
+                        p.name, p.meaning, p.name, p.example
+                    ),
+                    (None, Some(_)) => {
+                        let with_k: Vec<&str> = KernelChoice::registered()
+                            .iter()
+                            .filter(|d| d.parameter.is_some_and(|p| p.name == "k"))
+                            .map(|d| d.name)
+                            .collect();
+                        format!(
+                            "k is a parameter of the {} kernels, not {kernel}",
+                            with_k.join(" and ")
+                        )
+                    }
+                    _ => e.why,
+                },
+                None => format!("unknown kernel {kernel:?}: {}", e.why),
+            },
+        )
+    })
+}
+
+/// `eps` (the order and leaf size then chosen) or `order` (with or without
+/// a leaf size): exactly one way of fixing the accuracy.
+pub(crate) fn parameters_given(
+    eps: Option<f64>,
+    order: Option<usize>,
+    leaf_size: Option<usize>,
+) -> PyResult<()> {
+    match (eps, order, leaf_size) {
+        (Some(_), Some(_), _) => Err(PyValueError::new_err(
+            "give eps (the order and leaf size are then chosen) or order, not both",
+        )),
+        (Some(_), None, Some(_)) => Err(PyValueError::new_err(
+            "leaf_size is chosen from eps: give order instead of eps to set it",
+        )),
+        (None, None, _) => Err(PyValueError::new_err("give eps (e.g. 1e-6) or order")),
+        _ => Ok(()),
     }
 }

@@ -23,6 +23,8 @@
 //! `KeyboardInterrupt` at once (a precomputation in progress is cancelled;
 //! an evaluation in progress finishes in the background and is dropped).
 
+#[cfg(feature = "mpi")]
+mod distributed;
 mod engine;
 mod errors;
 mod ewald;
@@ -50,6 +52,10 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
             .map(ferrofmm_fmm::SchemeChoice::name)
             .to_vec(),
     )?;
+    #[cfg(feature = "mpi")]
+    distributed::register(m)?;
+    #[cfg(not(feature = "mpi"))]
+    m.add("HAS_MPI", false)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     m.add("MIN_ORDER", ferrofmm_fmm::MIN_ORDER)?;
     m.add("MAX_ORDER", ferrofmm_fmm::MAX_ORDER)?;

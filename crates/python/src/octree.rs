@@ -28,9 +28,9 @@ fn to_f64(what: &str, a: &Bound<'_, PyAny>) -> PyResult<Vec<f64>> {
 }
 
 /// A CSR list as two NumPy arrays: `(offsets, indices)`.
-type CsrArrays<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i64>>);
+pub(crate) type CsrArrays<'py> = (Bound<'py, PyArray1<i64>>, Bound<'py, PyArray1<i64>>);
 
-fn usize_array<'py>(
+pub(crate) fn usize_array<'py>(
     py: Python<'py>,
     values: impl Iterator<Item = usize>,
 ) -> Bound<'py, PyArray1<i64>> {

@@ -116,11 +116,14 @@ def _as_complex_array(name: str, value: Any) -> np.ndarray:
     return a
 
 
-def _points(name: str, value: Any) -> np.ndarray:
+def _points(name: str, value: Any, allow_empty: bool = False) -> np.ndarray:
+    """An ``(n, 3)`` float array (``n = 0`` only with ``allow_empty``: one rank's share)."""
     a = _as_float_array(name, value)
     if a.ndim != 2 or a.shape[1] != 3:
+        if allow_empty and a.size == 0:
+            return np.zeros((0, 3), dtype=a.dtype)
         raise ValueError(f"{name} must have shape (n, 3), got {a.shape}")
-    if a.shape[0] == 0:
+    if a.shape[0] == 0 and not allow_empty:
         raise ValueError(f"{name} are empty")
     return a
 

@@ -1,0 +1,506 @@
+"""ferrofmm.distributed: the octree and the FMM across the ranks of an MPI job (mpi4py).
+
+Each rank passes its own points (any number, none included) and gets its own results, in
+its own order; every call is a collective over the communicator (any intracommunicator:
+``MPI.COMM_WORLD``, or one of its splits)::
+
+    # mpirun -n 4 python run.py
+    from mpi4py import MPI
+    import numpy as np
+    import ferrofmm.distributed as fd
+
+    comm = MPI.COMM_WORLD
+    rng = np.random.default_rng(comm.rank)
+    x = rng.random((250_000, 3))            # this rank's points
+    q = rng.random(250_000) - 0.5           # and charges
+    r = fd.laplace(comm, x, q, eps=1e-6, gradient=True)
+    r.potential                             # (250000,): at this rank's points
+    r.info["measured_error"]                # verified against a direct sum over all ranks
+
+    fmm = fd.Fmm(comm, x, eps=1e-6)         # build once, evaluate many times
+    phi = fmm.evaluate(q).potential
+
+    tree = fd.Octree(comm, x, leaf_size=64) # this rank's piece of the global tree
+    tree.keys, tree.ghost_keys, tree.points_per_rank
+
+The tree is the one the single-machine :class:`ferrofmm.Octree` builds from all the
+points (the union of the ranks' boxes and the coarse boxes), and the FMM with the same
+order, leaf size and scheme gives the single-machine :class:`ferrofmm.Fmm`'s values to
+rounding. ``eps`` chooses the order and leaf size from a sample of the points and verifies
+the first evaluation as on one machine (against direct summation over all ranks at sampled
+points).
+
+Failures never hang: an argument that is wrong on one rank, or a library error on any,
+raises the same exception (``ValueError``, ``TypeError``) on every rank, naming the rank.
+The GIL is released while the library works. Threads per rank: ``threads``, else
+``RAYON_NUM_THREADS``, else the node's cores shared among the ranks on it.
+
+Available when the package was built with MPI (``pip install`` finds ``mpicc``; see the
+package README) and mpi4py is installed against the same MPI library.
+"""
+
+from __future__ import annotations
+
+import json
+from typing import Any, Callable, Dict, List, Optional, Tuple, TypeVar
+
+import numpy as np
+
+from . import _ferrofmm
+
+if not getattr(_ferrofmm, "HAS_MPI", False):
+    raise ImportError(
+        "ferrofmm was built without MPI, so ferrofmm.distributed is not available: install an "
+        "MPI implementation with its headers (Debian/Ubuntu: apt install libopenmpi-dev "
+        "openmpi-bin libclang-dev) and reinstall with FERROFMM_MPI=1 pip install "
+        "'ferrofmm @ ./crates/python' (the build then fails loudly if MPI is missing)"
+    )
+try:
+    from mpi4py import MPI
+except ImportError as _e:  # pragma: no cover - depends on the environment
+    raise ImportError(
+        "ferrofmm.distributed needs mpi4py (pip install mpi4py), built for the same MPI "
+        f"library as ferrofmm ({_ferrofmm.MPI_LIBRARY.splitlines()[0]})"
+    ) from _e
+
+
+def _library_name(version: str) -> str:
+    """The implementation's name and version from ``MPI_Get_library_version``."""
+    first = version.strip().splitlines()[0] if version.strip() else ""
+    return first.split(",")[0].strip()
+
+
+if _library_name(MPI.Get_library_version()) != _library_name(_ferrofmm.MPI_LIBRARY):
+    raise ImportError(
+        "mpi4py and ferrofmm use different MPI libraries "
+        f"({_library_name(MPI.Get_library_version())!r} and "
+        f"{_library_name(_ferrofmm.MPI_LIBRARY)!r}): one process cannot run both; reinstall "
+        "mpi4py against the MPI ferrofmm was built with (pip install --no-binary mpi4py mpi4py)"
+    )
+
+from ._checks import (  # noqa: E402  (after the MPI checks above)
+    _bool,
+    _cache,
+    _check_densities,
+    _check_eps_order,
+    _float_dtype,
+    _kernel,
+    _points,
+    _positive_int,
+    _real,
+)
+from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE  # noqa: E402
+from ._fmm import (  # noqa: E402
+    DEFAULT_EPS,
+    AccuracyWarning,
+    FmmResult,
+    _pack_densities,
+    _shape_values,
+)
+
+__all__ = ["Octree", "Fmm", "laplace", "yukawa", "helmholtz", "stokes"]
+
+_T = TypeVar("_T")
+
+#: Exceptions that an argument check on one rank raises on every rank.
+_AGREED = {"ValueError": ValueError, "TypeError": TypeError, "MemoryError": MemoryError}
+
+
+def _communicator(comm: Any) -> Any:
+    """``comm`` if it is an mpi4py intracommunicator MPI is running on, else TypeError."""
+    if not isinstance(comm, MPI.Comm):
+        raise TypeError(
+            f"comm must be an mpi4py communicator (e.g. MPI.COMM_WORLD), got {type(comm).__name__}"
+        )
+    if comm == MPI.COMM_NULL:
+        raise ValueError("comm is MPI.COMM_NULL: this process is not in the communicator")
+    if not isinstance(comm, MPI.Intracomm) or comm.Is_inter():
+        raise TypeError("comm must be an intracommunicator (an intercommunicator has no one group)")
+    if MPI.Is_finalized():
+        raise RuntimeError("MPI has been finalized")
+    return comm
+
+
+def _agreed(comm: Any, check: Callable[[], _T]) -> _T:
+    """Run this rank's argument checks, then agree with every rank (one ``allgather``): when
+    any rank failed, every rank raises the same exception (the lowest failing rank's),
+    so no rank enters the library's collectives alone."""
+    try:
+        value, failure = check(), None
+    except tuple(_AGREED.values()) as e:
+        value, failure = None, (type(e).__name__, str(e))
+    failures = comm.allgather(failure)
+    for rank, f in enumerate(failures):
+        if f is not None:
+            kind, message = f
+            if comm.Get_size() > 1:
+                message = f"rank {rank}: {message}"
+            raise _AGREED[kind](message)
+    return value  # type: ignore[return-value]
+
+
+def _flat64(points: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(points, dtype=np.float64).reshape(-1)
+
+
+class Octree:
+    """This rank's piece of the adaptive, 2:1-balanced octree of all ranks' points.
+
+    Parameters
+    ----------
+    comm : mpi4py.MPI.Intracomm
+        The ranks that build the tree together (a collective).
+    points : array_like, shape (n, 3)
+        This rank's points (any number, none included); float64 or float32.
+    leaf_size : int
+        Points per leaf at most.
+    max_level : int
+        Deepest level a box may have.
+
+    After the build each rank holds one contiguous range of the Morton curve (``cuts``):
+    its points (``points``, with their global input ids ``point_ids``: rank ``r``'s input
+    numbered after the points of ranks ``< r``), its boxes (``keys``, ``is_leaf``,
+    ``counts``), the coarse boxes that straddle cuts (``coarse_keys``, on every rank) and
+    the ghost boxes its lists reference (``ghost_keys``...). The union over ranks of
+    ``keys`` and ``coarse_keys`` is the single-machine tree of all points. Keys are
+    ``MortonKey::raw`` values, as :attr:`ferrofmm.Octree.keys`.
+    """
+
+    def __init__(
+        self,
+        comm: Any,
+        points: Any,
+        leaf_size: int = DEFAULT_LEAF_SIZE,
+        max_level: int = DEEPEST_LEVEL,
+    ) -> None:
+        comm = _communicator(comm)
+
+        def check() -> Tuple[np.ndarray, int, int]:
+            p = _points("points", points, allow_empty=True)
+            ls = _positive_int("leaf_size", leaf_size)
+            ml = _positive_int("max_level", max_level)
+            return _flat64(p), int(ls), int(ml)
+
+        flat, ls, ml = _agreed(comm, check)
+        self._native = _ferrofmm.NativeDistOctree(comm.py2f(), flat, ls, ml)
+
+    rank = property(lambda self: self._native.rank, doc="This rank.")
+    size = property(lambda self: self._native.size, doc="Ranks in the communicator.")
+    domain = property(lambda self: self._native.domain, doc="``(origin, width)`` of the root cube.")
+    keys = property(lambda self: self._native.keys, doc="Keys of this rank's boxes, sorted.")
+    is_leaf = property(lambda self: self._native.is_leaf, doc="Whether each box is a leaf.")
+    counts = property(lambda self: self._native.counts, doc="Points in each of this rank's boxes.")
+    coarse_keys = property(
+        lambda self: self._native.coarse_keys, doc="Keys of the boxes straddling a cut."
+    )
+    cuts = property(
+        lambda self: self._native.cuts,
+        doc="``cuts[r]:cuts[r + 1]``: the deepest-level Morton codes of rank ``r``.",
+    )
+    points = property(
+        lambda self: self._native.points, doc="This rank's points, in Morton order, ``(n, 3)``."
+    )
+    point_ids = property(
+        lambda self: self._native.point_ids, doc="Global input id of each of ``points``."
+    )
+    input_counts = property(
+        lambda self: self._native.input_counts, doc="Points each rank passed, in rank order."
+    )
+    points_per_rank = property(
+        lambda self: self._native.points_per_rank,
+        doc="Points each rank holds after the partition, in rank order.",
+    )
+    ghost_keys = property(
+        lambda self: self._native.ghost_keys, doc="Keys of the ghost boxes this rank's lists use."
+    )
+    ghost_is_leaf = property(
+        lambda self: self._native.ghost_is_leaf, doc="Whether each ghost is a global leaf."
+    )
+    ghost_counts = property(
+        lambda self: self._native.ghost_counts, doc="Points in each ghost (0 for a coarse box)."
+    )
+    partners = property(lambda self: self._native.partners, doc="Ranks asked for ghost boxes.")
+    list_keys = property(
+        lambda self: self._native.list_keys,
+        doc="The boxes :meth:`list_csr` rows and indices refer to (this rank's, coarse, ghosts, "
+        "their ancestors), in the tree's order.",
+    )
+
+    def list_csr(self, kind: str) -> Tuple[np.ndarray, np.ndarray]:
+        """Interaction list ``kind`` (``"u"``, ``"v"``, ``"w"``, ``"x"``) over
+        :attr:`list_keys` as ``(offsets, indices)``; rows of this rank's boxes are those of
+        the single-machine tree."""
+        return self._native.list_csr(kind)
+
+    @property
+    def imbalance(self) -> float:
+        """Largest over mean number of points per rank after the partition."""
+        p = self.points_per_rank.astype(np.float64)
+        return float(p.max() / p.mean()) if p.mean() > 0 else 1.0
+
+    def build_stats(self) -> Dict[str, Any]:
+        """This rank's build: seconds and bytes sent per phase, and balance rounds."""
+        names, seconds, sent, rounds = self._native.build_stats()
+        return {
+            "seconds": dict(zip(names, seconds)),
+            "bytes_sent": dict(zip(names, sent)),
+            "balance_rounds": rounds,
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"Octree(rank={self.rank} of {self.size}, boxes={len(self.keys)}, "
+            f"points={len(self.point_ids)}, ghosts={len(self.ghost_keys)})"
+        )
+
+
+class Fmm:
+    """The distributed FMM built once for each rank's points, evaluated many times.
+
+    Parameters are those of :class:`ferrofmm.Fmm` with the communicator first; each
+    rank passes its own ``sources`` (``(n, 3)``, any ``n`` including 0). Not (yet):
+    separate ``targets``, Hessians, periodic boxes, ``at_sources``.
+
+    Parameters
+    ----------
+    comm : mpi4py.MPI.Intracomm
+        The ranks of the run (every call is a collective over them).
+    sources : array_like, shape (n, 3)
+        This rank's points, also the targets (a point does not act on itself).
+    kernel : {"laplace", "yukawa", "helmholtz", "stokes"}
+        As :class:`ferrofmm.Fmm`; ``k`` for yukawa and helmholtz.
+    eps, order, leaf_size, scheme, verify, gradient, charges, dipoles, cache, cache_dir
+        As :class:`ferrofmm.Fmm` (``eps`` chosen from a sample of at most 200,000 points
+        gathered on rank 0, verified on the first evaluation against direct summation
+        over all ranks at ``samples`` sampled points, default 200).
+    dtype : {None, "float32", "float64"}
+        Float type of the run; ``None``: float64 (the same on every rank whatever each
+        rank's arrays are).
+    threads : int, optional
+        Threads per rank (default: ``RAYON_NUM_THREADS``, else the node's cores shared
+        among its ranks).
+    """
+
+    def __init__(
+        self,
+        comm: Any,
+        sources: Any,
+        targets: Any = None,
+        kernel: str = "laplace",
+        *,
+        k: Optional[float] = None,
+        eps: Optional[float] = None,
+        order: Optional[int] = None,
+        leaf_size: Optional[int] = None,
+        gradient: bool = False,
+        dtype: Any = None,
+        threads: Optional[int] = None,
+        scheme: str = "auto",
+        verify: bool = True,
+        samples: Optional[int] = None,
+        cache_dir: Any = None,
+        cache: Any = True,
+        charges: bool = True,
+        dipoles: bool = False,
+    ) -> None:
+        comm = _communicator(comm)
+
+        def check() -> Dict[str, Any]:
+            if targets is not None:
+                raise ValueError(
+                    "separate targets are not available in ferrofmm.distributed yet: evaluate "
+                    "at the sources (targets=None)"
+                )
+            src = _points("sources", sources, allow_empty=True)
+            with_charges, with_dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
+            if not (with_charges or with_dipoles):
+                raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
+            run = _float_dtype(dtype) or np.dtype(np.float64)
+            _check_eps_order(eps, order)
+            _kernel(kernel)
+            if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
+                raise ValueError(
+                    f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"'
+                )
+            folder, default_cache = _cache(cache, cache_dir)
+            return dict(
+                src=_flat64(src),
+                n=len(src),
+                run=run,
+                eps=None if eps is None and order is not None else
+                float(DEFAULT_EPS[run] if eps is None else eps),
+                order=None if order is None else int(order),
+                k=_real("k", k),
+                leaf_size=_positive_int("leaf_size", leaf_size),
+                threads=_positive_int("threads", threads),
+                samples=_positive_int("samples", samples) or 0,
+                gradient=_bool("gradient", gradient),
+                verify=_bool("verify", verify),
+                charges=with_charges,
+                dipoles=with_dipoles,
+                cache_dir=folder,
+                default_cache=default_cache,
+            )
+
+        a = _agreed(comm, check)
+        source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
+            (a["charges"], a["dipoles"])
+        ]
+        self._comm = comm
+        self._native = _ferrofmm.NativeDistFmm(
+            comm.py2f(), a["src"], kernel, a["k"], a["eps"], a["order"], a["leaf_size"], scheme,
+            a["gradient"], a["verify"], a["samples"], a["threads"], a["cache_dir"],
+            a["default_cache"], source, str(a["run"]),
+        )
+        self._n = a["n"]
+        self._dtype = a["run"]
+        self._kernel = kernel
+        self._gradient = a["gradient"]
+        self._charges = a["charges"]
+        self._dipoles = a["dipoles"]
+        self._last_info: Optional[Dict[str, Any]] = None
+
+    @property
+    def n_sources(self) -> int:
+        """Number of this rank's sources."""
+        return self._n
+
+    @property
+    def dtype(self) -> np.dtype:
+        """Float type of the run."""
+        return self._dtype
+
+    @property
+    def input_counts(self) -> np.ndarray:
+        """Sources each rank passed, in rank order."""
+        return np.array(self._native.input_counts, dtype=np.int64)
+
+    def evaluate(self, charges: Any = None, dipoles: Any = None) -> FmmResult:
+        """Potentials (and gradients) at this rank's sources for their densities (a
+        collective: every rank passes its own).
+
+        ``charges`` is ``(n,)`` or ``(k, n)`` for ``k`` vectors (evaluated one after
+        another); ``dipoles`` ``(n, 3)`` or ``(k, n, 3)``, as :meth:`ferrofmm.Fmm.evaluate`.
+        """
+        return self._evaluate(charges, dipoles, None)
+
+    def _evaluate(self, charges: Any, dipoles: Any, names: Optional[Dict[str, str]]) -> FmmResult:
+        def check() -> Tuple[np.ndarray, int, bool]:
+            given = []
+            for key, value, wanted in (
+                ("charges", charges, self._charges),
+                ("dipoles", dipoles, self._dipoles),
+            ):
+                shown = (names or {}).get(key, key)
+                if value is None:
+                    if wanted:
+                        raise ValueError(f"this Fmm's sources carry {shown}: give {shown}")
+                    continue
+                if not wanted:
+                    raise ValueError(
+                        f"this Fmm's sources carry no {shown}: build it with {key}=True"
+                    )
+                given.append((shown, key, value))
+            arrays, k, batched = _check_densities(self._kernel, self._n, given)
+            dens = _pack_densities(self._kernel, self._dtype, arrays, self._n, batched)
+            return np.ascontiguousarray(dens, dtype=np.float64), k, batched
+
+        dens, k, batched = _agreed(self._comm, check)
+        values = []
+        info: Dict[str, Any] = {}
+        for i in range(k):
+            v, info_json = self._native.evaluate(dens[i].reshape(-1))
+            values.append(v)
+            if i == 0:
+                info = json.loads(info_json)
+        flat = np.concatenate(values) if values else np.zeros(0)
+        if self._dtype == np.float32:
+            flat = flat.astype(np.float32)
+        info["kernel_name"] = self._kernel
+        info["dtype"] = str(self._dtype)
+        self._last_info = info
+        if info.get("verified") is False:
+            import warnings
+
+            measured = info.get("measured_error") or {}
+            warnings.warn(
+                f"the tolerance eps={info.get('eps'):g} was not met: error measured on "
+                f"{measured.get('sampled_targets')} sampled targets: potential "
+                f"{measured.get('potential'):.2e} at order {info.get('order')} "
+                "(info['verified'] is False); the results are returned. Ask for a larger eps "
+                "(or float64), or give order",
+                AccuracyWarning,
+                stacklevel=3,
+            )
+        potential, gradient, _ = _shape_values(
+            self._kernel, flat, k, self._n, self._gradient, False, batched
+        )
+        return FmmResult(potential, gradient, info)
+
+    def __repr__(self) -> str:
+        return (
+            f"distributed.Fmm(rank {self._comm.Get_rank()} of {self._comm.Get_size()}, "
+            f"n_sources={self._n}, dtype={self._dtype})"
+        )
+
+
+def _one_call(
+    kernel: str,
+    comm: Any,
+    sources: Any,
+    charges: Any,
+    dipoles: Any,
+    names: Optional[Dict[str, str]] = None,
+    **kw: Any,
+) -> FmmResult:
+    comm = _communicator(comm)
+    _agreed(comm, lambda: _given(charges, dipoles))
+    fmm = Fmm(comm, sources, kw.pop("targets", None), kernel, charges=charges is not None,
+              dipoles=dipoles is not None, **kw)
+    return fmm._evaluate(charges, dipoles, names)
+
+
+def _given(charges: Any, dipoles: Any) -> None:
+    if charges is None and dipoles is None:
+        raise ValueError("give charges, dipoles or both")
+
+
+def laplace(comm: Any, sources: Any, charges: Any = None, *, dipoles: Any = None,
+            targets: Any = None, eps: Optional[float] = None, order: Optional[int] = None,
+            gradient: bool = False, **kw: Any) -> FmmResult:
+    """Laplace potentials ``sum_i q_i / (4 pi |y - x_i|)`` at every rank's points, over the
+    points of all ranks (a collective). Arguments as :func:`ferrofmm.laplace`, with the
+    communicator first and each rank's own ``sources`` and ``charges`` / ``dipoles``;
+    further keywords as :class:`Fmm`."""
+    return _one_call("laplace", comm, sources, charges, dipoles, targets=targets, eps=eps,
+                     order=order, gradient=gradient, **kw)
+
+
+def yukawa(comm: Any, sources: Any, charges: Any = None, *, k: float, dipoles: Any = None,
+           targets: Any = None, eps: Optional[float] = None, order: Optional[int] = None,
+           gradient: bool = False, **kw: Any) -> FmmResult:
+    """Yukawa potentials ``sum_i q_i exp(-k r) / (4 pi r)`` over all ranks' points (a
+    collective); as :func:`ferrofmm.yukawa` with the communicator first."""
+    return _one_call("yukawa", comm, sources, charges, dipoles, targets=targets, k=k, eps=eps,
+                     order=order, gradient=gradient, **kw)
+
+
+def helmholtz(comm: Any, sources: Any, charges: Any = None, *, k: float, dipoles: Any = None,
+              targets: Any = None, eps: Optional[float] = None, order: Optional[int] = None,
+              gradient: bool = False, **kw: Any) -> FmmResult:
+    """Helmholtz potentials ``sum_i q_i exp(i k r) / (4 pi r)`` (complex charges and
+    results) over all ranks' points (a collective); as :func:`ferrofmm.helmholtz` with the
+    communicator first."""
+    return _one_call("helmholtz", comm, sources, charges, dipoles, targets=targets, k=k,
+                     eps=eps, order=order, gradient=gradient, **kw)
+
+
+def stokes(comm: Any, sources: Any, forces: Any, *, targets: Any = None,
+           eps: Optional[float] = None, order: Optional[int] = None, gradient: bool = False,
+           **kw: Any) -> FmmResult:
+    """Stokeslet velocities ``sum_i (I / r + d d^T / r^3) f_i / (8 pi)`` over all ranks'
+    points (a collective); as :func:`ferrofmm.stokes` with the communicator first:
+    ``forces`` ``(n, 3)`` in, ``potential`` (velocities, ``(n, 3)``) and ``gradient``
+    (``(n, 3, 3)``) out."""
+    return _one_call("stokes", comm, sources, forces, None, names={"charges": "forces"},
+                     targets=targets, eps=eps, order=order, gradient=gradient, **kw)

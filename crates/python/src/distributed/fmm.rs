@@ -1,0 +1,212 @@
+//! `NativeDistFmm`: the distributed FMM ([`DistSolver`]) on an mpi4py
+//! communicator, built once for each rank's points and evaluated many
+//! times.
+
+use std::path::PathBuf;
+use std::sync::Mutex;
+
+use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting};
+use ferrofmm_fmm::SchemeChoice;
+use ferrofmm_kernels::{EvalMode, Precision};
+use ferrofmm_mpi::{DistRequest, DistSolver, agree_text};
+use mpi::topology::SimpleCommunicator;
+use numpy::{PyArray1, PyReadonlyArray1};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use serde_json::{Value, json};
+
+use super::comm::AdoptedComm;
+use super::{Work, dist_error};
+use crate::engine::{kernel_choice, parameters_given, source_kind};
+
+/// One rank's part of a distributed FMM. The public wrapper is
+/// `ferrofmm.distributed.Fmm`.
+#[pyclass(module = "ferrofmm._ferrofmm", frozen)]
+pub(crate) struct NativeDistFmm {
+    state: Mutex<State>,
+}
+
+/// The solver and what it runs on. Fields drop in order: the solver
+/// before the communicator it was built on.
+struct State {
+    solver: DistSolver<SimpleCommunicator>,
+    work: Work,
+}
+
+#[pymethods]
+impl NativeDistFmm {
+    #[new]
+    #[pyo3(signature = (comm, sources, kernel, k, eps, order, leaf_size, scheme, gradient, verify, samples, threads, cache_dir, cache, source, dtype))]
+    #[allow(clippy::too_many_arguments)]
+    fn new(
+        py: Python<'_>,
+        comm: i64,
+        sources: PyReadonlyArray1<'_, f64>,
+        kernel: &str,
+        k: Option<f64>,
+        eps: Option<f64>,
+        order: Option<usize>,
+        leaf_size: Option<usize>,
+        scheme: &str,
+        gradient: bool,
+        verify: bool,
+        samples: usize,
+        threads: Option<usize>,
+        cache_dir: Option<PathBuf>,
+        cache: bool,
+        source: &str,
+        dtype: &str,
+    ) -> PyResult<Self> {
+        // The communicator first (a collective every rank reaches: the
+        // Python wrapper agreed on its own checks), then every local check
+        // agreed on it, so that no rank goes on alone.
+        let adopted = AdoptedComm::duplicate(comm)?;
+        let local = (|| -> PyResult<DistRequest> {
+            parameters_given(eps, order, leaf_size)?;
+            let precision = match dtype {
+                "float32" => Precision::F32,
+                "float64" => Precision::F64,
+                other => {
+                    return Err(PyValueError::new_err(format!(
+                        "dtype must be \"float32\" or \"float64\", got {other:?}"
+                    )));
+                }
+            };
+            Ok(DistRequest {
+                mode: if gradient {
+                    EvalMode::PotentialGradient
+                } else {
+                    EvalMode::Potential
+                },
+                sources: source_kind(source)?,
+                precision,
+                tolerance: eps,
+                order,
+                leaf_size,
+                scheme: SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?,
+                verify,
+                samples,
+                cache: match (cache_dir, cache) {
+                    (Some(dir), _) => CacheSetting::Dir(dir),
+                    (None, true) => CacheSetting::Default,
+                    (None, false) => CacheSetting::Off,
+                },
+                ..DistRequest::new(kernel_choice(kernel, k)?)
+            })
+        })();
+        let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
+            .map_err(PyValueError::new_err)?;
+        let work = Work::new(adopted, threads)?;
+        let points = sources.as_slice()?.to_vec();
+        let solver = work
+            .run(py, |comm| DistSolver::build(comm, points, request))
+            .map_err(dist_error)?;
+        Ok(NativeDistFmm {
+            state: Mutex::new(State { solver, work }),
+        })
+    }
+
+    /// Evaluate the densities of this rank's sources (flat, input order,
+    /// `values_per_source` per point); returns the flat values (input
+    /// order, `values_per_target` per point) and a JSON report. A
+    /// collective.
+    fn evaluate<'py>(
+        &self,
+        py: Python<'py>,
+        densities: PyReadonlyArray1<'_, f64>,
+    ) -> PyResult<(Bound<'py, PyArray1<f64>>, String)> {
+        let mut state = self
+            .state
+            .lock()
+            .map_err(|_| PyValueError::new_err("a previous evaluation of this Fmm panicked"))?;
+        let densities = densities.as_slice()?.to_vec();
+        let State { solver, work } = &mut *state;
+        let solution = work
+            .run(py, |comm| solver.evaluate(comm, &densities))
+            .map_err(dist_error)?;
+        let plan = solver.plan();
+        let stats = &solution.stats;
+        let info = json!({
+            "order": plan.order,
+            "leaf_size": plan.leaf_size,
+            "scheme": plan.scheme,
+            "svd_tolerance": plan.svd_tolerance,
+            "eps": plan.tolerance,
+            "predicted_error": plan.choice.as_ref().map(|c| c.predicted_error),
+            "measured_error": solution.errors.map(|e| json!({
+                "potential": e[0],
+                "gradient": (solver.request().mode != EvalMode::Potential).then_some(e[1]),
+                "sampled_targets": solver.samples(),
+            })),
+            "verified": solution.verified,
+            "attempts": solver.attempts().iter().map(|a| json!({
+                "order": a.order,
+                "potential_error": a.errors[0],
+                "gradient_error": a.errors[1],
+            })).collect::<Vec<Value>>(),
+            "threads": work.threads(),
+            "ranks": work.size(),
+            "points": solver.tree().points.len(),
+            "ghost_points": solver.setup_stats().ghost_points,
+            "cache": cache_words(solver),
+            "cache_dir": solver.cache().dir().map(|d| d.display().to_string()),
+            "timings": {
+                "setup": solver.setup_stats().seconds,
+                "evaluate": ferrofmm_mpi::EVAL_PHASES
+                    .iter()
+                    .zip(stats.seconds)
+                    .map(|(name, s)| (name.to_string(), json!(s)))
+                    .collect::<serde_json::Map<String, Value>>(),
+            },
+            "bytes_sent": ferrofmm_mpi::EVAL_PHASES
+                .iter()
+                .zip(stats.bytes_sent)
+                .map(|(name, b)| (name.to_string(), json!(b)))
+                .collect::<serde_json::Map<String, Value>>(),
+        });
+        Ok((PyArray1::from_vec(py, solution.values), info.to_string()))
+    }
+
+    /// Values per point in the density vectors.
+    #[getter]
+    fn values_per_source(&self) -> PyResult<usize> {
+        Ok(self.lock()?.solver.values_per_source())
+    }
+
+    /// Values per point in the results.
+    #[getter]
+    fn values_per_target(&self) -> PyResult<usize> {
+        Ok(self.lock()?.solver.values_per_target())
+    }
+
+    /// Points this rank passed.
+    #[getter]
+    fn n_sources(&self) -> PyResult<usize> {
+        Ok(self.lock()?.solver.points().len() / 3)
+    }
+
+    /// Points every rank passed, in rank order.
+    #[getter]
+    fn input_counts(&self) -> PyResult<Vec<u64>> {
+        Ok(self.lock()?.solver.tree().input_counts.clone())
+    }
+}
+
+impl NativeDistFmm {
+    fn lock(&self) -> PyResult<std::sync::MutexGuard<'_, State>> {
+        self.state
+            .lock()
+            .map_err(|_| PyValueError::new_err("a previous evaluation of this Fmm panicked"))
+    }
+}
+
+/// What the operator cache did, in words.
+fn cache_words(solver: &DistSolver<SimpleCommunicator>) -> String {
+    match solver.cache() {
+        CacheLocation::Off(CacheOff::Requested) => "off (cache=False)".into(),
+        CacheLocation::Off(why) => why.to_string(),
+        CacheLocation::Folder { .. } => solver
+            .cache_summary()
+            .unwrap_or_else(|| "not needed".into()),
+    }
+}
