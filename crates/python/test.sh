@@ -1,13 +1,32 @@
 #!/usr/bin/env bash
 # Build the ferrofmm Python module into a fresh virtual environment and run
 # its pytest suite. Usage: crates/python/test.sh [venv-dir] [pytest args...]
+#
+# When the build found MPI (ferrofmm.distributed is in the module), mpi4py
+# is installed too and tests/distributed runs under mpirun with 1 to 4
+# ranks (FERROFMM_MPI=0 builds and tests without it).
 set -euo pipefail
 here="$(cd "$(dirname "$0")" && pwd)"
 venv="${1:-$here/../../target/python-venv}"
 shift || true
 python3 -m venv --clear "$venv"
 "$venv/bin/pip" install --quiet --upgrade pip
-# pip builds the module with maturin (the build backend, from PyPI).
+# pip builds the module with maturin (the build backend, from PyPI), with
+# the `mpi` feature when mpicc is found (build_backend/ferrofmm_build.py).
 "$venv/bin/pip" install --quiet "$here[test]"
 cd "$here"
-"$venv/bin/python" -m pytest tests -q "$@"
+if ! "$venv/bin/python" -c "import ferrofmm._ferrofmm as m; raise SystemExit(0 if m.HAS_MPI else 1)"; then
+  "$venv/bin/python" -m pytest tests -q "$@"
+  exit 0
+fi
+"$venv/bin/python" -m pytest tests -q --ignore=tests/distributed "$@"
+"$venv/bin/pip" install --quiet "mpi4py>=4"
+if [ "$(id -u)" -eq 0 ]; then
+  export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+fi
+for n in 1 2 3 4; do
+  echo "== tests/distributed on $n rank(s)"
+  # Every rank runs the same tests; a hang (a bug) is cut off, not waited on.
+  timeout 900 mpirun --oversubscribe -n "$n" "$venv/bin/python" -m pytest tests/distributed \
+    -q -p no:cacheprovider "$@"
+done

@@ -16,6 +16,10 @@ DEEPEST_LEVEL: int
 KERNELS: Dict[str, Dict[str, Any]]
 #: The M2L scheme names.
 SCHEMES: List[str]
+#: Whether this build has the distributed module (the `mpi` feature).
+HAS_MPI: bool
+#: `MPI_Get_library_version` of the MPI linked in (builds with MPI only).
+MPI_LIBRARY: str
 
 def check_run_memory(
     what: str,
@@ -123,3 +127,54 @@ class NativeOctree:
     source_permutation: npt.NDArray[np.int64]
     target_permutation: npt.NDArray[np.int64]
     def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
+
+# Only in builds with MPI (HAS_MPI); the wrappers are in ferrofmm.distributed.
+class NativeDistFmm:
+    def __init__(
+        self,
+        comm: int,
+        sources: npt.NDArray[np.float64],
+        kernel: str,
+        k: Optional[float],
+        eps: Optional[float],
+        order: Optional[int],
+        leaf_size: Optional[int],
+        scheme: str,
+        gradient: bool,
+        verify: bool,
+        samples: int,
+        threads: Optional[int],
+        cache_dir: Optional[str],
+        cache: bool,
+        source: str,
+        dtype: str,
+    ) -> None: ...
+    def evaluate(self, densities: npt.NDArray[np.float64]) -> Tuple[npt.NDArray[np.float64], str]: ...
+    values_per_source: int
+    values_per_target: int
+    n_sources: int
+    input_counts: List[int]
+
+class NativeDistOctree:
+    def __init__(
+        self, comm: int, points: npt.NDArray[np.float64], leaf_size: int, max_level: int
+    ) -> None: ...
+    rank: int
+    size: int
+    domain: Tuple[Tuple[float, float, float], float]
+    keys: npt.NDArray[np.uint64]
+    is_leaf: npt.NDArray[np.bool_]
+    counts: npt.NDArray[np.int64]
+    coarse_keys: npt.NDArray[np.uint64]
+    cuts: npt.NDArray[np.uint64]
+    points: npt.NDArray[np.float64]
+    point_ids: npt.NDArray[np.uint64]
+    input_counts: npt.NDArray[np.uint64]
+    points_per_rank: npt.NDArray[np.uint64]
+    ghost_keys: npt.NDArray[np.uint64]
+    ghost_is_leaf: npt.NDArray[np.bool_]
+    ghost_counts: npt.NDArray[np.int64]
+    partners: npt.NDArray[np.int64]
+    list_keys: npt.NDArray[np.uint64]
+    def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
+    def build_stats(self) -> Tuple[List[str], List[float], List[int], int]: ...

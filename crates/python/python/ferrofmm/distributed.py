@@ -186,7 +186,10 @@ class Octree:
 
     rank = property(lambda self: self._native.rank, doc="This rank.")
     size = property(lambda self: self._native.size, doc="Ranks in the communicator.")
-    domain = property(lambda self: self._native.domain, doc="``(origin, width)`` of the root cube.")
+    domain_origin = property(
+        lambda self: np.array(self._native.domain[0]), doc="Lower corner of the root cube."
+    )
+    domain_width = property(lambda self: self._native.domain[1], doc="Side of the root cube.")
     keys = property(lambda self: self._native.keys, doc="Keys of this rank's boxes, sorted.")
     is_leaf = property(lambda self: self._native.is_leaf, doc="Whether each box is a leaf.")
     counts = property(lambda self: self._native.counts, doc="Points in each of this rank's boxes.")
@@ -222,11 +225,11 @@ class Octree:
     partners = property(lambda self: self._native.partners, doc="Ranks asked for ghost boxes.")
     list_keys = property(
         lambda self: self._native.list_keys,
-        doc="The boxes :meth:`list_csr` rows and indices refer to (this rank's, coarse, ghosts, "
+        doc="The boxes :meth:`lists` rows and indices refer to (this rank's, coarse, ghosts, "
         "their ancestors), in the tree's order.",
     )
 
-    def list_csr(self, kind: str) -> Tuple[np.ndarray, np.ndarray]:
+    def lists(self, kind: str) -> Tuple[np.ndarray, np.ndarray]:
         """Interaction list ``kind`` (``"u"``, ``"v"``, ``"w"``, ``"x"``) over
         :attr:`list_keys` as ``(offsets, indices)``; rows of this rank's boxes are those of
         the single-machine tree."""
