@@ -209,9 +209,29 @@ pub fn sampled_errors<C: Communicator, K: Kernel>(
     values: &[f64],
     k: usize,
 ) -> [f64; 2] {
+    sampled_errors_at(comm, kernel, kind, mode, points, densities, points, values, k)
+}
+
+/// [`sampled_errors`] with separate targets: `values` are this rank's
+/// results at its `targets` (input order), the `k` samples are spread over
+/// the global order of the targets, and the direct sum runs over every
+/// rank's `sources` with `densities` (a target on a source skips it, as in
+/// the FMM). A collective.
+#[allow(clippy::too_many_arguments)]
+pub fn sampled_errors_at<C: Communicator, K: Kernel>(
+    comm: &C,
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[f64],
+    densities: &[f64],
+    targets: &[f64],
+    values: &[f64],
+    k: usize,
+) -> [f64; 2] {
     let w = kernel.values_per_target(mode);
     let c = kernel.components();
-    let n_local = (points.len() / 3) as u64;
+    let n_local = (targets.len() / 3) as u64;
     let mut counts = vec![0u64; comm.size() as usize];
     comm.all_gather_into(&n_local, &mut counts[..]);
     let first: u64 = counts[..comm.rank() as usize].iter().sum();
@@ -226,7 +246,7 @@ pub fn sampled_errors<C: Communicator, K: Kernel>(
     for (j, &id) in ids.iter().enumerate() {
         if id >= first && id < first + n_local {
             let i = (id - first) as usize;
-            mine[3 * j..3 * j + 3].copy_from_slice(&points[3 * i..3 * i + 3]);
+            mine[3 * j..3 * j + 3].copy_from_slice(&targets[3 * i..3 * i + 3]);
             mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&values[w * i..w * (i + 1)]);
         }
     }
@@ -234,7 +254,7 @@ pub fn sampled_errors<C: Communicator, K: Kernel>(
     comm.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
     let (sample, fmm) = shared.split_at(3 * k);
     let mut direct = vec![0.0; w * k];
-    direct_sum_sources(kernel, kind, mode, points, densities, sample, &mut direct);
+    direct_sum_sources(kernel, kind, mode, sources, densities, sample, &mut direct);
     let mut sum = vec![0.0; w * k];
     comm.all_reduce_into(&direct[..], &mut sum[..], SystemOperation::sum());
     let mut s = [0.0f64; 4];

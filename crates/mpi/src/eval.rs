@@ -10,7 +10,7 @@ use clap::Args;
 use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting};
 use ferrofmm_fmm::SchemeChoice;
 use ferrofmm_kernels::{EvalMode, KernelChoice, Precision, SourceKind};
-use ferrofmm_mpi::{DistError, DistRequest, DistSolver, Geometry, agree_options, agree_text};
+use ferrofmm_mpi::{DistRequest, DistSolver, Geometry, agree_options, agree_text};
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
 

@@ -65,7 +65,9 @@ pub mod sort;
 pub mod stats;
 mod tree;
 
-pub use accuracy::{DistChoice, TUNING_SAMPLE, choose_parameters, sampled_errors};
+pub use accuracy::{
+    DistChoice, TUNING_SAMPLE, choose_parameters, sampled_errors, sampled_errors_at,
+};
 pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
 pub use error::{DistError, InputProblem, agree_message, agree_options, agree_text};
 pub use ghosts::{Ghost, GhostLayer};
