@@ -38,9 +38,11 @@
 //! which keeps it one tree: the distributed FMM does not split
 //! far-separated clusters into separate trees) up to rounding.
 
+mod coarse_plan;
 mod ghost_plan;
 mod local_tree;
 mod route;
+mod sparse_sum;
 mod stats;
 
 use std::path::PathBuf;
@@ -54,6 +56,7 @@ use mpi::traits::*;
 
 use crate::DistributedTree;
 use crate::error::{DistError, InputProblem, agree, agree_message};
+use coarse_plan::CoarsePlan;
 use ghost_plan::GhostPlan;
 use local_tree::Kind;
 use route::Route;
@@ -101,6 +104,7 @@ impl DistFmmOptions {
 pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     fmm: TreeFmm<T, K, S>,
     plan: GhostPlan,
+    coarse_plan: CoarsePlan,
     route: Route,
     /// Merged source position of each of this rank's points (tree order).
     own_pos: Vec<usize>,
@@ -162,7 +166,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         setup.seconds[0] = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let lists = local_tree::rows(dtree, &kinds, me, comm.size() as usize);
+        let lists = local_tree::rows(dtree, &kinds, me);
         let own_codes = &dtree.points.codes;
         let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
         let tree = local_tree::octree(dtree, lists, &codes, own_codes);
@@ -214,6 +218,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let fmm = agree_message(comm, fmm.map_err(|e| e.to_string()))?;
         let (active, n_active) = active_boxes(fmm.tree(), &kinds);
         setup.active_boxes = n_active;
+        let coarse_plan = CoarsePlan::make(comm, &dtree.cuts, fmm.tree(), &coarse, &active);
+        let coarse_plan = agree_message(comm, coarse_plan)?;
+        setup.bytes_sent += coarse_plan.setup_bytes;
+        (setup.coarse_send_partners, setup.coarse_recv_partners) = coarse_plan.partners();
         let fmm = fmm.with_active_boxes(active).map_err(|e| DistError::Fmm {
             rank: comm.rank(),
             message: e.to_string(),
@@ -222,6 +230,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         Ok(DistributedFmm {
             fmm,
             plan,
+            coarse_plan,
             route,
             own_pos,
             ghost_pos,
@@ -312,7 +321,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         stats.add(2, t, bytes);
 
         let t = Instant::now();
-        let bytes = sum_columns(comm, n, &self.coarse, &mut multipoles);
+        let bytes = self
+            .coarse_plan
+            .sum_multipoles(comm, n, &self.coarse, &mut multipoles);
         stats.add(3, t, bytes);
 
         let t = Instant::now();
@@ -320,26 +331,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let mut coarse_cpu = 0.0;
         let mut coarse_seconds = 0.0;
         let mut coarse_bytes = 0;
-        let mut next = 0;
         let locals = self
             .fmm
-            .downward(&q, &multipoles, &mut timings, |_, range, checks| {
+            .downward(&q, &multipoles, &mut timings, |level, range, checks| {
                 let t = Instant::now();
                 let c = stats::cpu_seconds();
-                while next < self.coarse.len() && self.coarse[next] < range.start {
-                    next += 1;
-                }
-                let start = next;
-                while next < self.coarse.len() && range.contains(&self.coarse[next]) {
-                    next += 1;
-                }
-                let here: Vec<usize> = self.coarse[start..next]
-                    .iter()
-                    .map(|&b| b - range.start)
-                    .collect();
-                if !here.is_empty() {
-                    coarse_bytes += sum_columns(comm, n, &here, checks);
-                }
+                coarse_bytes +=
+                    self.coarse_plan
+                        .sum_checks(comm, n, level, &self.coarse, range.start, checks);
                 coarse_seconds += t.elapsed().as_secs_f64();
                 coarse_cpu += stats::cpu_seconds() - c;
             })
@@ -412,31 +411,6 @@ fn active_boxes(tree: &ferrofmm_tree::Octree, kinds: &[Kind]) -> (Vec<bool>, usi
     }
     let n = active.iter().filter(|&&a| a).count();
     (active, n)
-}
-
-/// Sums the columns `cols` (`n` values each) of `data` over all ranks, in
-/// place (one `all_reduce`); returns the bytes this rank contributed.
-fn sum_columns<C: Communicator, T: Real>(
-    comm: &C,
-    n: usize,
-    cols: &[usize],
-    data: &mut [T],
-) -> u64 {
-    if cols.is_empty() || comm.size() == 1 {
-        return 0;
-    }
-    let mine: Vec<f64> = cols
-        .iter()
-        .flat_map(|&b| data[n * b..n * (b + 1)].iter().map(|x| x.to_f64()))
-        .collect();
-    let mut sum = vec![0.0f64; mine.len()];
-    comm.all_reduce_into(&mine[..], &mut sum[..], SystemOperation::sum());
-    for (&b, col) in cols.iter().zip(sum.chunks_exact(n)) {
-        for (x, &s) in data[n * b..n * (b + 1)].iter_mut().zip(col) {
-            *x = T::from_f64(s);
-        }
-    }
-    8 * mine.len() as u64
 }
 
 /// The global tree's depth and the union of all ranks' M2L usage.
