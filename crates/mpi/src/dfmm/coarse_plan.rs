@@ -158,3 +158,79 @@ impl CoarsePlan {
         (to.len(), from.len())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::super::sparse_sum::simulate_plans;
+    use super::*;
+    use crate::partition::{END, straddling};
+
+    /// `ranks` about equal ranges of the Morton curve (cuts off the box
+    /// boundaries) and the coarse tree of their cuts down to level
+    /// `deepest`, in level then key order.
+    fn layout(ranks: usize, deepest: u32) -> (Vec<u64>, Vec<MortonKey>) {
+        let r = ranks as u64;
+        let cuts: Vec<u64> = (0..=r)
+            .map(|k| if k == r { END } else { k * (END / r) + k * 977 })
+            .collect();
+        let mut coarse: Vec<MortonKey> = cuts
+            .iter()
+            .flat_map(|&c| straddling(c))
+            .filter(|k| k.level() <= deepest)
+            .collect();
+        coarse.sort_unstable_by_key(|k| (k.level(), *k));
+        coarse.dedup();
+        (cuts, coarse)
+    }
+
+    #[test]
+    fn a_rank_is_the_root_of_at_most_one_coarse_box_per_level() {
+        for ranks in [2, 3, 7, 64, 100] {
+            let (cuts, coarse) = layout(ranks, 8);
+            let mut rooted = std::collections::BTreeSet::new();
+            for &c in &coarse {
+                let root = root_of(&cuts, c);
+                assert_eq!(owners(&cuts, c.morton_range()).next(), Some(root));
+                assert!(rooted.insert((root, c.level())), "R = {ranks}, {c:?}");
+            }
+        }
+    }
+
+    /// The checks' plan on 512 ranks: every owner of a coarse box needs its
+    /// sum, its root holds the only share (the coarse-to-coarse part; none
+    /// above level 2, which has no V or X lists). A rank
+    /// receives at most two boxes a level, against the whole coarse tree
+    /// that an `all_reduce` gives every rank; only the roots of the coarsest
+    /// boxes send to many.
+    #[test]
+    fn a_rank_receives_a_few_boxes_per_level_not_the_coarse_tree() {
+        let (ranks, deepest) = (512, 6);
+        let (cuts, coarse) = layout(ranks, deepest);
+        let roots: Vec<usize> = coarse.iter().map(|&c| root_of(&cuts, c)).collect();
+        let roles: Vec<Vec<Role>> = (0..ranks)
+            .map(|r| {
+                coarse
+                    .iter()
+                    .zip(&roots)
+                    .map(|(c, &root)| Role {
+                        share: root == r && c.level() >= 2,
+                        need: owners(&cuts, c.morton_range()).any(|o| o == r),
+                    })
+                    .collect()
+            })
+            .collect();
+        let plans = simulate_plans(&roots, &roles);
+        let levels = deepest as usize + 1;
+        for (r, plan) in plans.iter().enumerate() {
+            let [shares_out, shares_in, _, sums_in] = plan.box_counts();
+            assert!(sums_in <= 2 * levels, "rank {r}");
+            assert_eq!(shares_out + shares_in, 0);
+        }
+        // The coarse tree: all 73 boxes of levels 0-2, then 511 a level.
+        assert_eq!(coarse.len(), 73 + 4 * 511);
+        // Rank 0 is the root of the first box of every level: it sends the
+        // level-2 box to its 512 / 64 - 1 = 7 other owners and, at levels
+        // 3-6, the box of its upper cut to rank 1.
+        assert_eq!(plans[0].box_counts()[2], 7 + 4);
+    }
+}

@@ -58,11 +58,7 @@ pub(crate) fn kinds(dtree: &DistributedTree) -> Vec<Kind> {
 }
 
 /// The rows of the locally essential tree (see the [module docs](self)).
-pub(crate) fn rows(
-    dtree: &DistributedTree,
-    kinds: &[Kind],
-    me: usize,
-) -> InteractionLists {
+pub(crate) fn rows(dtree: &DistributedTree, kinds: &[Kind], me: usize) -> InteractionLists {
     let l = &dtree.ghosts.lists;
     // The rank that adds the coarse-to-coarse part of coarse box `b`'s V
     // row: its root, which sums its check (no message for that part).

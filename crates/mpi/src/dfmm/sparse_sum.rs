@@ -59,7 +59,11 @@ pub(crate) struct SparseSum {
 
 /// Step 1 of the setup: the registrations this rank sends to the roots
 /// (one word `4 j + 2 need + share` per box), and the shares it will send.
-pub(crate) fn registrations(me: usize, roots: &[usize], roles: &[Role]) -> (Vec<(usize, Vec<u64>)>, Lists) {
+pub(crate) fn registrations(
+    me: usize,
+    roots: &[usize],
+    roles: &[Role],
+) -> (Vec<(usize, Vec<u64>)>, Lists) {
     let mut words: BTreeMap<usize, Vec<u64>> = BTreeMap::new();
     let mut shares: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for (j, (&root, role)) in roots.iter().zip(roles).enumerate() {
@@ -96,7 +100,9 @@ pub(crate) fn as_root(
         for &w in words {
             let j = (w / 4) as usize;
             if roots.get(j) != Some(&me) {
-                return Err(format!("rank {rank} sent a share of coarse box {j} to rank {me}, not its root"));
+                return Err(format!(
+                    "rank {rank} sent a share of coarse box {j} to rank {me}, not its root"
+                ));
             }
             if w & 1 == 1 {
                 has_share[j] = true;
@@ -113,7 +119,12 @@ pub(crate) fn as_root(
     }
     let sums_out: Lists = needs
         .into_iter()
-        .map(|(r, n)| (r, n.into_iter().filter(|&j| has_share[j]).collect::<Vec<_>>()))
+        .map(|(r, n)| {
+            (
+                r,
+                n.into_iter().filter(|&j| has_share[j]).collect::<Vec<_>>(),
+            )
+        })
         .filter(|(_, n)| !n.is_empty())
         .collect();
     let answers = sums_out
@@ -165,7 +176,12 @@ impl SparseSum {
         let part = |lists: &Lists| -> Lists {
             lists
                 .iter()
-                .map(|(r, js)| (*r, js.iter().copied().filter(|&j| keep(j)).collect::<Vec<_>>()))
+                .map(|(r, js)| {
+                    (
+                        *r,
+                        js.iter().copied().filter(|&j| keep(j)).collect::<Vec<_>>(),
+                    )
+                })
                 .filter(|(_, js)| !js.is_empty())
                 .collect()
         };
@@ -183,6 +199,18 @@ impl SparseSum {
             && self.shares_in.is_empty()
             && self.sums_out.is_empty()
             && self.sums_in.is_empty()
+    }
+
+    /// Boxes this rank sends as shares, receives as shares (a root), sends
+    /// as sums (a root) and receives as sums, counted once per message.
+    pub(crate) fn box_counts(&self) -> [usize; 4] {
+        let count = |l: &Lists| l.iter().map(|(_, js)| js.len()).sum();
+        [
+            count(&self.shares_out),
+            count(&self.shares_in),
+            count(&self.sums_out),
+            count(&self.sums_in),
+        ]
     }
 
     /// Distinct ranks this one sends to and receives from.
@@ -223,9 +251,12 @@ impl SparseSum {
         for ((_, js), (_, words)) in self.shares_in.iter().zip(got) {
             for (&j, share) in js.iter().zip(words.chunks_exact(n)) {
                 let c = col(j);
-                let sum = sums
-                    .entry(j)
-                    .or_insert_with(|| data[n * c..n * (c + 1)].iter().map(|x| x.to_f64()).collect());
+                let sum = sums.entry(j).or_insert_with(|| {
+                    data[n * c..n * (c + 1)]
+                        .iter()
+                        .map(|x| x.to_f64())
+                        .collect()
+                });
                 for (s, &w) in sum.iter_mut().zip(share) {
                     *s += f64::from_bits(w);
                 }
@@ -307,10 +338,192 @@ fn pack<T: Real>(
                 .iter()
                 .flat_map(|&j| {
                     let c = col(j);
-                    data[n * c..n * (c + 1)].iter().map(|x| x.to_f64().to_bits())
+                    data[n * c..n * (c + 1)]
+                        .iter()
+                        .map(|x| x.to_f64().to_bits())
                 })
                 .collect();
             (*r, words)
         })
         .collect()
+}
+
+/// The plans of `roles.len()` ranks made in memory, with the messages of
+/// [`SparseSum::make`] delivered by hand (for tests).
+#[cfg(test)]
+pub(crate) fn simulate_plans(roots: &[usize], roles: &[Vec<Role>]) -> Vec<SparseSum> {
+    let ranks = roles.len();
+    let deliver = |out: Vec<Vec<(usize, Vec<u64>)>>| {
+        let mut inbox: Vec<Vec<(usize, Vec<u64>)>> = vec![Vec::new(); ranks];
+        for (from, msgs) in out.into_iter().enumerate() {
+            for (to, words) in msgs {
+                inbox[to].push((from, words));
+            }
+        }
+        inbox
+    };
+    let (register, shares_out): (Vec<_>, Vec<_>) = (0..ranks)
+        .map(|me| registrations(me, roots, &roles[me]))
+        .unzip();
+    let registered = deliver(register);
+    let rooted: Vec<_> = (0..ranks)
+        .map(|me| as_root(me, roots, &roles[me], &registered[me]).expect("valid registrations"))
+        .collect();
+    let answers = deliver(rooted.iter().map(|(_, _, a)| a.clone()).collect());
+    rooted
+        .into_iter()
+        .zip(shares_out)
+        .zip(answers)
+        .map(|(((shares_in, sums_out, _), shares_out), got)| SparseSum {
+            shares_out,
+            shares_in,
+            sums_out,
+            sums_in: sums_in(got),
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One evaluation's two rounds, in memory; returns the bytes each rank sent.
+    fn run(plans: &[SparseSum], n: usize, data: &mut [Vec<f64>]) -> Vec<u64> {
+        let col = |j: usize| j;
+        let ranks = plans.len();
+        let mut bytes = vec![0u64; ranks];
+        for round in 0..2 {
+            let mut inbox: Vec<Vec<(usize, Vec<u64>)>> = vec![Vec::new(); ranks];
+            for (r, plan) in plans.iter().enumerate() {
+                let out = if round == 0 {
+                    plan.share_messages(n, &col, &data[r])
+                } else {
+                    plan.sum_messages(n, &col, &data[r])
+                };
+                for (to, words) in out {
+                    bytes[r] += 8 * words.len() as u64;
+                    inbox[to].push((r, words));
+                }
+            }
+            for (r, plan) in plans.iter().enumerate() {
+                // Delivered in the order the plan expects.
+                let order = if round == 0 {
+                    &plan.shares_in
+                } else {
+                    &plan.sums_in
+                };
+                let got: Vec<(usize, Vec<u64>)> = order
+                    .iter()
+                    .map(|(s, _)| {
+                        let i = inbox[r]
+                            .iter()
+                            .position(|(f, _)| f == s)
+                            .expect("a message");
+                        inbox[r].swap_remove(i)
+                    })
+                    .collect();
+                assert!(inbox[r].is_empty(), "rank {r} got an unplanned message");
+                if round == 0 {
+                    plan.add_shares(n, &col, &got, &mut data[r]);
+                } else {
+                    plan.set_sums(n, &col, &got, &mut data[r]);
+                }
+            }
+        }
+        bytes
+    }
+
+    /// Roles from a small hash: about a third of the ranks hold a share of
+    /// a box, a third need it, the root may do either.
+    fn layout(ranks: usize, boxes: usize) -> (Vec<usize>, Vec<Vec<Role>>) {
+        let h = |r: usize, j: usize, s: usize| (r * 7919 + j * 104_729 + s * 31) % 3 == 0;
+        let roots = (0..boxes).map(|j| (5 * j) % ranks).collect();
+        let roles = (0..ranks)
+            .map(|r| {
+                (0..boxes)
+                    .map(|j| Role {
+                        share: h(r, j, 1),
+                        need: h(r, j, 2),
+                    })
+                    .collect()
+            })
+            .collect();
+        (roots, roles)
+    }
+
+    #[test]
+    fn every_rank_that_needs_a_box_gets_the_sum_of_all_shares() {
+        let (ranks, boxes, n) = (7, 23, 3);
+        let (roots, roles) = layout(ranks, boxes);
+        let plans = simulate_plans(&roots, &roles);
+        // A share is (rank + 1) * 10^j-ish; where there is no share, zero.
+        let value = |r: usize, j: usize, k: usize| ((r + 1) * 1000 + j * 10 + k) as f64;
+        let mut data: Vec<Vec<f64>> = (0..ranks)
+            .map(|r| {
+                (0..boxes * n)
+                    .map(|i| {
+                        if roles[r][i / n].share {
+                            value(r, i / n, i % n)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        let bytes = run(&plans, n, &mut data);
+        for j in 0..boxes {
+            for k in 0..n {
+                let sum: f64 = (0..ranks)
+                    .filter(|&r| roles[r][j].share)
+                    .map(|r| value(r, j, k))
+                    .sum();
+                for r in (0..ranks).filter(|&r| roles[r][j].need || roots[j] == r) {
+                    assert_eq!(data[r][n * j + k], sum, "rank {r}, box {j}");
+                }
+            }
+        }
+        // Each rank sends its shares of boxes rooted elsewhere and, as a
+        // root, one sum per needing rank of a box with a share.
+        for r in 0..ranks {
+            let shares = (0..boxes)
+                .filter(|&j| roles[r][j].share && roots[j] != r)
+                .count();
+            let sums: usize = (0..boxes)
+                .filter(|&j| roots[j] == r && (0..ranks).any(|s| roles[s][j].share))
+                .map(|j| (0..ranks).filter(|&s| s != r && roles[s][j].need).count())
+                .sum();
+            assert_eq!(bytes[r], 8 * (n * (shares + sums)) as u64, "rank {r}");
+        }
+    }
+
+    #[test]
+    fn no_share_means_no_message() {
+        let (ranks, boxes) = (4, 5);
+        let roots = vec![0, 1, 2, 3, 0];
+        let mut roles = vec![vec![Role::default(); boxes]; ranks];
+        for r in 0..ranks {
+            roles[r][2].need = true; // nobody holds a share of box 2
+        }
+        roles[3][4] = Role {
+            share: true,
+            need: false,
+        };
+        roles[1][4].need = true;
+        let plans = simulate_plans(&roots, &roles);
+        assert_eq!(plans[3].shares_out, vec![(0, vec![4])]);
+        assert_eq!(plans[0].shares_in, vec![(3, vec![4])]);
+        assert_eq!(plans[0].sums_out, vec![(1, vec![4])]);
+        assert_eq!(plans[1].sums_in, vec![(0, vec![4])]);
+        assert!(plans[2].is_empty());
+        // Box 2 travels nowhere: its sum is the zeros every rank holds.
+        assert!(plans.iter().all(|p| p.restrict(|j| j == 2).is_empty()));
+    }
+
+    #[test]
+    fn a_registration_sent_to_the_wrong_root_is_an_error() {
+        let roots = vec![1, 0];
+        let registered = vec![(1, vec![4 * 1 + 1])];
+        assert!(as_root(1, &roots, &[Role::default(); 2], &registered).is_err());
+    }
 }
