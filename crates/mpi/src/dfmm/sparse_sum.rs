@@ -43,6 +43,20 @@ pub(crate) struct Role {
 /// Boxes (positions in the coarse list) exchanged with each partner rank.
 type Lists = Vec<(usize, Vec<usize>)>;
 
+/// Messages: (rank, words).
+type Messages = Vec<(usize, Vec<u64>)>;
+
+/// A root's part of the plan (step 2 of the setup).
+#[derive(Debug, Default)]
+pub(crate) struct Rooted {
+    /// The shares it receives: (rank, boxes), rank order.
+    shares_in: Lists,
+    /// The sums it sends: (rank, boxes), rank order.
+    sums_out: Lists,
+    /// Its answers: the boxes each needing rank will get.
+    answers: Messages,
+}
+
 /// One rank's plan of a sparse sum over some coarse boxes (positions `j`
 /// in the coarse list, the same on every rank).
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
@@ -87,7 +101,7 @@ pub(crate) fn as_root(
     roots: &[usize],
     roles: &[Role],
     registered: &[(usize, Vec<u64>)],
-) -> Result<(Lists, Lists, Vec<(usize, Vec<u64>)>), String> {
+) -> Result<Rooted, String> {
     let mut has_share: Vec<bool> = roots
         .iter()
         .zip(roles)
@@ -131,7 +145,11 @@ pub(crate) fn as_root(
         .iter()
         .map(|(r, n)| (*r, n.iter().map(|&j| j as u64).collect()))
         .collect();
-    Ok((shares_in, sums_out, answers))
+    Ok(Rooted {
+        shares_in,
+        sums_out,
+        answers,
+    })
 }
 
 /// Step 3 of the setup: the sums this rank receives, from the answers.
@@ -155,16 +173,16 @@ impl SparseSum {
         let (register, shares_out) = registrations(me, roots, roles);
         let (registered, mut bytes) = sparse_exchange(comm, &register, TAG_REGISTER);
         // Errors are carried to the end: every rank must reach both exchanges.
-        let (shares_in, sums_out, answers, error) = match as_root(me, roots, roles, &registered) {
-            Ok((i, o, a)) => (i, o, a, None),
-            Err(e) => (Lists::new(), Lists::new(), Vec::new(), Some(e)),
+        let (rooted, error) = match as_root(me, roots, roles, &registered) {
+            Ok(r) => (r, None),
+            Err(e) => (Rooted::default(), Some(e)),
         };
-        let (got, b) = sparse_exchange(comm, &answers, TAG_REPLY);
+        let (got, b) = sparse_exchange(comm, &rooted.answers, TAG_REPLY);
         bytes += b;
         let plan = SparseSum {
             shares_out,
-            shares_in,
-            sums_out,
+            shares_in: rooted.shares_in,
+            sums_out: rooted.sums_out,
             sums_in: sums_in(got),
         };
         (error.map_or(Ok(plan), Err), bytes)
@@ -201,6 +219,7 @@ impl SparseSum {
             && self.sums_in.is_empty()
     }
 
+    #[cfg(test)]
     /// Boxes this rank sends as shares, receives as shares (a root), sends
     /// as sums (a root) and receives as sums, counted once per message.
     pub(crate) fn box_counts(&self) -> [usize; 4] {
@@ -369,15 +388,15 @@ pub(crate) fn simulate_plans(roots: &[usize], roles: &[Vec<Role>]) -> Vec<Sparse
     let rooted: Vec<_> = (0..ranks)
         .map(|me| as_root(me, roots, &roles[me], &registered[me]).expect("valid registrations"))
         .collect();
-    let answers = deliver(rooted.iter().map(|(_, _, a)| a.clone()).collect());
+    let answers = deliver(rooted.iter().map(|r| r.answers.clone()).collect());
     rooted
         .into_iter()
         .zip(shares_out)
         .zip(answers)
-        .map(|(((shares_in, sums_out, _), shares_out), got)| SparseSum {
+        .map(|((rooted, shares_out), got)| SparseSum {
             shares_out,
-            shares_in,
-            sums_out,
+            shares_in: rooted.shares_in,
+            sums_out: rooted.sums_out,
             sums_in: sums_in(got),
         })
         .collect()
@@ -436,7 +455,7 @@ mod tests {
     /// Roles from a small hash: about a third of the ranks hold a share of
     /// a box, a third need it, the root may do either.
     fn layout(ranks: usize, boxes: usize) -> (Vec<usize>, Vec<Vec<Role>>) {
-        let h = |r: usize, j: usize, s: usize| (r * 7919 + j * 104_729 + s * 31) % 3 == 0;
+        let h = |r: usize, j: usize, s: usize| (r * 7919 + j * 104_729 + s * 31).is_multiple_of(3);
         let roots = (0..boxes).map(|j| (5 * j) % ranks).collect();
         let roles = (0..ranks)
             .map(|r| {
@@ -502,8 +521,8 @@ mod tests {
         let (ranks, boxes) = (4, 5);
         let roots = vec![0, 1, 2, 3, 0];
         let mut roles = vec![vec![Role::default(); boxes]; ranks];
-        for r in 0..ranks {
-            roles[r][2].need = true; // nobody holds a share of box 2
+        for role in &mut roles {
+            role[2].need = true; // nobody holds a share of box 2
         }
         roles[3][4] = Role {
             share: true,
@@ -523,7 +542,7 @@ mod tests {
     #[test]
     fn a_registration_sent_to_the_wrong_root_is_an_error() {
         let roots = vec![1, 0];
-        let registered = vec![(1, vec![4 * 1 + 1])];
+        let registered = vec![(1, vec![4 + 1])];
         assert!(as_root(1, &roots, &[Role::default(); 2], &registered).is_err());
     }
 }
