@@ -234,3 +234,7 @@ mod tests {
         assert_eq!(plans[0].box_counts()[2], 7 + 4);
     }
 }
+
+#[cfg(test)]
+#[path = "coarse_model.rs"]
+mod model;

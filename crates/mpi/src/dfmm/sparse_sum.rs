@@ -7,10 +7,12 @@
 //! 1. Each rank tells the root of every box it has a share of, or needs,
 //!    which (one word per box: its position in the coarse list and two
 //!    flags).
-//! 2. Each root answers each rank that needs some of its boxes with the
-//!    boxes it will send: those with at least one share (a sum nobody
-//!    contributes to is zero, and the zeros the needing rank holds already
-//!    are that sum).
+//! 2. Each root answers each rank that registered: which of its shares to
+//!    send (those of boxes someone needs: nobody reads the coarsest boxes'
+//!    multipoles, so their many owners send nothing) and which sums will
+//!    come (those of boxes someone has a share of: a sum nobody contributes
+//!    to is zero, and the zeros the needing rank holds already are that
+//!    sum).
 //!
 //! # Each evaluation (two point-to-point rounds, no collective)
 //!
@@ -72,50 +74,46 @@ pub(crate) struct SparseSum {
 }
 
 /// Step 1 of the setup: the registrations this rank sends to the roots
-/// (one word `4 j + 2 need + share` per box), and the shares it will send.
-pub(crate) fn registrations(
-    me: usize,
-    roots: &[usize],
-    roles: &[Role],
-) -> (Vec<(usize, Vec<u64>)>, Lists) {
+/// of the boxes it has a share of or needs (one word `4 j + 2 need +
+/// share` per box).
+pub(crate) fn registrations(me: usize, roots: &[usize], roles: &[Role]) -> Messages {
     let mut words: BTreeMap<usize, Vec<u64>> = BTreeMap::new();
-    let mut shares: BTreeMap<usize, Vec<usize>> = BTreeMap::new();
     for (j, (&root, role)) in roots.iter().zip(roles).enumerate() {
-        if root == me || !(role.share || role.need) {
-            continue;
-        }
-        let word = 4 * j as u64 + 2 * u64::from(role.need) + u64::from(role.share);
-        words.entry(root).or_default().push(word);
-        if role.share {
-            shares.entry(root).or_default().push(j);
+        if root != me && (role.share || role.need) {
+            let word = 4 * j as u64 + 2 * u64::from(role.need) + u64::from(role.share);
+            words.entry(root).or_default().push(word);
         }
     }
-    (words.into_iter().collect(), shares.into_iter().collect())
+    words.into_iter().collect()
 }
 
 /// Step 2 of the setup, on a root: from the registrations received (rank
-/// order) and this rank's own roles, the shares it receives, the sums it
-/// sends and the answers (the boxes each needing rank will get).
+/// order) and this rank's own roles, the shares it receives (of boxes
+/// someone needs), the sums it sends (of boxes someone has a share of) and
+/// the answers telling each rank which (word `2 j` for "send your share of
+/// box `j`", `2 j + 1` for "its sum comes").
 pub(crate) fn as_root(
     me: usize,
     roots: &[usize],
     roles: &[Role],
     registered: &[(usize, Vec<u64>)],
 ) -> Result<Rooted, String> {
-    let mut has_share: Vec<bool> = roots
-        .iter()
-        .zip(roles)
-        .map(|(&r, role)| r == me && role.share)
-        .collect();
-    let mut shares_in = Lists::new();
-    let mut needs = Lists::new();
+    let mine = |f: fn(&Role) -> bool| -> Vec<bool> {
+        roots
+            .iter()
+            .zip(roles)
+            .map(|(&r, role)| r == me && f(role))
+            .collect()
+    };
+    let (mut has_share, mut has_need) = (mine(|r| r.share), mine(|r| r.need));
+    let mut asked = Vec::with_capacity(registered.len());
     for (rank, words) in registered {
         let (mut s, mut n) = (Vec::new(), Vec::new());
         for &w in words {
             let j = (w / 4) as usize;
             if roots.get(j) != Some(&me) {
                 return Err(format!(
-                    "rank {rank} sent a share of coarse box {j} to rank {me}, not its root"
+                    "rank {rank} registered coarse box {j} with rank {me}, not its root"
                 ));
             }
             if w & 1 == 1 {
@@ -123,41 +121,55 @@ pub(crate) fn as_root(
                 s.push(j);
             }
             if w & 2 == 2 {
+                has_need[j] = true;
                 n.push(j);
             }
         }
-        if !s.is_empty() {
-            shares_in.push((*rank, s));
-        }
-        needs.push((*rank, n));
+        asked.push((*rank, s, n));
     }
-    let sums_out: Lists = needs
-        .into_iter()
-        .map(|(r, n)| {
-            (
-                r,
-                n.into_iter().filter(|&j| has_share[j]).collect::<Vec<_>>(),
-            )
-        })
-        .filter(|(_, n)| !n.is_empty())
-        .collect();
-    let answers = sums_out
-        .iter()
-        .map(|(r, n)| (*r, n.iter().map(|&j| j as u64).collect()))
-        .collect();
-    Ok(Rooted {
-        shares_in,
-        sums_out,
-        answers,
-    })
+    let mut rooted = Rooted::default();
+    for (rank, s, n) in asked {
+        let s: Vec<usize> = s.into_iter().filter(|&j| has_need[j]).collect();
+        let n: Vec<usize> = n.into_iter().filter(|&j| has_share[j]).collect();
+        let words: Vec<u64> = s
+            .iter()
+            .map(|&j| 2 * j as u64)
+            .chain(n.iter().map(|&j| 2 * j as u64 + 1))
+            .collect();
+        if !s.is_empty() {
+            rooted.shares_in.push((rank, s));
+        }
+        if !n.is_empty() {
+            rooted.sums_out.push((rank, n));
+        }
+        if !words.is_empty() {
+            rooted.answers.push((rank, words));
+        }
+    }
+    Ok(rooted)
 }
 
-/// Step 3 of the setup: the sums this rank receives, from the answers.
-pub(crate) fn sums_in(answers: Vec<(usize, Vec<u64>)>) -> Lists {
-    answers
-        .into_iter()
-        .map(|(r, w)| (r, w.into_iter().map(|j| j as usize).collect()))
-        .collect()
+/// Step 3 of the setup: from the roots' answers, the shares this rank
+/// sends and the sums it receives (in the roots' order of boxes).
+pub(crate) fn from_answers(answers: Messages) -> (Lists, Lists) {
+    let (mut shares_out, mut sums_in) = (Lists::new(), Lists::new());
+    for (root, words) in answers {
+        let pick = |bit: u64| -> Vec<usize> {
+            words
+                .iter()
+                .filter(|&&w| w % 2 == bit)
+                .map(|&w| (w / 2) as usize)
+                .collect()
+        };
+        let (s, n) = (pick(0), pick(1));
+        if !s.is_empty() {
+            shares_out.push((root, s));
+        }
+        if !n.is_empty() {
+            sums_in.push((root, n));
+        }
+    }
+    (shares_out, sums_in)
 }
 
 impl SparseSum {
@@ -170,7 +182,7 @@ impl SparseSum {
         roles: &[Role],
     ) -> (Result<Self, String>, u64) {
         let me = comm.rank() as usize;
-        let (register, shares_out) = registrations(me, roots, roles);
+        let register = registrations(me, roots, roles);
         let (registered, mut bytes) = sparse_exchange(comm, &register, TAG_REGISTER);
         // Errors are carried to the end: every rank must reach both exchanges.
         let (rooted, error) = match as_root(me, roots, roles, &registered) {
@@ -179,11 +191,12 @@ impl SparseSum {
         };
         let (got, b) = sparse_exchange(comm, &rooted.answers, TAG_REPLY);
         bytes += b;
+        let (shares_out, sums_in) = from_answers(got);
         let plan = SparseSum {
             shares_out,
             shares_in: rooted.shares_in,
             sums_out: rooted.sums_out,
-            sums_in: sums_in(got),
+            sums_in,
         };
         (error.map_or(Ok(plan), Err), bytes)
     }
@@ -381,23 +394,26 @@ pub(crate) fn simulate_plans(roots: &[usize], roles: &[Vec<Role>]) -> Vec<Sparse
         }
         inbox
     };
-    let (register, shares_out): (Vec<_>, Vec<_>) = (0..ranks)
-        .map(|me| registrations(me, roots, &roles[me]))
-        .unzip();
-    let registered = deliver(register);
+    let registered = deliver(
+        (0..ranks)
+            .map(|me| registrations(me, roots, &roles[me]))
+            .collect(),
+    );
     let rooted: Vec<_> = (0..ranks)
         .map(|me| as_root(me, roots, &roles[me], &registered[me]).expect("valid registrations"))
         .collect();
     let answers = deliver(rooted.iter().map(|r| r.answers.clone()).collect());
     rooted
         .into_iter()
-        .zip(shares_out)
         .zip(answers)
-        .map(|((rooted, shares_out), got)| SparseSum {
-            shares_out,
-            shares_in: rooted.shares_in,
-            sums_out: rooted.sums_out,
-            sums_in: sums_in(got),
+        .map(|(rooted, got)| {
+            let (shares_out, sums_in) = from_answers(got);
+            SparseSum {
+                shares_out,
+                shares_in: rooted.shares_in,
+                sums_out: rooted.sums_out,
+                sums_in,
+            }
         })
         .collect()
 }
@@ -497,7 +513,7 @@ mod tests {
                     .filter(|&r| roles[r][j].share)
                     .map(|r| value(r, j, k))
                     .sum();
-                for r in (0..ranks).filter(|&r| roles[r][j].need || roots[j] == r) {
+                for r in (0..ranks).filter(|&r| roles[r][j].need) {
                     assert_eq!(data[r][n * j + k], sum, "rank {r}, box {j}");
                 }
             }
@@ -529,14 +545,20 @@ mod tests {
             need: false,
         };
         roles[1][4].need = true;
+        roles[2][3].share = true; // nobody needs box 3
         let plans = simulate_plans(&roots, &roles);
         assert_eq!(plans[3].shares_out, vec![(0, vec![4])]);
         assert_eq!(plans[0].shares_in, vec![(3, vec![4])]);
         assert_eq!(plans[0].sums_out, vec![(1, vec![4])]);
         assert_eq!(plans[1].sums_in, vec![(0, vec![4])]);
         assert!(plans[2].is_empty());
-        // Box 2 travels nowhere: its sum is the zeros every rank holds.
-        assert!(plans.iter().all(|p| p.restrict(|j| j == 2).is_empty()));
+        // Boxes 2 and 3 travel nowhere: box 2's sum is the zeros every rank
+        // holds, and nobody reads box 3's.
+        assert!(
+            plans
+                .iter()
+                .all(|p| p.restrict(|j| j == 2 || j == 3).is_empty())
+        );
     }
 
     #[test]
