@@ -17,23 +17,32 @@
 //!    of the boxes that others' V and W lists reference and the charges of
 //!    the leaves that others' U and X lists reference, point to point, only
 //!    to the ranks that asked when the FMM was built.
-//! 4. **Coarse multipoles**: one `all_reduce` (sum) of the coarse boxes'
-//!    multipoles (`n` values each): `u_C = sum_r u_C^(r)` because M2M is
-//!    linear, so every rank holds the multipoles of the whole coarse tree.
+//! 4. **Coarse multipoles** (`dfmm/coarse_plan.rs`, `dfmm/sparse_sum.rs`):
+//!    `u_C = sum_r u_C^(r)` because M2M is linear. The shares (`n` values
+//!    a box) go from the ranks whose ranges meet `C` (its owners, a
+//!    contiguous run of ranks) to its root, its first owner, which adds them
+//!    and sends the sum only to the ranks whose local tree reads it (`C` in
+//!    the V or W row of one of their boxes, or in the coarse-to-coarse part
+//!    of a coarse box they are the root of). Point to point, planned at
+//!    build: a rank moves the few coarse boxes above and near its range,
+//!    not the whole coarse tree (which has up to `R - 1` boxes a level).
 //! 5. **Downward** (M2L, P2L, L2L), level by level: a coarse box's check
 //!    potential `c_C` is summed from V- and X-list entries of all ranks, so
-//!    each rank adds the part from its own boxes (and one rank, in turn,
-//!    the coarse-to-coarse part), and an `all_reduce` (sum) of the coarse
-//!    boxes' checks of the level makes them whole before
-//!    `d_C = DC2E c_C + L2L d_parent` (replicated on every rank: the coarse
-//!    tree is small; see docs/distributed.md for why not gathered on one
-//!    rank). The rank's own boxes then get their locals from whole parents.
+//!    each rank adds the part from its own boxes (and `C`'s root the
+//!    coarse-to-coarse part); the ranks with a nonzero part send it to the
+//!    root, which sends the sum to `C`'s other owners, the ranks where `C`
+//!    is active, before `d_C = DC2E c_C + L2L d_parent` (each rank computes
+//!    it for the coarse boxes above its own boxes only; see
+//!    docs/distributed.md for why not gathered on one rank). The rank's own
+//!    boxes then get their locals from whole parents. Where a sum has no
+//!    share (no V or X entry anywhere) or no rank reads it, nothing is sent.
 //! 6. **Leaf passes** (L2P, M2P, P2P) at the rank's leaves.
 //! 7. **Values back** to the ranks that gave the points, in their order.
 //!
 //! The tree, the ghost points, the plans and the operators are made once
 //! ([`DistributedFmm::build`]); each evaluation only moves multipoles,
-//! charges and check potentials. The result equals the single-machine
+//! charges and check potentials (the ghost exchange and the coarse sums
+//! point to point, with the partners planned at build). The result equals the single-machine
 //! [`ferrofmm_fmm::Fmm`] on the same tree (built with the same domain,
 //! which keeps it one tree: the distributed FMM does not split
 //! far-separated clusters into separate trees) up to rounding.
