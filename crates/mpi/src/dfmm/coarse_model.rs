@@ -178,7 +178,7 @@ fn model(ranks: usize, depth: u32, box_bytes: f64) {
 fn coarse_sums_model() {
     // 8 n bytes a box: n = 6 (p - 1)^2 + 2 = 152 at order 6.
     let box_bytes = 8.0 * 152.0;
-    for (ranks, depth) in [(16, 5), (256, 8), (4096, 8), (65_536, 9)] {
+    for (ranks, depth) in [(4, 5), (16, 4), (256, 8), (4096, 8), (65_536, 9)] {
         model(ranks, depth, box_bytes);
     }
 }
