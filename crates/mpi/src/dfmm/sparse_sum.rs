@@ -232,9 +232,9 @@ impl SparseSum {
             && self.sums_in.is_empty()
     }
 
-    #[cfg(test)]
     /// Boxes this rank sends as shares, receives as shares (a root), sends
     /// as sums (a root) and receives as sums, counted once per message.
+    #[cfg(test)]
     pub(crate) fn box_counts(&self) -> [usize; 4] {
         let count = |l: &Lists| l.iter().map(|(_, js)| js.len()).sum();
         [
