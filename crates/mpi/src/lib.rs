@@ -37,7 +37,7 @@
 //! essential tree and runs the single-machine passes of `ferrofmm-fmm` on
 //! it ([`ferrofmm_fmm::TreeFmm`]), exchanging only ghost multipoles and
 //! charges (point to point, with the ranks that need them) and the coarse
-//! tree's sums; [`DistributedFmm::evaluate`] can be called for any number
+//! tree's sums (point to point too, through one root per coarse box); [`DistributedFmm::evaluate`] can be called for any number
 //! of charge vectors and equals the single-machine FMM on the same tree
 //! (see [`dfmm`]).
 //!

@@ -14,8 +14,9 @@
 //! * a coarse box `C`: the part of its V and X rows this rank can compute,
 //!   the boxes of this rank in `V(C)` and `X(C)` (the skeleton holds all of
 //!   them, and the rows on a skeleton are exact for entries that are
-//!   present), plus, on one rank (coarse boxes dealt round robin in key
-//!   order), the coarse boxes in `V(C)` (all of them are on every rank).
+//!   present), plus, on `C`'s root (its first owner, which sums its check:
+//!   `dfmm/coarse_plan.rs`), the coarse boxes in `V(C)` (all of them are on
+//!   every rank).
 //!   Summed over ranks, these partial check potentials are those of the
 //!   global tree;
 //! * every other box: no rows (its data come from its owner).
@@ -24,6 +25,7 @@ use std::ops::Range;
 
 use ferrofmm_tree::{Csr, InteractionLists, MortonKey, Octree};
 
+use super::coarse_plan::root_of;
 use crate::DistributedTree;
 
 /// What a box of the skeleton is to this rank.
@@ -56,21 +58,11 @@ pub(crate) fn kinds(dtree: &DistributedTree) -> Vec<Kind> {
 }
 
 /// The rows of the locally essential tree (see the [module docs](self)).
-pub(crate) fn rows(
-    dtree: &DistributedTree,
-    kinds: &[Kind],
-    me: usize,
-    size: usize,
-) -> InteractionLists {
+pub(crate) fn rows(dtree: &DistributedTree, kinds: &[Kind], me: usize) -> InteractionLists {
     let l = &dtree.ghosts.lists;
     // The rank that adds the coarse-to-coarse part of coarse box `b`'s V
-    // row: coarse boxes dealt round robin in key order.
-    let turn = |b: usize| {
-        dtree
-            .coarse
-            .binary_search(&dtree.ghosts.skeleton[b])
-            .map_or(usize::MAX, |i| i % size)
-    };
+    // row: its root, which sums its check (no message for that part).
+    let turn = |b: usize| root_of(&dtree.cuts, dtree.ghosts.skeleton[b]);
     // Whether row `list` (0 U, 1 V, 2 W, 3 X) of box `b` of kind `row`
     // keeps an entry of kind `entry`.
     let keeps = |b: usize, row: Kind, list: usize, entry: Kind| match (row, list) {

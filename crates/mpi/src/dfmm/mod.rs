@@ -17,30 +17,41 @@
 //!    of the boxes that others' V and W lists reference and the charges of
 //!    the leaves that others' U and X lists reference, point to point, only
 //!    to the ranks that asked when the FMM was built.
-//! 4. **Coarse multipoles**: one `all_reduce` (sum) of the coarse boxes'
-//!    multipoles (`n` values each): `u_C = sum_r u_C^(r)` because M2M is
-//!    linear, so every rank holds the multipoles of the whole coarse tree.
+//! 4. **Coarse multipoles** (`dfmm/coarse_plan.rs`, `dfmm/sparse_sum.rs`):
+//!    `u_C = sum_r u_C^(r)` because M2M is linear. The shares (`n` values
+//!    a box) go from the ranks whose ranges meet `C` (its owners, a
+//!    contiguous run of ranks) to its root, its first owner, which adds them
+//!    and sends the sum only to the ranks whose local tree reads it (`C` in
+//!    the V or W row of one of their boxes, or in the coarse-to-coarse part
+//!    of a coarse box they are the root of). Point to point, planned at
+//!    build: a rank moves the few coarse boxes above and near its range,
+//!    not the whole coarse tree (which has up to `R - 1` boxes a level).
 //! 5. **Downward** (M2L, P2L, L2L), level by level: a coarse box's check
 //!    potential `c_C` is summed from V- and X-list entries of all ranks, so
-//!    each rank adds the part from its own boxes (and one rank, in turn,
-//!    the coarse-to-coarse part), and an `all_reduce` (sum) of the coarse
-//!    boxes' checks of the level makes them whole before
-//!    `d_C = DC2E c_C + L2L d_parent` (replicated on every rank: the coarse
-//!    tree is small; see docs/distributed.md for why not gathered on one
-//!    rank). The rank's own boxes then get their locals from whole parents.
+//!    each rank adds the part from its own boxes (and `C`'s root the
+//!    coarse-to-coarse part); the ranks with a nonzero part send it to the
+//!    root, which sends the sum to `C`'s other owners, the ranks where `C`
+//!    is active, before `d_C = DC2E c_C + L2L d_parent` (each rank computes
+//!    it for the coarse boxes above its own boxes only; see
+//!    docs/distributed.md for why not gathered on one rank). The rank's own
+//!    boxes then get their locals from whole parents. Where a sum has no
+//!    share (no V or X entry anywhere) or no rank reads it, nothing is sent.
 //! 6. **Leaf passes** (L2P, M2P, P2P) at the rank's leaves.
 //! 7. **Values back** to the ranks that gave the points, in their order.
 //!
 //! The tree, the ghost points, the plans and the operators are made once
 //! ([`DistributedFmm::build`]); each evaluation only moves multipoles,
-//! charges and check potentials. The result equals the single-machine
+//! charges and check potentials (the ghost exchange and the coarse sums
+//! point to point, with the partners planned at build). The result equals the single-machine
 //! [`ferrofmm_fmm::Fmm`] on the same tree (built with the same domain,
 //! which keeps it one tree: the distributed FMM does not split
 //! far-separated clusters into separate trees) up to rounding.
 
+mod coarse_plan;
 mod ghost_plan;
 mod local_tree;
 mod route;
+mod sparse_sum;
 mod stats;
 
 use std::path::PathBuf;
@@ -54,6 +65,7 @@ use mpi::traits::*;
 
 use crate::DistributedTree;
 use crate::error::{DistError, InputProblem, agree, agree_message};
+use coarse_plan::CoarsePlan;
 use ghost_plan::GhostPlan;
 use local_tree::Kind;
 use route::Route;
@@ -101,6 +113,7 @@ impl DistFmmOptions {
 pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     fmm: TreeFmm<T, K, S>,
     plan: GhostPlan,
+    coarse_plan: CoarsePlan,
     route: Route,
     /// Merged source position of each of this rank's points (tree order).
     own_pos: Vec<usize>,
@@ -162,7 +175,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         setup.seconds[0] = t.elapsed().as_secs_f64();
 
         let t = Instant::now();
-        let lists = local_tree::rows(dtree, &kinds, me, comm.size() as usize);
+        let lists = local_tree::rows(dtree, &kinds, me);
         let own_codes = &dtree.points.codes;
         let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
         let tree = local_tree::octree(dtree, lists, &codes, own_codes);
@@ -214,6 +227,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let fmm = agree_message(comm, fmm.map_err(|e| e.to_string()))?;
         let (active, n_active) = active_boxes(fmm.tree(), &kinds);
         setup.active_boxes = n_active;
+        let coarse_plan = CoarsePlan::make(comm, &dtree.cuts, fmm.tree(), &coarse, &active);
+        let coarse_plan = agree_message(comm, coarse_plan)?;
+        setup.bytes_sent += coarse_plan.setup_bytes;
+        (setup.coarse_send_partners, setup.coarse_recv_partners) = coarse_plan.partners();
         let fmm = fmm.with_active_boxes(active).map_err(|e| DistError::Fmm {
             rank: comm.rank(),
             message: e.to_string(),
@@ -222,6 +239,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         Ok(DistributedFmm {
             fmm,
             plan,
+            coarse_plan,
             route,
             own_pos,
             ghost_pos,
@@ -312,7 +330,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         stats.add(2, t, bytes);
 
         let t = Instant::now();
-        let bytes = sum_columns(comm, n, &self.coarse, &mut multipoles);
+        let bytes = self
+            .coarse_plan
+            .sum_multipoles(comm, n, &self.coarse, &mut multipoles);
         stats.add(3, t, bytes);
 
         let t = Instant::now();
@@ -320,26 +340,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let mut coarse_cpu = 0.0;
         let mut coarse_seconds = 0.0;
         let mut coarse_bytes = 0;
-        let mut next = 0;
         let locals = self
             .fmm
-            .downward(&q, &multipoles, &mut timings, |_, range, checks| {
+            .downward(&q, &multipoles, &mut timings, |level, range, checks| {
                 let t = Instant::now();
                 let c = stats::cpu_seconds();
-                while next < self.coarse.len() && self.coarse[next] < range.start {
-                    next += 1;
-                }
-                let start = next;
-                while next < self.coarse.len() && range.contains(&self.coarse[next]) {
-                    next += 1;
-                }
-                let here: Vec<usize> = self.coarse[start..next]
-                    .iter()
-                    .map(|&b| b - range.start)
-                    .collect();
-                if !here.is_empty() {
-                    coarse_bytes += sum_columns(comm, n, &here, checks);
-                }
+                coarse_bytes +=
+                    self.coarse_plan
+                        .sum_checks(comm, n, level, &self.coarse, range.start, checks);
                 coarse_seconds += t.elapsed().as_secs_f64();
                 coarse_cpu += stats::cpu_seconds() - c;
             })
@@ -412,31 +420,6 @@ fn active_boxes(tree: &ferrofmm_tree::Octree, kinds: &[Kind]) -> (Vec<bool>, usi
     }
     let n = active.iter().filter(|&&a| a).count();
     (active, n)
-}
-
-/// Sums the columns `cols` (`n` values each) of `data` over all ranks, in
-/// place (one `all_reduce`); returns the bytes this rank contributed.
-fn sum_columns<C: Communicator, T: Real>(
-    comm: &C,
-    n: usize,
-    cols: &[usize],
-    data: &mut [T],
-) -> u64 {
-    if cols.is_empty() || comm.size() == 1 {
-        return 0;
-    }
-    let mine: Vec<f64> = cols
-        .iter()
-        .flat_map(|&b| data[n * b..n * (b + 1)].iter().map(|x| x.to_f64()))
-        .collect();
-    let mut sum = vec![0.0f64; mine.len()];
-    comm.all_reduce_into(&mine[..], &mut sum[..], SystemOperation::sum());
-    for (&b, col) in cols.iter().zip(sum.chunks_exact(n)) {
-        for (x, &s) in data[n * b..n * (b + 1)].iter_mut().zip(col) {
-            *x = T::from_f64(s);
-        }
-    }
-    8 * mine.len() as u64
 }
 
 /// The global tree's depth and the union of all ranks' M2L usage.

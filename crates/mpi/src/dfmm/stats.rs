@@ -20,10 +20,9 @@ pub const EVAL_PHASES: [&str; 8] = [
 /// Time (seconds) and bytes sent by this rank in each phase of one
 /// evaluation (indexed as [`EVAL_PHASES`]), and the single-machine
 /// operator times of its passes. Bytes count the payload addressed to
-/// other ranks; for the `all_reduce`s of the coarse tree (phases 3 and 5)
-/// they count the vector this rank contributes (`8 n` bytes per coarse box;
-/// what the network carries depends on the MPI's algorithm, about twice
-/// that for a ring or a reduce-scatter plus all-gather).
+/// other ranks, for the coarse tree's sums (phases 3 and 5) too: `8 n`
+/// bytes per coarse box in each share sent to a root and in each sum a
+/// root sends (point to point, only to the ranks that need it).
 #[derive(Clone, Debug, Default)]
 pub struct EvalStats {
     /// Wall time of each phase, seconds.
@@ -97,4 +96,9 @@ pub struct SetupStats {
     pub send_partners: usize,
     /// Ranks this one receives from at each evaluation.
     pub recv_partners: usize,
+    /// Ranks this one sends to in the coarse tree's sums of an evaluation
+    /// (shares to roots, sums from the roots it is; `dfmm/coarse_plan.rs`).
+    pub coarse_send_partners: usize,
+    /// Ranks this one receives from in the coarse tree's sums.
+    pub coarse_recv_partners: usize,
 }
