@@ -173,7 +173,11 @@ pub fn exchange_ghosts<C: Communicator>(
             out.iter()
                 .flat_map(|&i| {
                     let (k, leaf, n) = local[i];
-                    [k.raw(), u64::from(leaf) | (n_targets(i) as u64) << 1, n as u64]
+                    [
+                        k.raw(),
+                        u64::from(leaf) | (n_targets(i) as u64) << 1,
+                        n as u64,
+                    ]
                 })
                 .collect(),
         ));
@@ -212,7 +216,9 @@ pub fn exchange_ghosts<C: Communicator>(
             } else {
                 received
                     .binary_search_by_key(&key, |g| g.key)
-                    .map_or([true; 2], |i| [received[i].points > 0, received[i].targets > 0])
+                    .map_or([true; 2], |i| {
+                        [received[i].points > 0, received[i].targets > 0]
+                    })
             }
         };
         let flags: Vec<[bool; 2]> = skeleton.iter().map(|&k| held(k)).collect();
@@ -265,7 +271,12 @@ fn prune(lists: &InteractionLists, flags: &[[bool; 2]]) -> InteractionLists {
     let filter = |csr: &Csr| -> Csr {
         let rows: Vec<Vec<usize>> = (0..csr.n_rows())
             .map(|b| match flags[b][1] {
-                true => csr.get(b).iter().copied().filter(|&a| flags[a][0]).collect(),
+                true => csr
+                    .get(b)
+                    .iter()
+                    .copied()
+                    .filter(|&a| flags[a][0])
+                    .collect(),
                 false => Vec::new(),
             })
             .collect();

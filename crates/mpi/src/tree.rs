@@ -193,7 +193,10 @@ impl DistributedTree {
             return Err(DistError::NoPoints);
         }
         let n_sources: u64 = counts.iter().sum();
-        if target_counts.as_ref().is_some_and(|c| c.iter().sum::<u64>() == 0) {
+        if target_counts
+            .as_ref()
+            .is_some_and(|c| c.iter().sum::<u64>() == 0)
+        {
             return Err(DistError::NoTargets);
         }
         let domain = global_domain(comm, &[Some(points), targets])?;
@@ -294,10 +297,12 @@ impl DistributedTree {
         let (ghosts, bytes) = exchange_ghosts(comm, &boxes, &coarse, &cuts, separate);
         stats.bytes_sent[5] = bytes;
         t.stop(&mut stats, 5);
-        let targets = tgt.zip(target_counts).map(|(points, input_counts)| DistTargets {
-            points,
-            input_counts,
-        });
+        let targets = tgt
+            .zip(target_counts)
+            .map(|(points, input_counts)| DistTargets {
+                points,
+                input_counts,
+            });
 
         Ok(DistributedTree {
             domain,
@@ -422,10 +427,7 @@ fn gather_counts<C: Communicator>(comm: &C, points: &[f64]) -> Vec<u64> {
 /// empty): an `all_reduce` of the extremes, then the tree crate's cube of
 /// the two corners (the cube depends only on the extremes, so it is that
 /// of all the points, [`Domain::from_points`] on one machine).
-fn global_domain<C: Communicator>(
-    comm: &C,
-    sets: &[Option<&[f64]>],
-) -> Result<Domain, DistError> {
+fn global_domain<C: Communicator>(comm: &C, sets: &[Option<&[f64]>]) -> Result<Domain, DistError> {
     let (mut lo, mut hi) = ([f64::INFINITY; 3], [f64::NEG_INFINITY; 3]);
     for p in sets.iter().flatten().flat_map(|s| s.chunks_exact(3)) {
         for a in 0..3 {

@@ -27,8 +27,7 @@ use ferrofmm_field::{FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::FmmBuilder;
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, SourceKind, Stokes3d};
 use ferrofmm_mpi::{
-    DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry,
-    InputProblem,
+    DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, Geometry, InputProblem,
 };
 use ferrofmm_tree::{MortonKey, Octree, TreeOptions};
 use mpi::collective::SystemOperation;
@@ -95,7 +94,12 @@ fn worker() -> i32 {
     let cases: Vec<(&str, Vec<f64>, &str, &str)> = vec![
         ("even", cube(1500, 2), "even", "even"),
         ("no sources off rank 0", cube(1500, 3), "first", "even"),
-        ("no targets off the last rank", cube(1500, 4), "even", "last"),
+        (
+            "no targets off the last rank",
+            cube(1500, 4),
+            "even",
+            "last",
+        ),
         (
             "targets outside the sources' cube",
             moved(cube(1200, 5), 0.6, [1.3, -0.2, 0.5]),
@@ -229,7 +233,11 @@ fn compare<K: Kernel + Clone, S: M2lScheme<f64>>(
     // Tree order: charges of `dtree.points`, values at `dtree.targets`.
     let src_order = global_order(src_layout, ns, size);
     let tgt_order = global_order(tgt_layout, nt, size);
-    let tree_targets = &dtree.targets.as_ref().ok_or("no targets in the tree")?.points;
+    let tree_targets = &dtree
+        .targets
+        .as_ref()
+        .ok_or("no targets in the tree")?
+        .points;
     let q_sorted: Vec<f64> = dtree
         .points
         .ids
@@ -318,7 +326,10 @@ fn check_tree(
             let want = keys(all.get(b), &|a| tree.key(a));
             let got = keys(mine.get(s), &|a| g.skeleton[a]);
             if want != got {
-                problems.push(format!("{name} row of {key}: {got:?} != {want:?}"));
+                let (g, w) = (got.len(), want.len());
+                problems.push(format!(
+                    "{name} row of {key} differs ({g} entries, {w} on one machine)"
+                ));
             }
         }
     }
@@ -368,9 +379,13 @@ fn bad_targets(world: &SimpleCommunicator, sources: &[f64]) -> usize {
     ];
     let mut failures = 0;
     for (name, targets, want) in cases {
-        let got =
-            DistributedTree::build_with_targets(world, &mine, &targets, &DistOptions::adaptive(LEAF))
-                .err();
+        let got = DistributedTree::build_with_targets(
+            world,
+            &mine,
+            &targets,
+            &DistOptions::adaptive(LEAF),
+        )
+        .err();
         let ok = got.as_ref() == Some(&want);
         let mut bad = 0u32;
         world.all_reduce_into(&u32::from(!ok), &mut bad, SystemOperation::sum());
