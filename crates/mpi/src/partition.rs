@@ -11,7 +11,9 @@
 //! points of two ranks. So the cut is moved to a boundary of `B_k`, the
 //! leaf of the (unbalanced) adaptive refinement of all points that holds
 //! `c_k`: the coarsest ancestor of `c_k`'s finest cell holding at most
-//! `leaf_size` points (or the box at `max_level`). All its strict ancestors
+//! `leaf_size` points (or the box at `max_level`; with separate targets,
+//! at most `leaf_size` sources and at most `leaf_size` targets, the tree
+//! crate's rule for two point sets). All its strict ancestors
 //! hold more than `leaf_size` points, so they are split, and `B_k` is a
 //! leaf. The cut goes to `B_k`'s start or its end, whichever is closer in
 //! weight to `k W / R`; a cut is thus at most one leaf (`<= leaf_size`

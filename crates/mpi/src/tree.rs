@@ -39,10 +39,11 @@ pub struct DistributedTree {
     pub domain: Domain,
     /// `cuts[r] .. cuts[r + 1]`: the finest codes of rank `r`.
     pub cuts: Vec<u64>,
-    /// This rank's points, sorted along the Morton curve.
+    /// This rank's points, sorted along the Morton curve (the sources, in
+    /// a tree built with separate targets).
     pub points: LocalPoints,
-    /// This rank's boxes (inside its range): key, leaf flag, point count,
-    /// sorted by key.
+    /// This rank's boxes (inside its range): key, leaf flag, point
+    /// (source) count, sorted by key.
     pub boxes: Vec<(MortonKey, bool, usize)>,
     /// The coarse tree: boxes straddling a cut (internal, on every rank).
     pub coarse: Vec<MortonKey>,
@@ -179,7 +180,10 @@ impl DistributedTree {
         ];
         let mut all_o = vec![0u64; mine.len() * size];
         comm.all_gather_into(&mine[..], &mut all_o[..]);
-        if let Some(r) = all_o.chunks_exact(mine.len()).position(|o| o != mine) {
+        if let Some(r) = all_o
+            .chunks_exact(mine.len())
+            .position(|o| o != &all_o[..mine.len()])
+        {
             return Err(DistError::BadInput {
                 rank: r as i32,
                 problem: InputProblem::MismatchedOptions,

@@ -15,8 +15,9 @@
 //! * the values at every target, in each rank's input order of targets
 //!   (and once in tree order), to 1e-12 relative (L2 over all targets);
 //! * layouts: sources and targets spread evenly, all sources on the first
-//!   rank (the others have none), all targets on the last rank, targets
-//!   outside the sources' cube, targets in a tight cluster;
+//!   rank (the others have none), all targets on the last rank, both (the
+//!   middle ranks have neither), targets outside the sources' cube,
+//!   targets in a tight cluster;
 //! * Laplace (SVD M2L) and Stokes (FFT M2L; forces, a vector kernel);
 //! * bad targets on the last rank (a NaN, a bad length) and no target at
 //!   all: the same error on every rank.
@@ -100,6 +101,7 @@ fn worker() -> i32 {
             "even",
             "last",
         ),
+        ("neither on the middle ranks", cube(800, 7), "first", "last"),
         (
             "targets outside the sources' cube",
             moved(cube(1200, 5), 0.6, [1.3, -0.2, 0.5]),
