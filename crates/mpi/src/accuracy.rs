@@ -209,7 +209,9 @@ pub fn sampled_errors<C: Communicator, K: Kernel>(
     values: &[f64],
     k: usize,
 ) -> [f64; 2] {
-    sampled_errors_at(comm, kernel, kind, mode, points, densities, points, values, k)
+    sampled_errors_at(
+        comm, kernel, kind, mode, points, densities, points, values, k,
+    )
 }
 
 /// [`sampled_errors`] with separate targets: `values` are this rank's

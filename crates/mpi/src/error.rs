@@ -25,6 +25,10 @@ pub enum InputProblem {
     BadWeights,
     /// Charges: not one per input point of the rank, or not finite.
     BadCharges,
+    /// A target coordinate array whose length is not a multiple of 3.
+    BadTargetLength,
+    /// A NaN or infinite target coordinate.
+    NonFiniteTarget,
     /// Any other failure of the tree crate on that rank.
     Other,
 }
@@ -39,6 +43,8 @@ impl InputProblem {
             InputProblem::BadWeights => 5,
             InputProblem::Other => 6,
             InputProblem::BadCharges => 7,
+            InputProblem::BadTargetLength => 8,
+            InputProblem::NonFiniteTarget => 9,
         }
     }
 
@@ -50,6 +56,8 @@ impl InputProblem {
             4 => InputProblem::MismatchedOptions,
             5 => InputProblem::BadWeights,
             7 => InputProblem::BadCharges,
+            8 => InputProblem::BadTargetLength,
+            9 => InputProblem::NonFiniteTarget,
             _ => InputProblem::Other,
         }
     }
@@ -65,6 +73,8 @@ impl std::fmt::Display for InputProblem {
             InputProblem::BadWeights => "weights: not one finite, non-negative value per point",
             InputProblem::Other => "invalid input",
             InputProblem::BadCharges => "charges: not one finite value per input point",
+            InputProblem::BadTargetLength => "target coordinate length not a multiple of 3",
+            InputProblem::NonFiniteTarget => "a NaN or infinite target coordinate",
         })
     }
 }
@@ -81,9 +91,12 @@ pub enum DistError {
         /// What was wrong there.
         problem: InputProblem,
     },
-    /// No rank holds a point.
+    /// No rank holds a point (a source, in a build with targets).
     #[error("no points on any rank")]
     NoPoints,
+    /// A build with separate targets where no rank holds a target.
+    #[error("no targets on any rank")]
+    NoTargets,
     /// The tree crate failed on the agreed, valid input (a bug).
     #[error("tree error on rank {rank}: {source}")]
     Tree {

@@ -26,11 +26,24 @@
 //!    children were not sent is still internal if flagged so). For each of its boxes that is exactly the rows of the
 //!    single-machine tree, since everything the rows depend on is present.
 //!    The ghosts are the list entries that are not its own.
+//!
+//! # Separate targets
+//!
+//! With targets that are not the sources ([`SeparateTargets`]), a box
+//! exists when it holds a source or a target, and the single-machine lists
+//! are pruned ([`ferrofmm_tree::lists`]): an entry `A` of a row of `B` is
+//! kept only if `A` holds a source and `B` a target. The skeleton's lists
+//! count every box as holding both, and the pruned rows are exactly those
+//! lists filtered by the two flags (every rule of the lists keeps or drops
+//! a candidate by `has_sources` alone, after walking the existing boxes).
+//! So answers carry each box's source and target counts, every rank knows
+//! the coarse boxes' global counts, and the rows are filtered before the
+//! ghosts are picked: only boxes with sources become ghosts.
 
 use std::collections::BTreeMap;
 
 use ferrofmm_tree::lists::{InteractionLists, lists_of_boxes};
-use ferrofmm_tree::{MortonKey, TreeShape};
+use ferrofmm_tree::{Csr, MortonKey, TreeShape};
 
 use crate::exchange::sparse_exchange;
 use crate::partition::owners;
@@ -47,9 +60,24 @@ pub struct Ghost {
     pub key: MortonKey,
     /// Whether it is a leaf of the global tree.
     pub leaf: bool,
-    /// Points in it (0 for a box of the coarse tree, whose points are
-    /// spread over ranks).
+    /// Points (sources) in it (0 for a box of the coarse tree, whose points
+    /// are spread over ranks).
     pub points: usize,
+    /// Targets in it: [`Ghost::points`] when the targets are the sources;
+    /// 0 for a box of the coarse tree.
+    pub targets: usize,
+}
+
+/// The target counts of a build with separate targets, which prune the
+/// lists as the single-machine tree with targets does (see the
+/// [module docs](self)).
+#[derive(Clone, Copy, Debug)]
+pub struct SeparateTargets<'a> {
+    /// Targets in each of this rank's boxes (parallel to its boxes).
+    pub own: &'a [usize],
+    /// Sources and targets in each coarse box (parallel to the coarse
+    /// boxes), summed over all ranks.
+    pub coarse: &'a [[u64; 2]],
 }
 
 /// The ghost data of one rank.
@@ -77,12 +105,15 @@ pub(crate) fn inside(key: MortonKey, lo: u64, hi: u64) -> bool {
 
 /// Finds the ghost layer (see the [module docs](self)); returns it and the
 /// bytes sent. `local` holds this rank's boxes with their leaf flags and
-/// point counts, sorted; `coarse` the boxes straddling cuts.
+/// point (source) counts, sorted; `coarse` the boxes straddling cuts;
+/// `targets` the target counts when the targets are another point set
+/// (`None`: the points are the targets).
 pub fn exchange_ghosts<C: Communicator>(
     comm: &C,
     local: &[(MortonKey, bool, usize)],
     coarse: &[MortonKey],
     cuts: &[u64],
+    targets: Option<SeparateTargets<'_>>,
 ) -> (GhostLayer, u64) {
     let me = comm.rank() as usize;
     let (lo, hi) = (cuts[me], cuts[me + 1]);
@@ -112,11 +143,12 @@ pub fn exchange_ghosts<C: Communicator>(
     let (asked, mut bytes) = sparse_exchange(comm, &send, TAG_REQUEST);
 
     // 2. Answers: own boxes inside each region (to its depth) and own
-    // ancestors of it.
+    // ancestors of it, as (key, leaf flag and target count, point count).
     let find = |k: MortonKey| local.binary_search_by_key(&k, |&(key, _, _)| key).ok();
+    let n_targets = |i: usize| targets.map_or(local[i].2, |t| t.own[i]);
     let mut answers: Vec<(usize, Vec<u64>)> = Vec::new();
     for (r, words) in asked {
-        let mut out: Vec<(MortonKey, bool, usize)> = Vec::new();
+        let mut out: Vec<usize> = Vec::new();
         for pair in words.chunks_exact(2) {
             let Some(c) = MortonKey::from_raw(pair[0]) else {
                 continue;
@@ -125,17 +157,12 @@ pub fn exchange_ghosts<C: Communicator>(
             let end = c.morton_range().end;
             let start = local.partition_point(|&(k, _, _)| k < c);
             let stop = start + local[start..].partition_point(|&(k, _, _)| k.morton() < end);
-            out.extend(
-                local[start..stop]
-                    .iter()
-                    .filter(|(k, _, _)| k.level() <= depth)
-                    .copied(),
-            );
+            out.extend((start..stop).filter(|&i| local[i].0.level() <= depth));
             for a in c.ancestors() {
                 if inside(a, lo, hi)
                     && let Some(i) = find(a)
                 {
-                    out.push(local[i]);
+                    out.push(i);
                 }
             }
         }
@@ -144,7 +171,14 @@ pub fn exchange_ghosts<C: Communicator>(
         answers.push((
             r,
             out.iter()
-                .flat_map(|&(k, leaf, n)| [k.raw(), u64::from(leaf), n as u64])
+                .flat_map(|&i| {
+                    let (k, leaf, n) = local[i];
+                    [
+                        k.raw(),
+                        u64::from(leaf) | (n_targets(i) as u64) << 1,
+                        n as u64,
+                    ]
+                })
                 .collect(),
         ));
     }
@@ -158,8 +192,9 @@ pub fn exchange_ghosts<C: Communicator>(
         .filter_map(|p| {
             MortonKey::from_raw(p[0]).map(|key| Ghost {
                 key,
-                leaf: p[1] == 1,
+                leaf: p[1] & 1 == 1,
                 points: p[2] as usize,
+                targets: (p[1] >> 1) as usize,
             })
         })
         .collect();
@@ -171,7 +206,24 @@ pub fn exchange_ghosts<C: Communicator>(
         .chain(coarse.iter().map(|&k| (k, false)))
         .chain(received.iter().map(|g| (g.key, g.leaf)))
         .collect();
-    let (skeleton, lists) = lists_of_boxes(&boxes);
+    let (skeleton, mut lists) = lists_of_boxes(&boxes);
+    if let Some(t) = targets {
+        let held = |key: MortonKey| -> [bool; 2] {
+            if inside(key, lo, hi) {
+                find(key).map_or([true; 2], |i| [local[i].2 > 0, t.own[i] > 0])
+            } else if let Ok(i) = coarse.binary_search(&key) {
+                t.coarse[i].map(|n| n > 0)
+            } else {
+                received
+                    .binary_search_by_key(&key, |g| g.key)
+                    .map_or([true; 2], |i| {
+                        [received[i].points > 0, received[i].targets > 0]
+                    })
+            }
+        };
+        let flags: Vec<[bool; 2]> = skeleton.iter().map(|&k| held(k)).collect();
+        lists = prune(&lists, &flags);
+    }
     let mut referenced: Vec<MortonKey> = Vec::new();
     for (b, &key) in skeleton.iter().enumerate() {
         if !inside(key, lo, hi) {
@@ -196,6 +248,7 @@ pub fn exchange_ghosts<C: Communicator>(
                 key,
                 leaf: false,
                 points: 0,
+                targets: 0,
             },
         })
         .collect();
@@ -211,14 +264,44 @@ pub fn exchange_ghosts<C: Communicator>(
     )
 }
 
+/// The lists with the rows of boxes holding no target emptied and the
+/// entries holding no source dropped (`flags[b]`: box `b` holds a source,
+/// a target): the single-machine pruning (see the [module docs](self)).
+fn prune(lists: &InteractionLists, flags: &[[bool; 2]]) -> InteractionLists {
+    let filter = |csr: &Csr| -> Csr {
+        let rows: Vec<Vec<usize>> = (0..csr.n_rows())
+            .map(|b| match flags[b][1] {
+                true => csr
+                    .get(b)
+                    .iter()
+                    .copied()
+                    .filter(|&a| flags[a][0])
+                    .collect(),
+                false => Vec::new(),
+            })
+            .collect();
+        Csr::from_rows(&rows)
+    };
+    InteractionLists {
+        u: filter(&lists.u),
+        v: filter(&lists.v),
+        w: filter(&lists.w),
+        x: filter(&lists.x),
+    }
+}
+
 /// This rank's boxes of `shape` (those inside `[lo, hi)`), sorted, with
-/// their leaf flags and source counts.
-pub(crate) fn own_boxes(shape: &TreeShape, lo: u64, hi: u64) -> Vec<(MortonKey, bool, usize)> {
-    let mut out: Vec<(MortonKey, bool, usize)> = (0..shape.n_levels())
+/// their leaf flags and source counts, and their target counts.
+pub(crate) fn own_boxes(
+    shape: &TreeShape,
+    lo: u64,
+    hi: u64,
+) -> (Vec<(MortonKey, bool, usize)>, Vec<usize>) {
+    let mut out: Vec<(MortonKey, bool, usize, usize)> = (0..shape.n_levels())
         .flat_map(|l| shape.level(l))
         .filter(|b| inside(b.key, lo, hi))
-        .map(|b| (b.key, b.leaf, b.n_sources()))
+        .map(|b| (b.key, b.leaf, b.n_sources(), b.n_targets()))
         .collect();
     out.sort_unstable_by_key(|b| b.0);
-    out
+    out.into_iter().map(|(k, l, s, t)| ((k, l, s), t)).unzip()
 }

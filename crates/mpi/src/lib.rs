@@ -41,6 +41,17 @@
 //! of charge vectors and equals the single-machine FMM on the same tree
 //! (see [`dfmm`]).
 //!
+//! ## Separate targets
+//!
+//! [`DistributedTree::build_with_targets`] takes each rank's sources and
+//! its targets (either possibly empty on a rank, the targets anywhere):
+//! the tree is [`ferrofmm_tree::Octree::new`] on all sources and all
+//! targets (the domain covers both; a box is split while `max(#sources,
+//! #targets) > leaf_size`; lists keep entries with sources in rows of
+//! boxes with targets). The FMM on it takes the charges of each rank's
+//! input sources and returns the values at its input targets, in its
+//! input order.
+//!
 //! ```no_run
 //! use ferrofmm_mpi::{DistOptions, DistributedTree};
 //! let universe = mpi::initialize().unwrap();
@@ -70,9 +81,9 @@ pub use accuracy::{
 };
 pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
 pub use error::{DistError, InputProblem, agree_message, agree_options, agree_text};
-pub use ghosts::{Ghost, GhostLayer};
+pub use ghosts::{Ghost, GhostLayer, SeparateTargets};
 pub use inputs::{CHECK_GEOMETRIES, Geometry};
 pub use solver::{Attempt, DistPlan, DistRequest, DistSolution, DistSolver, VERIFY_SAMPLE};
 pub use sort::LocalPoints;
 pub use stats::{BuildStats, PHASES};
-pub use tree::{DistOptions, DistributedTree};
+pub use tree::{DistOptions, DistTargets, DistributedTree};

@@ -11,7 +11,9 @@
 //! points of two ranks. So the cut is moved to a boundary of `B_k`, the
 //! leaf of the (unbalanced) adaptive refinement of all points that holds
 //! `c_k`: the coarsest ancestor of `c_k`'s finest cell holding at most
-//! `leaf_size` points (or the box at `max_level`). All its strict ancestors
+//! `leaf_size` points (or the box at `max_level`; with separate targets,
+//! at most `leaf_size` sources and at most `leaf_size` targets, the tree
+//! crate's rule for two point sets). All its strict ancestors
 //! hold more than `leaf_size` points, so they are split, and `B_k` is a
 //! leaf. The cut goes to `B_k`'s start or its end, whichever is closer in
 //! weight to `k W / R`; a cut is thus at most one leaf (`<= leaf_size`
@@ -35,6 +37,8 @@
 //! replicated on every rank; everything else is refined locally below the
 //! coarsest boxes tiling the rank's range ([`covering_boxes`]).
 
+use std::borrow::Cow;
+
 use ferrofmm_tree::{DEEPEST_LEVEL, MortonKey};
 use mpi::collective::SystemOperation;
 use mpi::traits::*;
@@ -47,9 +51,16 @@ pub const END: u64 = 1 << (3 * DEEPEST_LEVEL);
 
 /// The cuts `cuts[0] = 0 <= cuts[1] <= ... <= cuts[R] = END` (see the
 /// [module docs](self)). `pts` must be globally sorted (rank order).
+///
+/// `first_target`: `None` when the points are sources and targets at once;
+/// in a build with separate targets, the first id of a target (ids below
+/// are sources). A box is then a leaf when `max(#sources, #targets) <=
+/// leaf_size`, the tree crate's rule for two point sets, and the cuts
+/// balance the weight of both.
 pub fn find_cuts<C: Communicator>(
     comm: &C,
     pts: &LocalPoints,
+    first_target: Option<u64>,
     leaf_size: usize,
     max_level: u32,
 ) -> Vec<u64> {
@@ -84,17 +95,28 @@ pub fn find_cuts<C: Communicator>(
     let mut ideal = vec![0u64; size - 1];
     comm.all_reduce_into(&codes[..], &mut ideal[..], SystemOperation::max());
 
-    // Point counts of every ancestor of each ideal code.
+    // Point counts (per point set) of every ancestor of each ideal code.
     let levels = DEEPEST_LEVEL as usize + 1;
-    let count = |key: MortonKey| {
+    let sets: Vec<Cow<[u64]>> = match first_target {
+        None => vec![Cow::Borrowed(&pts.codes)],
+        Some(first) => {
+            let (mut s, mut t) = (Vec::new(), Vec::new());
+            for (&c, &id) in pts.codes.iter().zip(&pts.ids) {
+                if id < first { &mut s } else { &mut t }.push(c);
+            }
+            vec![Cow::Owned(s), Cow::Owned(t)]
+        }
+    };
+    let m = sets.len();
+    let count = |codes: &[u64], key: MortonKey| {
         let r = key.morton_range();
-        let lo = pts.codes.partition_point(|&c| c < r.start);
-        (pts.codes[lo..].partition_point(|&c| c < r.end)) as u64
+        let lo = codes.partition_point(|&c| c < r.start);
+        (codes[lo..].partition_point(|&c| c < r.end)) as u64
     };
     let local: Vec<u64> = ideal
         .iter()
         .flat_map(|&c| (0..levels).map(move |l| MortonKey::from_morton(c, l as u32)))
-        .map(count)
+        .flat_map(|key| sets.iter().map(move |codes| count(codes, key)))
         .collect();
     let mut global = vec![0u64; local.len()];
     comm.all_reduce_into(&local[..], &mut global[..], SystemOperation::sum());
@@ -102,8 +124,12 @@ pub fn find_cuts<C: Communicator>(
         .iter()
         .enumerate()
         .map(|(k, &c)| {
+            let size = |l: usize| {
+                let at = (k * levels + l) * m;
+                global[at..at + m].iter().copied().max().unwrap_or(0)
+            };
             let l = (0..levels)
-                .find(|&l| global[k * levels + l] <= leaf_size as u64 || l as u32 >= max_level)
+                .find(|&l| size(l) <= leaf_size as u64 || l as u32 >= max_level)
                 .unwrap_or(levels - 1);
             MortonKey::from_morton(c, l as u32)
         })

@@ -60,19 +60,19 @@ impl LocalPoints {
     }
 
     /// The points of `points` (validated, inside `domain`) sorted with the
-    /// tree crate's sort; `first_id` is the global id of the first one.
+    /// tree crate's sort; `id_of(i)` is the global id of point `i`.
     pub(crate) fn sorted_local(
         points: &[f64],
         weights: Option<&[f64]>,
         domain: &Domain,
-        first_id: u64,
+        id_of: impl Fn(usize) -> u64,
     ) -> Self {
         let (codes, perm) = morton_order(points, domain).expect("points validated before sorting");
         let mut coords = Vec::with_capacity(points.len());
         for &i in &perm {
             coords.extend_from_slice(&points[3 * i..3 * i + 3]);
         }
-        let ids = perm.iter().map(|&i| first_id + i as u64).collect();
+        let ids = perm.iter().map(|&i| id_of(i)).collect();
         let weights = match weights {
             Some(w) => perm.iter().map(|&i| w[i]).collect(),
             None => vec![1.0; perm.len()],
@@ -83,6 +83,25 @@ impl LocalPoints {
             ids,
             weights,
         }
+    }
+
+    /// Splits points whose ids number sources `0 .. first_target` and
+    /// targets from `first_target` on (a build with separate targets) into
+    /// the sources and the targets, each still sorted, the targets' ids
+    /// made positions among the targets (`id - first_target`).
+    pub(crate) fn split_targets(self, first_target: u64) -> (Self, Self) {
+        let mut sets = [LocalPoints::default(), LocalPoints::default()];
+        for i in 0..self.len() {
+            let target = self.ids[i] >= first_target;
+            let p = &mut sets[usize::from(target)];
+            p.codes.push(self.codes[i]);
+            p.coords.extend_from_slice(&self.coords[3 * i..3 * i + 3]);
+            p.ids
+                .push(self.ids[i] - if target { first_target } else { 0 });
+            p.weights.push(self.weights[i]);
+        }
+        let [sources, targets] = sets;
+        (sources, targets)
     }
 
     fn key(&self, i: usize) -> (u64, u64) {

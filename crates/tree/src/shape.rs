@@ -146,19 +146,47 @@ impl MortonCodes {
     /// assert_eq!(codes.sources(), &[3, 3, 7]);
     /// assert!(MortonCodes::from_codes(d, vec![u64::MAX]).is_err());
     /// ```
-    pub fn from_codes(domain: Domain, mut codes: Vec<u64>) -> Result<Self, TreeError> {
+    pub fn from_codes(domain: Domain, codes: Vec<u64>) -> Result<Self, TreeError> {
+        Self::from_code_sets(domain, codes, None)
+    }
+
+    /// As [`MortonCodes::from_codes`] with the codes of the sources and,
+    /// when they are another set, of the targets (either may be empty: a
+    /// process of a distributed build may hold no source or no target).
+    /// The refinement then splits a box while `max(#sources, #targets)`
+    /// exceeds the leaf size, as [`Octree::new`](crate::Octree::new) with
+    /// targets does.
+    ///
+    /// # Errors
+    /// [`TreeError::InvalidCode`] for a code `>= 8^D` in either set (the
+    /// index counts the sources first, then the targets).
+    ///
+    /// ```
+    /// use ferrofmm_tree::{Domain, MortonCodes};
+    /// let d = Domain::new([0.0; 3], 1.0).unwrap();
+    /// let codes = MortonCodes::from_code_sets(d, vec![7, 3], Some(vec![5])).unwrap();
+    /// assert_eq!((codes.sources(), codes.targets()), (&[3, 7][..], &[5][..]));
+    /// let none = MortonCodes::from_code_sets(d, Vec::new(), Some(vec![2])).unwrap();
+    /// assert_eq!(none.n_sources(), 0);
+    /// ```
+    pub fn from_code_sets(
+        domain: Domain,
+        mut sources: Vec<u64>,
+        mut targets: Option<Vec<u64>>,
+    ) -> Result<Self, TreeError> {
         let limit = MortonKey::ROOT.morton_range().end;
-        if let Some(index) = codes.iter().position(|&c| c >= limit) {
-            return Err(TreeError::InvalidCode {
-                index,
-                code: codes[index],
-            });
+        let all = sources.iter().chain(targets.iter().flatten());
+        if let Some((index, &code)) = all.enumerate().find(|&(_, &c)| c >= limit) {
+            return Err(TreeError::InvalidCode { index, code });
         }
-        codes.par_sort_unstable();
+        sources.par_sort_unstable();
+        if let Some(t) = targets.as_mut() {
+            t.par_sort_unstable();
+        }
         Ok(MortonCodes {
             domain,
-            sources: codes,
-            targets: None,
+            sources,
+            targets,
         })
     }
 

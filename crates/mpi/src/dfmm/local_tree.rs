@@ -5,7 +5,10 @@
 //! the ghost boxes received and their ancestors), in the tree's order.
 //! Sources: this rank's points and the points of the ghost leaves its U and
 //! X lists reference, merged along the Morton curve (so every box's points
-//! are one range). Targets: this rank's points only.
+//! are one range). Targets: this rank's points only (its targets, in a
+//! tree built with separate targets). The ghost layer's lists are already
+//! pruned as the single-machine tree's (entries with sources, rows of
+//! boxes with targets), so the rows below are subsets of global rows.
 //!
 //! Lists (rows the passes follow):
 //!

@@ -8,7 +8,14 @@
 //!
 //! 1. **Charges to owners** (`dfmm/route.rs`): each rank's charges, given in its
 //!    input order, go to the ranks that hold the points (skipped by
-//!    [`DistributedFmm::evaluate_sorted`]).
+//!    [`DistributedFmm::evaluate_sorted`]). With separate targets
+//!    ([`DistributedTree::build_with_targets`]) the charges are those of
+//!    the rank's input sources: the tree was built on the union of sources
+//!    and targets (a box exists when it holds either, and is split while
+//!    `max(#sources, #targets) > leaf_size`), each rank's range holds
+//!    both kinds, and the lists are pruned as on one machine (entries
+//!    holding sources, in rows of boxes holding targets), so the ghosts
+//!    below are boxes with sources and only sources' charges travel.
 //! 2. **Upward** (P2M, M2M) on the rank's tree with the ghost points'
 //!    charges set to zero: the multipoles of the rank's own boxes are
 //!    complete (all their points are here); those of the coarse boxes (which
@@ -36,8 +43,13 @@
 //!    docs/distributed.md for why not gathered on one rank). The rank's own
 //!    boxes then get their locals from whole parents. Where a sum has no
 //!    share (no V or X entry anywhere) or no rank reads it, nothing is sent.
-//! 6. **Leaf passes** (L2P, M2P, P2P) at the rank's leaves.
-//! 7. **Values back** to the ranks that gave the points, in their order.
+//! 6. **Leaf passes** (L2P, M2P, P2P) at the rank's leaves, for its
+//!    targets: `phi(y) = sum_{x in U(B)} K(y, x) q_x + sum_{A in W(B)}
+//!    K(y, x_equiv_A) u_A + K(y, x_equiv_B) d_B` for a target `y` of leaf
+//!    `B` (its points, or its own targets with separate targets).
+//! 7. **Values back** to the ranks that gave the targets, in their order:
+//!    the points' values, or with separate targets those of each rank's
+//!    input targets (a second routing, built from the targets' ids).
 //!
 //! The tree, the ghost points, the plans and the operators are made once
 //! ([`DistributedFmm::build`]); each evaluation only moves multipoles,
@@ -115,6 +127,9 @@ pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     plan: GhostPlan,
     coarse_plan: CoarsePlan,
     route: Route,
+    /// The routing of the values when the targets are not the points
+    /// (`None`: `route`).
+    target_route: Option<Route>,
     /// Merged source position of each of this rank's points (tree order).
     own_pos: Vec<usize>,
     /// Merged source position of each ghost point.
@@ -123,6 +138,9 @@ pub struct DistributedFmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     /// same sequence on every rank).
     coarse: Vec<usize>,
     n_owned: usize,
+    /// This rank's targets in the tree (its points, without separate
+    /// targets).
+    n_targets: usize,
     /// Values per point in the charge vectors (`c` per charge, `3 c` per
     /// dipole for a kernel with `c` components).
     nq: usize,
@@ -167,9 +185,16 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let t = Instant::now();
         let kinds = local_tree::kinds(dtree);
         let plan = GhostPlan::make(comm, dtree, &kinds);
-        let route = Route::make(comm, dtree);
+        let route = Route::make(comm, &dtree.points.ids, &dtree.input_counts);
+        let target_route = dtree
+            .targets
+            .as_ref()
+            .map(|t| Route::make(comm, &t.points.ids, &t.input_counts));
+        let targets = dtree.targets.as_ref().map_or(&dtree.points, |t| &t.points);
         let plan = agree_message(comm, plan)?;
-        setup.bytes_sent = plan.setup_bytes + route.setup_bytes;
+        setup.bytes_sent = plan.setup_bytes
+            + route.setup_bytes
+            + target_route.as_ref().map_or(0, |r| r.setup_bytes);
         setup.ghost_points = plan.n_points();
         (setup.send_partners, setup.recv_partners) = plan.partners();
         setup.seconds[0] = t.elapsed().as_secs_f64();
@@ -178,7 +203,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let lists = local_tree::rows(dtree, &kinds, me);
         let own_codes = &dtree.points.codes;
         let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
-        let tree = local_tree::octree(dtree, lists, &codes, own_codes);
+        let tree = local_tree::octree(dtree, lists, &codes, &targets.codes);
         let tree = agree_message(comm, tree)?;
         let mut sources = vec![0.0; 3 * codes.len()];
         for (k, &p) in own_pos.iter().enumerate() {
@@ -203,7 +228,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let local = LocalTree {
             tree,
             sources: &sources,
-            targets: Some(&dtree.points.coords),
+            targets: Some(&targets.coords),
             depth,
             usage: &usage,
         };
@@ -241,10 +266,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
             plan,
             coarse_plan,
             route,
+            target_route,
             own_pos,
             ghost_pos,
             coarse,
             n_owned: dtree.points.len(),
+            n_targets: targets.len(),
             nq,
             setup,
         })
@@ -256,6 +283,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
     /// point (one charge for a scalar kernel; `[re, im]` for Helmholtz; a
     /// force for Stokes), [`Kernel::values_per_target`] values out per
     /// point, interleaved, as [`ferrofmm_fmm::Fmm::evaluate`].
+    ///
+    /// On a tree built with separate targets
+    /// ([`DistributedTree::build_with_targets`]), the densities are those
+    /// of this rank's input sources, in its input order, and the values
+    /// those at its input targets, in its input order of targets
+    /// ([`DistributedFmm::n_input_targets`] of them; none on a rank that
+    /// gave no target).
     ///
     /// # Errors
     /// [`DistError::BadInput`] with [`InputProblem::BadCharges`] on every
@@ -275,13 +309,16 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         stats.merge(&inner);
         let t = Instant::now();
         let w = self.fmm.kernel().values_per_target(self.fmm.mode());
-        let (out, bytes) = self.route.values_out(comm, &values, w);
+        let route = self.target_route.as_ref().unwrap_or(&self.route);
+        let (out, bytes) = route.values_out(comm, &values, w);
         stats.add(7, t, bytes);
         Ok((out, stats))
     }
 
     /// As [`DistributedFmm::evaluate`] with charges and values in the
-    /// order of this rank's points in the tree (`dtree.points`): no routing,
+    /// order of this rank's points in the tree (`dtree.points`; with
+    /// separate targets, the values in the order of `dtree.targets`'
+    /// points): no routing,
     /// only the FMM's own communication (what an iterative solver that keeps
     /// its vectors distributed along the tree needs).
     ///
@@ -379,9 +416,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         &self.fmm
     }
 
-    /// Number of points this rank holds in the tree.
+    /// Number of points (sources) this rank holds in the tree.
     pub fn n_owned(&self) -> usize {
         self.n_owned
+    }
+
+    /// Number of targets this rank holds in the tree (the length of
+    /// [`DistributedFmm::evaluate_sorted`]'s result, per value): its
+    /// points, unless the tree was built with separate targets.
+    pub fn n_targets(&self) -> usize {
+        self.n_targets
+    }
+
+    /// Number of targets this rank gave the tree build (the length of
+    /// [`DistributedFmm::evaluate`]'s result, per value): its input points,
+    /// unless the tree was built with separate targets.
+    pub fn n_input_targets(&self) -> usize {
+        self.target_route.as_ref().unwrap_or(&self.route).n_input
     }
 
     /// Values per point in the charge vectors

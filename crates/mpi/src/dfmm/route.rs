@@ -10,11 +10,13 @@
 //! the number of points a rank holds, not with the surface of its range:
 //! a solver that keeps its vectors in the tree's order avoids it
 //! ([`super::DistributedFmm::evaluate_sorted`]).
+//!
+//! With separate targets there are two routings: the sources' for the
+//! charges and the targets' for the values.
 
 use ferrofmm_kernels::Real;
 use mpi::traits::*;
 
-use crate::DistributedTree;
 use crate::exchange::all_to_all;
 
 /// The routing of one rank (see the [module docs](self)).
@@ -33,18 +35,20 @@ pub(crate) struct Route {
 }
 
 impl Route {
-    /// Makes the routing (a collective).
-    pub(crate) fn make<C: Communicator>(comm: &C, dtree: &DistributedTree) -> Self {
+    /// Makes the routing of the points whose global ids this rank holds in
+    /// tree order (`ids`; `input_counts`: how many points each rank gave,
+    /// which numbers the ids). A collective.
+    pub(crate) fn make<C: Communicator>(comm: &C, ids: &[u64], input_counts: &[u64]) -> Self {
         let size = comm.size() as usize;
         let me = comm.rank() as usize;
         let mut first = Vec::with_capacity(size + 1);
         first.push(0u64);
-        for &c in &dtree.input_counts {
+        for &c in input_counts {
             first.push(first.last().copied().unwrap_or(0) + c);
         }
         let mut by_origin = vec![Vec::new(); size];
         let mut ask = vec![Vec::new(); size];
-        for (k, &id) in dtree.points.ids.iter().enumerate() {
+        for (k, &id) in ids.iter().enumerate() {
             let s = first
                 .partition_point(|&f| f <= id)
                 .saturating_sub(1)
@@ -62,7 +66,7 @@ impl Route {
         Route {
             by_origin,
             by_owner,
-            n_input: dtree.input_counts.get(me).copied().unwrap_or(0) as usize,
+            n_input: input_counts.get(me).copied().unwrap_or(0) as usize,
             setup_bytes,
         }
     }
