@@ -21,7 +21,7 @@ use ferrofmm_io::Contents;
 /// Arguments of `eval`.
 #[derive(Args)]
 pub struct EvalArgs {
-    /// Source points (also the targets): .npy (N x 3, float64 or float32;
+    /// Source points (also the targets, unless --targets): .npy (N x 3, float64 or float32;
     /// of a C-order file each rank reads only its rows), raw .f64
     /// (little-endian float64, x, y, z per point; each rank reads only
     /// its rows) or .csv (x,y,z per line; every rank reads the file and
@@ -40,6 +40,12 @@ pub struct EvalArgs {
     /// vectors alone); with --charges, both.
     #[arg(long, value_name = "FILE")]
     pub(crate) dipoles: Option<PathBuf>,
+    /// Separate targets (the same formats as --sources; each rank reads
+    /// its rows): the values are computed there, for the charges at the
+    /// sources, and --out holds one row per target in this file's order.
+    /// Targets may lie anywhere (the tree's cube covers both sets).
+    #[arg(long, value_name = "FILE", conflicts_with = "generate")]
+    pub(crate) targets: Option<PathBuf>,
     /// Output file, .npy or .csv: the potential (c columns), and the
     /// gradient (3c more) with --gradients, float64, in the input order
     /// (complex128, one column per quantity, after a complex .npy input).
@@ -122,6 +128,8 @@ pub struct EvalArgs {
 /// per point), as read or generated.
 struct Inputs {
     points: Vec<f64>,
+    /// Separate targets (`None`: the points).
+    targets: Option<Vec<f64>>,
     densities: Vec<f64>,
     kind: SourceKind,
     /// The densities came as a complex `.npy` array: a `.npy` output is
@@ -156,6 +164,7 @@ fn inputs(
         }
         return Ok(Inputs {
             points: geom.points::<f64>(n, 1000 + me as u64),
+            targets: None,
             densities: ferrofmm_fmm::charges(c * n, 2000 + me as u64),
             kind: SourceKind::Charge,
             complex: false,
@@ -186,6 +195,10 @@ fn inputs(
         }
         Ok(Some(v))
     };
+    let targets = match &a.targets {
+        Some(t) => Some(agree_text(world, read_slice(&reader, t, Contents::Points, me, size))?.0),
+        None => None,
+    };
     let charges = read(&a.charges, Contents::charges(c, complex))?;
     let dipoles = read(&a.dipoles, Contents::dipoles(c, complex))?;
     let (kind, densities) = match (charges, dipoles) {
@@ -202,6 +215,7 @@ fn inputs(
     };
     Ok(Inputs {
         points,
+        targets,
         densities,
         kind,
         complex: complex_file,
@@ -220,6 +234,7 @@ fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
         ("--sources", path(&a.sources)),
         ("--charges", path(&a.charges)),
         ("--dipoles", path(&a.dipoles)),
+        ("--targets", path(&a.targets)),
         ("--out", path(&a.out)),
         ("--generate", given(a.generate.as_ref())),
         ("--n", a.n.to_string()),
@@ -248,6 +263,7 @@ fn check_output(a: &EvalArgs) -> Result<(), String> {
         ("--sources", &a.sources),
         ("--charges", &a.charges),
         ("--dipoles", &a.dipoles),
+        ("--targets", &a.targets),
     ]
     .into_iter()
     .filter_map(|(flag, p)| p.as_deref().map(|p| (flag, p)))
@@ -356,11 +372,16 @@ fn go(
     let request = request(a, kernel, input.kind)?;
     let Inputs {
         points,
+        targets,
         densities,
         complex,
         ..
     } = input;
-    let mut solver = DistSolver::build(world, points, request).map_err(|e| e.to_string())?;
+    let solver = match targets {
+        None => DistSolver::build(world, points, request),
+        Some(t) => DistSolver::build_with_targets(world, points, t, request),
+    };
+    let mut solver = solver.map_err(|e| e.to_string())?;
     let mut last = None;
     let mut verified = None;
     for _ in 0..a.repeats.max(1) {
@@ -419,8 +440,10 @@ fn go(
     }
     let tree = solver.tree();
     if let Some(out) = &a.out {
-        let first: u64 = tree.input_counts[..me].iter().sum();
-        let total: u64 = tree.input_counts.iter().sum();
+        // One row per target (the points, or the --targets rows).
+        let counts = solver.target_counts();
+        let first: u64 = counts[..me].iter().sum();
+        let total: u64 = counts.iter().sum();
         let names = ferrofmm_io::column_names(
             solver.request().mode.values_per_target(),
             kernel.component_names(),

@@ -21,7 +21,7 @@
 //!    order. The first evaluation of a tolerance is **verified**: the
 //!    relative L2 errors of potential and gradient at `k` targets sampled
 //!    over the global input order are measured against direct summation
-//!    over all points ([`sampled_errors`]; `k = 200` unless the request
+//!    over all points ([`crate::sampled_errors`]; `k = 200` unless the request
 //!    says), and while the larger of the two exceeds `eps` the order is
 //!    raised by one (the tree is kept, the operators rebuilt) at most
 //!    [`MAX_VERIFY_RETRIES`] times; a tolerance still missed is said so
@@ -45,7 +45,7 @@ use mpi::traits::*;
 use crate::error::agree_message;
 use crate::{
     DistChoice, DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, EvalStats,
-    SetupStats, choose_parameters, sampled_errors,
+    SetupStats, choose_parameters, sampled_errors_at,
 };
 
 /// Targets a verification samples when the request does not say.
@@ -170,6 +170,8 @@ pub struct DistSolver<C: Communicator + 'static> {
     plan: DistPlan,
     tree: DistributedTree,
     points: Vec<f64>,
+    /// Separate targets (`None`: the points are the targets).
+    targets: Option<Vec<f64>>,
     engine: Box<dyn Engine<C> + Send + Sync>,
     cache: CacheLocation,
     attempts: Vec<Attempt>,
@@ -178,14 +180,43 @@ pub struct DistSolver<C: Communicator + 'static> {
 
 impl<C: Communicator + 'static> DistSolver<C> {
     /// Plans and builds the run for this rank's `points` (interleaved
-    /// `xyz`, any number including none). A collective.
+    /// `xyz`, any number including none), which are also the targets (a
+    /// point does not act on itself). A collective.
     ///
     /// # Errors
     /// The same [`DistError`] on every rank: requests that differ between
     /// ranks, bad points on any rank, a tolerance out of reach, a kernel
     /// that does not take the sources, an FMM setup error.
     pub fn build(comm: &C, points: Vec<f64>, request: DistRequest) -> Result<Self, DistError> {
-        crate::agree_options(comm, &request.describe())
+        Self::build_for(comm, points, None, request)
+    }
+
+    /// As [`DistSolver::build`] with this rank's own `targets` (anywhere:
+    /// the tree's cube covers sources and targets; either set may be empty
+    /// on a rank). [`DistSolver::evaluate`] then returns the values at this
+    /// rank's targets, in their input order. A collective.
+    ///
+    /// # Errors
+    /// As [`DistSolver::build`], and bad targets on any rank or no target
+    /// on any rank ([`DistError::NoTargets`]).
+    pub fn build_with_targets(
+        comm: &C,
+        sources: Vec<f64>,
+        targets: Vec<f64>,
+        request: DistRequest,
+    ) -> Result<Self, DistError> {
+        Self::build_for(comm, sources, Some(targets), request)
+    }
+
+    fn build_for(
+        comm: &C,
+        points: Vec<f64>,
+        targets: Option<Vec<f64>>,
+        request: DistRequest,
+    ) -> Result<Self, DistError> {
+        let mut described = request.describe();
+        described.push(("targets", targets.is_some().to_string()));
+        crate::agree_options(comm, &described)
             .map_err(|message| DistError::Fmm { rank: 0, message })?;
         let local = if request
             .kernel
@@ -204,6 +235,7 @@ impl<C: Communicator + 'static> DistSolver<C> {
         request.kernel.visit(Build {
             comm,
             points,
+            targets,
             request,
             cache,
         })
@@ -279,8 +311,9 @@ impl<C: Communicator + 'static> DistSolver<C> {
             self.request.mode,
             &self.points,
             densities,
+            self.targets.as_deref().unwrap_or(&self.points),
             values,
-            samples.min(self.total_points()),
+            samples.min(self.total_targets()),
         )
     }
 
@@ -291,11 +324,12 @@ impl<C: Communicator + 'static> DistSolver<C> {
         } else {
             VERIFY_SAMPLE
         };
-        k.min(self.total_points())
+        k.min(self.total_targets())
     }
 
-    fn total_points(&self) -> usize {
-        let n: u64 = self.tree.input_counts.iter().sum();
+    /// Targets of all ranks (the points, without separate targets).
+    fn total_targets(&self) -> usize {
+        let n: u64 = target_counts(&self.tree).iter().sum();
         usize::try_from(n).unwrap_or(usize::MAX)
     }
 
@@ -322,6 +356,17 @@ impl<C: Communicator + 'static> DistSolver<C> {
     /// This rank's input points (interleaved `xyz`, input order).
     pub fn points(&self) -> &[f64] {
         &self.points
+    }
+
+    /// This rank's separate targets (input order), if any.
+    pub fn targets(&self) -> Option<&[f64]> {
+        self.targets.as_deref()
+    }
+
+    /// The number of targets every rank passed, in rank order (the points,
+    /// without separate targets).
+    pub fn target_counts(&self) -> &[u64] {
+        target_counts(&self.tree)
     }
 
     /// Setup figures of this rank's FMM.
@@ -365,6 +410,7 @@ impl KernelVisitor for Supports {
 struct Build<'a, C> {
     comm: &'a C,
     points: Vec<f64>,
+    targets: Option<Vec<f64>>,
     request: DistRequest,
     cache: CacheLocation,
 }
@@ -376,17 +422,23 @@ impl<C: Communicator + 'static> KernelVisitor for Build<'_, C> {
         let Build {
             comm,
             points,
+            targets,
             request,
             cache,
         } = self;
         let plan = plan(comm, &points, &kernel, &request, cache.dir().is_some())?;
-        let tree = DistributedTree::build(comm, &points, &DistOptions::adaptive(plan.leaf_size))?;
+        let options = DistOptions::adaptive(plan.leaf_size);
+        let tree = match &targets {
+            None => DistributedTree::build(comm, &points, &options)?,
+            Some(t) => DistributedTree::build_with_targets(comm, &points, t, &options)?,
+        };
         let engine = engine_for(comm, &tree, kernel, &plan, &request, &cache)?;
         Ok(DistSolver {
             request,
             plan,
             tree,
             points,
+            targets,
             engine,
             cache,
             attempts: Vec::new(),
@@ -461,8 +513,9 @@ trait Engine<C> {
         comm: &C,
         kind: SourceKind,
         mode: EvalMode,
-        points: &[f64],
+        sources: &[f64],
         densities: &[f64],
+        targets: &[f64],
         values: &[f64],
         samples: usize,
     ) -> [f64; 2];
@@ -578,18 +631,20 @@ where
         comm: &C,
         kind: SourceKind,
         mode: EvalMode,
-        points: &[f64],
+        sources: &[f64],
         densities: &[f64],
+        targets: &[f64],
         values: &[f64],
         samples: usize,
     ) -> [f64; 2] {
-        sampled_errors(
+        sampled_errors_at(
             comm,
             self.local().kernel(),
             kind,
             mode,
-            points,
+            sources,
             densities,
+            targets,
             values,
             samples,
         )
@@ -650,7 +705,7 @@ fn finite_output<C: Communicator, T: Real>(
     let mut largest = 0.0f64;
     comm.all_reduce_into(&local_max, &mut largest, SystemOperation::max());
     let me = comm.rank() as usize;
-    let first: u64 = tree.input_counts[..me].iter().sum();
+    let first: u64 = target_counts(tree)[..me].iter().sum();
     let local = ferrofmm_fmm::check_finite_output(values, per_target, densities).map_err(|e| {
         match e {
             FmmError::NonFiniteResult {
@@ -671,4 +726,12 @@ fn finite_output<C: Communicator, T: Real>(
         .to_string()
     });
     agree_message(comm, local)
+}
+
+/// The number of targets every rank passed (rank order): its separate
+/// targets, or its points.
+fn target_counts(tree: &DistributedTree) -> &[u64] {
+    tree.targets
+        .as_ref()
+        .map_or(&tree.input_counts, |t| &t.input_counts)
 }

@@ -886,3 +886,103 @@ fn eval_reads_every_file_form_as_ferrofmm_eval_does() {
         assert!(!out.exists());
     }
 }
+
+/// `eval --targets`: one output row per target in the targets file's
+/// order, on 1 and 3 ranks the same, equal to the single-machine FMM with
+/// targets (same order and leaf size), and with `--tolerance` the error
+/// against a direct sum at every target below it (targets partly outside
+/// the sources' cube).
+#[test]
+fn eval_with_separate_targets() {
+    use ferrofmm_kernels::{EvalMode, Laplace3d, SourceKind, direct_sum_sources};
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-targets-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = |name: &str| dir.join(name).to_string_lossy().into_owned();
+    let (n, m) = (800, 500);
+    let src: Vec<f64> = (0..3 * n).map(|i| (i as f64 * 0.618_034).fract()).collect();
+    // Targets in a box shifted by half a side: half of them outside.
+    let tgt: Vec<f64> = (0..3 * m)
+        .map(|i| (i as f64 * 0.414_214).fract() + 0.5)
+        .collect();
+    let q: Vec<f64> = (0..n)
+        .map(|i| ((i * 37) % 101) as f64 / 101.0 - 0.5)
+        .collect();
+    write_npy(&path("s.npy"), &src, 3);
+    write_npy(&path("t.npy"), &tgt, 3);
+    write_npy(&path("q.npy"), &q, 1);
+    let run = |ranks: usize, out: &str, extra: &[&str]| {
+        let mut args = vec![
+            "eval",
+            "--sources",
+            &path("s.npy"),
+            "--charges",
+            &path("q.npy"),
+            "--targets",
+            &path("t.npy"),
+            "--gradients",
+        ]
+        .into_iter()
+        .map(String::from)
+        .collect::<Vec<_>>();
+        args.push("--out".into());
+        args.push(path(out));
+        args.extend(extra.iter().map(|s| s.to_string()));
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let (ok, text) = mpirun(ranks, &args);
+        assert!(ok, "{text}");
+        read_columns(&path(out), m, 4)
+    };
+    let rel = |a: &[f64], b: &[f64]| {
+        let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
+        let den: f64 = b.iter().map(|x| x * x).sum();
+        (num / den).sqrt()
+    };
+    // Operators computed here, as the single machine's below (a cached SVD
+    // basis may have been made for another tree's transfer vectors).
+    let fixed = [
+        "--order",
+        "5",
+        "--leaf-size",
+        "30",
+        "--scheme",
+        "svd",
+        "--no-cache",
+    ];
+    let one = run(1, "o1.npy", &fixed);
+    let three = run(3, "o3.npy", &fixed);
+    assert!(rel(&three, &one) <= 1e-12, "{}", rel(&three, &one));
+    // The distributed tree's cube: the bounding cube of sources and targets.
+    let domain = ferrofmm_tree::Domain::from_points(&[&src, &tgt]).unwrap();
+    let single = ferrofmm_fmm::FmmBuilder::new(&src)
+        .targets(&tgt)
+        .domain(domain)
+        .order(5)
+        .leaf_size(30)
+        .mode(EvalMode::PotentialGradient)
+        .build_svd()
+        .unwrap()
+        .evaluate(&q)
+        .unwrap();
+    let mut direct = vec![0.0; 4 * m];
+    direct_sum_sources(
+        &Laplace3d,
+        SourceKind::Charge,
+        EvalMode::PotentialGradient,
+        &src,
+        &q,
+        &tgt,
+        &mut direct,
+    );
+    assert!(
+        rel(&one, &single) <= 1e-12,
+        "{} (against a direct sum: {} and {})",
+        rel(&one, &single),
+        rel(&one, &direct),
+        rel(&single, &direct)
+    );
+    let eps = 1e-5;
+    let checked = run(2, "oe.npy", &["--tolerance", "1e-5"]);
+    let pot = |v: &[f64]| v.chunks(4).map(|r| r[0]).collect::<Vec<_>>();
+    assert!(rel(&pot(&checked), &pot(&direct)) <= eps);
+    assert!(rel(&checked, &direct) <= 2.0 * eps);
+}

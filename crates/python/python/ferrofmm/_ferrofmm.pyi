@@ -134,6 +134,7 @@ class NativeDistFmm:
         self,
         comm: int,
         sources: npt.NDArray[np.float64],
+        targets: Optional[npt.NDArray[np.float64]],
         kernel: str,
         k: Optional[float],
         eps: Optional[float],
@@ -153,7 +154,9 @@ class NativeDistFmm:
     values_per_source: int
     values_per_target: int
     n_sources: int
+    n_targets: int
     input_counts: List[int]
+    target_counts: List[int]
 
 class NativeDistOctree:
     def __init__(

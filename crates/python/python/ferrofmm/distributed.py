@@ -261,15 +261,20 @@ class Fmm:
     """The distributed FMM built once for each rank's points, evaluated many times.
 
     Parameters are those of :class:`ferrofmm.Fmm` with the communicator first; each
-    rank passes its own ``sources`` (``(n, 3)``, any ``n`` including 0). Not (yet):
-    separate ``targets``, Hessians, periodic boxes, ``at_sources``.
+    rank passes its own ``sources`` (``(n, 3)``, any ``n`` including 0) and, optionally,
+    its own ``targets``. Not (yet): Hessians, periodic boxes, ``at_sources``.
 
     Parameters
     ----------
     comm : mpi4py.MPI.Intracomm
         The ranks of the run (every call is a collective over them).
     sources : array_like, shape (n, 3)
-        This rank's points, also the targets (a point does not act on itself).
+        This rank's points, also the targets unless ``targets`` is given (a point does not
+        act on itself).
+    targets : array_like, shape (m, 3), optional
+        This rank's own evaluation points (anywhere: they need not lie near this rank's
+        sources or inside the sources' cube; ``m = 0`` is fine). Give them on every rank
+        or on none. Each rank gets the values at its own targets, in their order.
     kernel : {"laplace", "yukawa", "helmholtz", "stokes"}
         As :class:`ferrofmm.Fmm`; ``k`` for yukawa and helmholtz.
     eps, order, leaf_size, scheme, verify, gradient, charges, dipoles, cache, cache_dir
@@ -309,12 +314,8 @@ class Fmm:
         comm = _communicator(comm)
 
         def check() -> Dict[str, Any]:
-            if targets is not None:
-                raise ValueError(
-                    "separate targets are not available in ferrofmm.distributed yet: evaluate "
-                    "at the sources (targets=None)"
-                )
             src = _points("sources", sources, allow_empty=True)
+            tgt = None if targets is None else _points("targets", targets, allow_empty=True)
             with_charges, with_dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
             if not (with_charges or with_dipoles):
                 raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
@@ -328,7 +329,9 @@ class Fmm:
             folder, default_cache = _cache(cache, cache_dir)
             return dict(
                 src=_flat64(src),
+                tgt=None if tgt is None else _flat64(tgt),
                 n=len(src),
+                m=len(src) if tgt is None else len(tgt),
                 run=run,
                 eps=None if eps is None and order is not None else
                 float(DEFAULT_EPS[run] if eps is None else eps),
@@ -346,16 +349,23 @@ class Fmm:
             )
 
         a = _agreed(comm, check)
+        given = comm.allgather(a["tgt"] is not None)
+        if any(given) != all(given):
+            raise ValueError(
+                "targets must be given on every rank or on none (an empty (0, 3) array on a "
+                f"rank without targets); given on ranks {[r for r, g in enumerate(given) if g]}"
+            )
         source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
             (a["charges"], a["dipoles"])
         ]
         self._comm = comm
         self._native = _ferrofmm.NativeDistFmm(
-            comm.py2f(), a["src"], kernel, a["k"], a["eps"], a["order"], a["leaf_size"], scheme,
+            comm.py2f(), a["src"], a["tgt"], kernel, a["k"], a["eps"], a["order"], a["leaf_size"], scheme,
             a["gradient"], a["verify"], a["samples"], a["threads"], a["cache_dir"],
             a["default_cache"], source, str(a["run"]),
         )
         self._n = a["n"]
+        self._m = a["m"]
         self._dtype = a["run"]
         self._kernel = kernel
         self._gradient = a["gradient"]
@@ -369,6 +379,11 @@ class Fmm:
         return self._n
 
     @property
+    def n_targets(self) -> int:
+        """Number of this rank's targets (its sources without separate targets)."""
+        return self._m
+
+    @property
     def dtype(self) -> np.dtype:
         """Float type of the run."""
         return self._dtype
@@ -379,8 +394,8 @@ class Fmm:
         return np.array(self._native.input_counts, dtype=np.int64)
 
     def evaluate(self, charges: Any = None, dipoles: Any = None) -> FmmResult:
-        """Potentials (and gradients) at this rank's sources for their densities (a
-        collective: every rank passes its own).
+        """Potentials (and gradients) at this rank's targets for the densities of its
+        sources (a collective: every rank passes its own).
 
         ``charges`` is ``(n,)`` or ``(k, n)`` for ``k`` vectors (evaluated one after
         another); ``dipoles`` ``(n, 3)`` or ``(k, n, 3)``, as :meth:`ferrofmm.Fmm.evaluate`.
@@ -436,14 +451,14 @@ class Fmm:
                 stacklevel=3,
             )
         potential, gradient, _ = _shape_values(
-            self._kernel, flat, k, self._n, self._gradient, False, batched
+            self._kernel, flat, k, self._m, self._gradient, False, batched
         )
         return FmmResult(potential, gradient, info)
 
     def __repr__(self) -> str:
         return (
             f"distributed.Fmm(rank {self._comm.Get_rank()} of {self._comm.Get_size()}, "
-            f"n_sources={self._n}, dtype={self._dtype})"
+            f"n_sources={self._n}, n_targets={self._m}, dtype={self._dtype})"
         )
 
 

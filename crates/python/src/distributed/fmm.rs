@@ -36,12 +36,13 @@ struct State {
 #[pymethods]
 impl NativeDistFmm {
     #[new]
-    #[pyo3(signature = (comm, sources, kernel, k, eps, order, leaf_size, scheme, gradient, verify, samples, threads, cache_dir, cache, source, dtype))]
+    #[pyo3(signature = (comm, sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, samples, threads, cache_dir, cache, source, dtype))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
         comm: i64,
         sources: PyReadonlyArray1<'_, f64>,
+        targets: Option<PyReadonlyArray1<'_, f64>>,
         kernel: &str,
         k: Option<f64>,
         eps: Option<f64>,
@@ -98,8 +99,14 @@ impl NativeDistFmm {
             .map_err(PyValueError::new_err)?;
         let work = Work::new(adopted, threads)?;
         let points = sources.as_slice()?.to_vec();
+        let targets = targets
+            .map(|t| t.as_slice().map(<[f64]>::to_vec))
+            .transpose()?;
         let solver = work
-            .run(py, |comm| DistSolver::build(comm, points, request))
+            .run(py, |comm| match targets {
+                None => DistSolver::build(comm, points, request),
+                Some(t) => DistSolver::build_with_targets(comm, points, t, request),
+            })
             .map_err(dist_error)?;
         Ok(NativeDistFmm {
             state: Mutex::new(State { solver, work }),
@@ -107,9 +114,9 @@ impl NativeDistFmm {
     }
 
     /// Evaluate the densities of this rank's sources (flat, input order,
-    /// `values_per_source` per point); returns the flat values (input
-    /// order, `values_per_target` per point) and a JSON report. A
-    /// collective.
+    /// `values_per_source` per point); returns the flat values at this
+    /// rank's targets (input order, `values_per_target` per target) and a
+    /// JSON report. A collective.
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
@@ -189,6 +196,20 @@ impl NativeDistFmm {
     #[getter]
     fn input_counts(&self) -> PyResult<Vec<u64>> {
         Ok(self.lock()?.solver.tree().input_counts.clone())
+    }
+
+    /// Targets of this rank (its points, without separate targets).
+    #[getter]
+    fn n_targets(&self) -> PyResult<usize> {
+        let state = self.lock()?;
+        let solver = &state.solver;
+        Ok(solver.targets().unwrap_or(solver.points()).len() / 3)
+    }
+
+    /// Targets every rank passed, in rank order.
+    #[getter]
+    fn target_counts(&self) -> PyResult<Vec<u64>> {
+        Ok(self.lock()?.solver.target_counts().to_vec())
     }
 }
 
