@@ -1,7 +1,7 @@
 //! `NativeOctree`: the linear adaptive octree of `ferrofmm-tree` with its
 //! arrays handed to NumPy.
 
-use ferrofmm_tree::{Csr, Octree, TreeOptions};
+use ferrofmm_tree::{Csr, InteractionLists, Octree, TreeOptions};
 use numpy::{PyArray1, PyArray2, PyArrayMethods};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -192,21 +192,24 @@ impl NativeOctree {
                 "this tree was built with balance=False: interaction lists need a 2:1-balanced tree",
             ));
         }
-        let lists = self.tree.interaction_lists();
-        let csr: &Csr = match kind {
-            "u" => &lists.u,
-            "v" => &lists.v,
-            "w" => &lists.w,
-            "x" => &lists.x,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown interaction list {other:?}: use \"u\", \"v\", \"w\" or \"x\""
-                )));
-            }
-        };
+        let csr = list_of(self.tree.interaction_lists(), kind)?;
         Ok((
             usize_array(py, csr.offsets().iter().copied()),
             usize_array(py, csr.indices().iter().copied()),
         ))
+    }
+}
+
+/// The interaction list `kind` names (`"u"`, `"v"`, `"w"`, `"x"`), or
+/// `ValueError`.
+pub(crate) fn list_of<'a>(lists: &'a InteractionLists, kind: &str) -> PyResult<&'a Csr> {
+    match kind {
+        "u" => Ok(&lists.u),
+        "v" => Ok(&lists.v),
+        "w" => Ok(&lists.w),
+        "x" => Ok(&lists.x),
+        other => Err(PyValueError::new_err(format!(
+            "unknown interaction list {other:?}: use \"u\", \"v\", \"w\" or \"x\""
+        ))),
     }
 }

@@ -2,7 +2,7 @@
 //! `ferrofmm-mpi` ([`DistributedTree`]) with its arrays handed to NumPy.
 
 use ferrofmm_mpi::{DistOptions, DistributedTree, PHASES, agree_text};
-use ferrofmm_tree::{Csr, MortonKey};
+use ferrofmm_tree::MortonKey;
 use mpi::traits::*;
 use numpy::{PyArray1, PyArray2, PyArrayMethods, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
@@ -10,7 +10,7 @@ use pyo3::prelude::*;
 
 use super::comm::AdoptedComm;
 use super::{Work, dist_error};
-use crate::octree::{CsrArrays, usize_array};
+use crate::octree::{CsrArrays, list_of, usize_array};
 
 /// One rank's boxes, points, ghosts and lists. The public wrapper is
 /// `ferrofmm.distributed.Octree`.
@@ -183,18 +183,7 @@ impl NativeDistOctree {
     /// indices)`; the rows of this rank's boxes are those of the
     /// single-machine tree. `kind` is `"u"`, `"v"`, `"w"` or `"x"`.
     fn list_csr<'py>(&self, py: Python<'py>, kind: &str) -> PyResult<CsrArrays<'py>> {
-        let lists = &self.tree.ghosts.lists;
-        let csr: &Csr = match kind {
-            "u" => &lists.u,
-            "v" => &lists.v,
-            "w" => &lists.w,
-            "x" => &lists.x,
-            other => {
-                return Err(PyValueError::new_err(format!(
-                    "unknown interaction list {other:?}: use \"u\", \"v\", \"w\" or \"x\""
-                )));
-            }
-        };
+        let csr = list_of(&self.tree.ghosts.lists, kind)?;
         Ok((
             usize_array(py, csr.offsets().iter().copied()),
             usize_array(py, csr.indices().iter().copied()),
