@@ -29,7 +29,12 @@ for n in 1 2 3 4; do
   # Every rank runs the same tests and asserts on the same gathered data,
   # so rank 0's report speaks for all (the others' stdout is dropped; their
   # errors and exit codes are not). A hang (a bug) is cut off.
+  # Each rank has its own pytest temporary folder (they would race to
+  # clean a shared one).
+  base="$(mktemp -d)"
   timeout 900 mpirun --oversubscribe -n "$n" sh -c '
-    if [ "${OMPI_COMM_WORLD_RANK:-${PMI_RANK:-0}}" = 0 ]; then exec "$@"; else exec "$@" >/dev/null; fi
-  ' sh "$venv/bin/python" -m pytest tests/distributed -q -p no:cacheprovider "$@"
+    r="${OMPI_COMM_WORLD_RANK:-${PMI_RANK:-0}}"
+    if [ "$r" = 0 ]; then exec "$@" --basetemp="$0/rank$r"; else exec "$@" --basetemp="$0/rank$r" >/dev/null; fi
+  ' "$base" "$venv/bin/python" -m pytest tests/distributed -q -p no:cacheprovider "$@"
+  rm -rf "$base"
 done
