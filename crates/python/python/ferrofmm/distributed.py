@@ -130,6 +130,14 @@ def _agreed(comm: Any, check: Callable[[], _T]) -> _T:
     except tuple(_AGREED.values()) as e:
         value, failure = None, (type(e).__name__, str(e))
     failures = comm.allgather(failure)
+    if not all(
+        f is None or (isinstance(f, tuple) and len(f) == 2 and f[0] in _AGREED) for f in failures
+    ):
+        raise RuntimeError(
+            "the ranks are out of step: another collective call on this communicator met "
+            "ferrofmm's check of the arguments; every rank must make the same collective calls "
+            "in the same order"
+        )
     for rank, f in enumerate(failures):
         if f is not None:
             kind, message = f

@@ -233,3 +233,15 @@ def test_bad_input_on_one_rank_is_the_same_error_everywhere():
 def test_every_rank_empty_is_an_error():
     with pytest.raises(ValueError, match="no points"):
         fd.laplace(COMM, np.zeros((0, 3)), np.zeros(0), order=4, cache=False)
+
+
+def test_ranks_out_of_step_are_told_not_misread():
+    """A user's collective that meets ferrofmm's argument check on other ranks is an error
+    there (RuntimeError), not a garbled check."""
+    if SIZE == 1:
+        pytest.skip("needs two ranks")
+    if RANK == 0:
+        COMM.allgather(["the", "caller's", "own", "data"])
+    else:
+        with pytest.raises(RuntimeError, match="out of step"):
+            fd.Fmm(COMM, np.random.default_rng(RANK).random((10, 3)), order=4, cache=False)
