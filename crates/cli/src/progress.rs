@@ -6,7 +6,7 @@
 //! its spinner becomes a bar with an ETA; `sweep` shows a bar over its
 //! configurations. When
 //! stderr is redirected (a pipe, a file, a test harness, a sweep's child
-//! process) nothing is drawn at all.
+//! process), or with `--quiet` ([`set_quiet`]), nothing is drawn at all.
 
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -16,9 +16,24 @@ use ferrofmm_fmm::PrecomputeProgress;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Draw target: stderr when it is a terminal, hidden otherwise.
+/// `--quiet`: no progress, no report (errors and warnings still print).
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Silence progress (and, through [`quiet`], the report) for the rest of
+/// the process: `--quiet`.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+/// Whether `--quiet` was given.
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
+/// Draw target: stderr when it is a terminal and not `--quiet`, hidden
+/// otherwise.
 fn target() -> ProgressDrawTarget {
-    if std::io::stderr().is_terminal() {
+    if !quiet() && std::io::stderr().is_terminal() {
         ProgressDrawTarget::stderr()
     } else {
         ProgressDrawTarget::hidden()
