@@ -1,6 +1,7 @@
-//! `--quiet` and progress output (issue 36): progress is drawn on stderr
-//! only when it is a terminal; `--quiet` silences progress and the report,
-//! never errors or warnings, and keeps the JSON asked for with `--json`.
+//! `--quiet` and progress output (issue 36): progress (the evaluation's a
+//! bar with the time left) is drawn on stderr only when it is a terminal;
+//! `--quiet` silences progress and the report, never errors or warnings,
+//! and keeps the JSON asked for with `--json`.
 
 use crate::common;
 
@@ -115,8 +116,25 @@ fn on_a_terminal(args: &[&str]) -> Option<String> {
 #[cfg(unix)]
 #[test]
 fn progress_on_a_terminal_and_none_with_quiet() {
-    // Fresh operators (no cache) and a few repeats: long enough to draw.
-    let args = demo_args(&["--json", "--no-cache", "--repeats", "3", "-t", "1"]);
+    // Fresh operators (no cache), a tree and a few repeats: long enough
+    // to draw.
+    let args = [
+        "demo",
+        "-n",
+        "20000",
+        "-p",
+        "4",
+        "--leaf-size",
+        "64",
+        "--check",
+        "0",
+        "--json",
+        "--no-cache",
+        "--repeats",
+        "3",
+        "-t",
+        "1",
+    ];
     let Some(shown) = on_a_terminal(&args) else {
         eprintln!("skipped: util-linux `script` is not available");
         return;
@@ -124,11 +142,18 @@ fn progress_on_a_terminal_and_none_with_quiet() {
     assert!(shown.contains("\"order\""), "{shown}");
     let rest = outside_json(&shown);
     assert!(
-        rest.contains("setup") || rest.contains("evaluation"),
+        rest.contains("setup"),
         "no progress on a terminal: {shown:?}"
     );
+    // The passes report their progress: the evaluation is a bar with a
+    // percentage and the time left.
+    assert!(
+        rest.split(['\r', '\n'])
+            .any(|l| l.contains("evaluation") && l.contains('%') && l.contains(" < ")),
+        "no evaluation bar: {shown:?}"
+    );
 
-    let mut quiet = args.clone();
+    let mut quiet = args.to_vec();
     quiet.push("--quiet");
     let shown = on_a_terminal(&quiet).unwrap_or_default();
     assert!(shown.contains("\"order\""), "{shown}");
