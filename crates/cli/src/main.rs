@@ -8,6 +8,10 @@
 //! * `ferrofmm sweep`: speed against accuracy over a grid of orders,
 //!   schemes, precisions and leaf sizes, as `results.csv` and charts.
 //!
+//! Progress bars (with the time left) are drawn on stderr only when it is a
+//! terminal; `--quiet` silences them and the report (never errors or
+//! warnings; `--json` still prints its JSON).
+//!
 //! Exit status: 0 on success (also when stdout is closed before the report
 //! is printed, as in `ferrofmm demo | head -1`), 1 when the command fails
 //! (the reason is one line on stderr, `error: ...`), 2 for command-line
@@ -63,6 +67,13 @@ struct Cli {
     /// the JSON report the count used.
     #[arg(long, short = 't', global = true, value_name = "T")]
     threads: Option<usize>,
+    /// No progress bars and no report: a successful run prints nothing
+    /// (its output file is its result). Errors and warnings (such as the
+    /// note that --threads was lowered) still print on stderr, and the
+    /// exit status is unchanged. The JSON of --json, asked for explicitly,
+    /// is still printed (alone on stdout).
+    #[arg(long, short = 'q', global = true)]
+    quiet: bool,
     #[command(subcommand)]
     command: Command,
 }
@@ -150,6 +161,7 @@ fn install_panic_hook() {
 }
 
 fn run(cli: Cli) -> Result<()> {
+    progress::set_quiet(cli.quiet);
     // `--threads`, else RAYON_NUM_THREADS (a number, or an error), at most
     // the cores available, with a note when lowered (ferrofmm_io::threads,
     // shared with ferrofmm-mpi).

@@ -1,24 +1,41 @@
 //! Progress display on stderr (indicatif), only when stderr is a terminal.
 //!
-//! The FMM passes report no progress of their own, so each long step
-//! (setup, evaluation, the direct check) shows a spinner with its name and
-//! the elapsed time; the operator precomputation reports its progress, and
-//! its spinner becomes a bar with an ETA; `sweep` shows a bar over its
+//! Each long step (setup, evaluation, the direct check) shows a spinner
+//! with its name and the elapsed time; the operator precomputation and the
+//! evaluation (the FMM passes) report their progress, and their spinner
+//! becomes a bar with an ETA; `sweep` shows a bar over its
 //! configurations. When
 //! stderr is redirected (a pipe, a file, a test harness, a sweep's child
-//! process) nothing is drawn at all.
+//! process), or with `--quiet` ([`set_quiet`]), nothing is drawn at all.
 
 use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use ferrofmm_fmm::PrecomputeProgress;
+use std::sync::Arc;
+
+use ferrofmm_fmm::{EvalProgress, PrecomputeProgress, ProgressFn};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
-/// Draw target: stderr when it is a terminal, hidden otherwise.
+/// `--quiet`: no progress, no report (errors and warnings still print).
+static QUIET: AtomicBool = AtomicBool::new(false);
+
+/// Silence progress (and, through [`quiet`], the report) for the rest of
+/// the process: `--quiet`.
+pub fn set_quiet(quiet: bool) {
+    QUIET.store(quiet, Ordering::Relaxed);
+}
+
+/// Whether `--quiet` was given.
+pub fn quiet() -> bool {
+    QUIET.load(Ordering::Relaxed)
+}
+
+/// Draw target: stderr when it is a terminal and not `--quiet`, hidden
+/// otherwise.
 fn target() -> ProgressDrawTarget {
-    if std::io::stderr().is_terminal() {
+    if !quiet() && std::io::stderr().is_terminal() {
         ProgressDrawTarget::stderr()
     } else {
         ProgressDrawTarget::hidden()
@@ -48,10 +65,25 @@ impl Stage {
     /// elapsed time and an ETA (`[elapsed < remaining]`), since at high
     /// orders it can take minutes.
     pub fn precompute_progress(&self) -> impl Fn(PrecomputeProgress) + Send + Sync + 'static {
+        let to_bar = self.to_bar("setup: M2L operators".to_string());
+        move |p: PrecomputeProgress| to_bar(p.done, p.total)
+    }
+
+    /// A progress callback for an evaluation (the FMM passes report their
+    /// work done), shown as the precomputation's: a bar labelled `message`
+    /// with the time left. Each evaluation starts the bar again.
+    pub fn eval_progress(&self, message: String) -> Arc<ProgressFn> {
+        let to_bar = self.to_bar(message);
+        Arc::new(move |p: EvalProgress| to_bar(p.done, p.total))
+    }
+
+    /// Show `done / total` units: the first report turns the spinner into
+    /// a bar labelled `message`; a report of 0 done restarts the estimate.
+    fn to_bar(&self, message: String) -> impl Fn(u64, u64) + Send + Sync + 'static {
         let bar = self.0.clone();
         let switched = AtomicBool::new(false);
-        move |p: PrecomputeProgress| {
-            if bar.is_hidden() || p.total == 0 {
+        move |done: u64, total: u64| {
+            if bar.is_hidden() || total == 0 {
                 return;
             }
             if !switched.swap(true, Ordering::Relaxed) {
@@ -61,10 +93,13 @@ impl Stage {
                     )
                     .unwrap_or_else(|_| ProgressStyle::default_bar()),
                 );
-                bar.set_message("setup: M2L operators");
-                bar.set_length(p.total);
+                bar.set_message(message.clone());
             }
-            bar.set_position(p.done);
+            if done == 0 {
+                bar.reset_eta();
+            }
+            bar.set_length(total);
+            bar.set_position(done);
         }
     }
 }

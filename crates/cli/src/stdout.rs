@@ -28,6 +28,17 @@ pub fn print(text: &str) -> Result<()> {
         })
 }
 
+/// [`print()`] a human-readable report, unless `--quiet` silences it
+/// (machine-readable output asked for explicitly, `--json`, goes through
+/// [`println()`] and always prints).
+pub fn report(text: &str) -> Result<()> {
+    if crate::progress::quiet() {
+        Ok(())
+    } else {
+        print(text)
+    }
+}
+
 /// [`print()`] `text` followed by a newline.
 pub fn println(text: &str) -> Result<()> {
     print(&format!("{text}\n"))

@@ -2,6 +2,7 @@
 //! charge vectors.
 
 use std::borrow::Cow;
+use std::sync::Arc;
 use std::time::Instant;
 
 use ferrofmm_field::{M2lScheme, OperatorParams, Operators, surface_points};
@@ -16,6 +17,7 @@ use crate::part::{
 };
 use crate::periodic::FarImages;
 use crate::precompute::build_operators;
+use crate::progress::ProgressFn;
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::tuning::{self, ChosenParameters, ErrorModel, Tuner};
 use crate::validate::{check_domain_width, check_wavenumber};
@@ -77,6 +79,8 @@ pub struct Fmm<T: Real, K: Kernel, S: M2lScheme<T>> {
     /// The far images of a periodic cell ([`crate::periodic`]); `None` in
     /// free space.
     pub(crate) periodic: Option<FarImages>,
+    /// Told the progress of each evaluation ([`Fmm::set_progress`]).
+    pub(crate) progress: Option<Arc<ProgressFn>>,
 }
 
 /// Figures that describe a built [`Fmm`] (for reports and JSON output).
@@ -332,6 +336,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             error_model,
             verification: None,
             periodic,
+            progress: None,
         })
     }
 
@@ -425,6 +430,14 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// coincident pairs excluded.
     pub fn evaluate(&self, charges: &[T]) -> Result<Vec<T>, FmmError> {
         self.evaluate_timed(charges).map(|(v, _)| v)
+    }
+
+    /// Tell `f` the progress of every later evaluation (from worker
+    /// threads, at most about a thousand times an evaluation; the work is
+    /// weighted by a rough cost estimate of each pass), or stop telling
+    /// with `None`. Costs nothing measurable and changes no result.
+    pub fn set_progress(&mut self, f: Option<Arc<ProgressFn>>) {
+        self.progress = f;
     }
 
     /// As [`Fmm::evaluate`], and the time spent in each operator.

@@ -25,6 +25,7 @@ use rayon::prelude::*;
 
 use crate::batch::{gather_apply_scatter, par_columns};
 use crate::part::{Body, TreePart, image_points, shift_at};
+use crate::progress::{self, Work};
 use crate::timings::EvalTimings;
 use crate::{Fmm, coupling};
 use ferrofmm_tree::Octree;
@@ -50,6 +51,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     let t0 = Instant::now();
     let mut timings = EvalTimings::default();
     let n = fmm.expansion_len();
+    let work = Work::new(fmm.progress.as_ref(), || total_units(fmm));
     let w = fmm.kernel.values_per_target(fmm.mode);
 
     let cx = fmm.ctx();
@@ -64,7 +66,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         .iter()
         .zip(&local_q)
         .map(|(part, q)| match part.tree_part() {
-            Some(tp) if tp.has_sources => upward(&cx, tp, q, &mut timings),
+            Some(tp) if tp.has_sources => upward(&cx, tp, q, &mut timings, &work),
             _ => Vec::new(),
         })
         .collect();
@@ -111,6 +113,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                     root,
                     &mut locals,
                     &mut timings,
+                    &work,
                     |_, _, _| {},
                 );
                 leaf_passes(
@@ -121,6 +124,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                     &locals,
                     &mut values[k],
                     &mut timings,
+                    &work,
                 );
             }
             Body::Tree(_) => {}
@@ -137,9 +141,11 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                     );
                 }
                 timings.p2p += t.elapsed();
+                work.add((part.n_sources * part.n_targets) as u64);
             }
         }
     }
+    work.finish();
 
     if let (Some(far), Some(tp)) = (&fmm.periodic, fmm.parts[0].tree_part()) {
         let centre = cell_centre(far, tp);
@@ -164,6 +170,29 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
     (out, timings)
 }
 
+/// The work units of one evaluation ([`crate::progress`]).
+fn total_units<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> u64 {
+    fmm.parts
+        .iter()
+        .map(|part| match &part.body {
+            Body::Tree(tp) => {
+                let up = if tp.has_sources {
+                    progress::upward_units(tp)
+                } else {
+                    0
+                };
+                let down = if tp.has_targets {
+                    progress::downward_units(tp) + progress::leaf_units(tp)
+                } else {
+                    0
+                };
+                up + down
+            }
+            Body::Points(_) => (part.n_sources * part.n_targets) as u64,
+        })
+        .sum()
+}
+
 /// The centre of a periodic cell in the coordinates of its tree part.
 fn cell_centre<T: Real, S>(far: &crate::periodic::FarImages, tp: &TreePart<T, S>) -> [f64; 3] {
     let c = far.cell.centre();
@@ -176,6 +205,7 @@ pub(crate) fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
     part: &TreePart<T, S>,
     q: &[T],
     timings: &mut EvalTimings,
+    work: &Work<'_>,
 ) -> Vec<T> {
     let n = part.operators.n_surface();
     let mut multipoles = vec![T::ZERO; n * part.tree.n_boxes()];
@@ -185,6 +215,7 @@ pub(crate) fn upward<T: Real, K: Kernel, S: M2lScheme<T>>(
     let t = Instant::now();
     m2m(part, &mut multipoles);
     timings.m2m += t.elapsed();
+    work.add_with(|| progress::upward_units(part));
     multipoles
 }
 
@@ -335,6 +366,7 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
     root_check: Option<&[T]>,
     locals: &mut [T],
     timings: &mut EvalTimings,
+    work: &Work<'_>,
     mut on_checks: impl FnMut(u32, Range<usize>, &mut [T]),
 ) {
     let tree = &part.tree;
@@ -415,10 +447,12 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
             }
         }
         timings.l2l += t.elapsed();
+        work.add_with(|| progress::level_units(part, level));
     }
 }
 
 /// L2P, M2P and P2P, each parallel over the target leaves.
+#[allow(clippy::too_many_arguments)]
 pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
@@ -427,6 +461,7 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     locals: &[T],
     sorted: &mut [T],
     timings: &mut EvalTimings,
+    work: &Work<'_>,
 ) {
     let tree = &part.tree;
     let ops = &part.operators;
@@ -474,6 +509,12 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
             }
         });
     timings.m2p += t.elapsed();
+    work.add_with(|| {
+        slices
+            .iter()
+            .map(|(b, _)| progress::l2p_m2p_units(part, n, *b))
+            .sum()
+    });
 
     let t = Instant::now();
     // Few leaves for the threads (a shallow tree, a direct sum: one leaf
@@ -505,6 +546,7 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
                 let x = image_points(x, shift_at(shifts, k), width, image);
                 cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
             }
+            work.add_with(|| progress::p2p_units(part, b, out.len() / w.max(1)));
         });
     timings.p2p += t.elapsed();
 }

@@ -36,6 +36,7 @@ use crate::FmmError;
 use crate::part::TreePart;
 use crate::passes::{self, Ctx};
 use crate::precompute::operators_for;
+use crate::progress::Work;
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::validate::{check_domain_width, check_order, check_tree_points};
 
@@ -254,7 +255,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
     /// [`FmmError::ChargeCount`] for a charge vector of the wrong length.
     pub fn upward(&self, charges: &[T], timings: &mut EvalTimings) -> Result<Vec<T>, FmmError> {
         self.check_charges(charges)?;
-        Ok(passes::upward(&self.ctx(), &self.part, charges, timings))
+        Ok(passes::upward(
+            &self.ctx(),
+            &self.part,
+            charges,
+            timings,
+            &Work::none(),
+        ))
     }
 
     /// M2L, P2L and L2L, top down: the local (downward equivalent density)
@@ -285,6 +292,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             None,
             &mut locals,
             timings,
+            &Work::none(),
             on_checks,
         );
         Ok(locals)
@@ -317,6 +325,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             locals,
             &mut values,
             timings,
+            &Work::none(),
         );
         Ok(values)
     }

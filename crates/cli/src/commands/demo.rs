@@ -43,6 +43,7 @@ pub struct DemoArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Print one JSON object (the last line of stdout) instead of the table.
+    /// Printed also with --quiet, which then silences only the rest.
     #[arg(long)]
     pub json: bool,
 }
@@ -87,6 +88,6 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
     if args.json {
         crate::stdout::println(&report.json())
     } else {
-        crate::stdout::print(&report.table())
+        crate::stdout::report(&report.table())
     }
 }

@@ -63,6 +63,7 @@ pub struct EvalArgs {
     pub check: usize,
     /// Print one JSON object (parameters, timings, tree) as the last line of
     /// stdout instead of the table.
+    /// Printed also with --quiet, which then silences only the rest.
     #[arg(long)]
     pub json: bool,
 }
@@ -205,7 +206,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
             Some(p) => format!(" and {}", p.display()),
             None => String::new(),
         };
-        stdout::print(&format!(
+        stdout::report(&format!(
             "{}wrote {}{also}\n",
             report.table(),
             args.out.display()

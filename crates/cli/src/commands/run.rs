@@ -436,15 +436,28 @@ where
             "evaluation".to_string()
         };
         drop(std::mem::take(&mut values)); // never hold two results at once
-        let (v, timings) = if r == 0 && settings.tolerance.is_some() && settings.verify {
+        let verified = r == 0 && settings.tolerance.is_some() && settings.verify;
+        let label = if verified {
+            format!("{label} (verified)")
+        } else {
+            label
+        };
+        // The passes report their progress to the stage's bar.
+        let stage = crate::progress::stage(label.clone());
+        fmm.set_progress(Some(stage.eval_progress(label)));
+        let result = if verified {
             // The first evaluation checks the tolerance (and may raise the
             // order); later repeats time the final setting.
-            let out = with_stage(format!("{label} (verified)"), || fmm.evaluate_verified(&q))?;
-            verification = out.verification;
-            (out.values, out.timings)
+            fmm.evaluate_verified(&q).map(|out| {
+                verification = out.verification;
+                (out.values, out.timings)
+            })
         } else {
-            with_stage(label, || fmm.evaluate_timed(&q))?
+            fmm.evaluate_timed(&q)
         };
+        fmm.set_progress(None);
+        drop(stage);
+        let (v, timings) = result?;
         totals.push(timings.total.as_secs_f64());
         if best.is_none_or(|b| timings.total < b.total) {
             best = Some(timings);

@@ -191,7 +191,7 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     for f in std::iter::once(&csv_path).chain(&charts) {
         text.push_str(&format!("wrote {}\n", f.display()));
     }
-    crate::stdout::print(&text)
+    crate::stdout::report(&text)
 }
 
 /// All configurations, precision-major, then scheme, leaf size and order.

@@ -14,6 +14,7 @@ mod periodic;
 mod physics;
 mod pipes;
 mod precompute;
+mod quiet;
 mod reporting;
 mod streams;
 mod sweep;
