@@ -42,6 +42,7 @@ package README) and mpi4py is installed against the same MPI library.
 from __future__ import annotations
 
 import json
+import warnings
 from typing import Any, Callable, Dict, List, Optional, Tuple, TypeVar
 
 import numpy as np
@@ -79,6 +80,7 @@ if _library_name(MPI.Get_library_version()) != _library_name(_ferrofmm.MPI_LIBRA
     )
 
 from ._checks import (  # noqa: E402  (after the MPI checks above)
+    _flat,
     _bool,
     _cache,
     _check_densities,
@@ -101,6 +103,9 @@ from ._fmm import (  # noqa: E402
 __all__ = ["Octree", "Fmm", "laplace", "yukawa", "helmholtz", "stokes"]
 
 _T = TypeVar("_T")
+
+#: Points go to the library in float64 (the run's dtype is separate).
+_F64 = np.dtype(np.float64)
 
 #: Exceptions that an argument check on one rank raises on every rank.
 _AGREED = {"ValueError": ValueError, "TypeError": TypeError, "MemoryError": MemoryError}
@@ -147,10 +152,6 @@ def _agreed(comm: Any, check: Callable[[], _T]) -> _T:
     return value  # type: ignore[return-value]
 
 
-def _flat64(points: np.ndarray) -> np.ndarray:
-    return np.ascontiguousarray(points, dtype=np.float64).reshape(-1)
-
-
 class Octree:
     """This rank's piece of the adaptive, 2:1-balanced octree of all ranks' points.
 
@@ -187,7 +188,7 @@ class Octree:
             p = _points("points", points, allow_empty=True)
             ls = _positive_int("leaf_size", leaf_size)
             ml = _positive_int("max_level", max_level)
-            return _flat64(p), int(ls), int(ml)
+            return _flat(p, _F64), int(ls), int(ml)
 
         flat, ls, ml = _agreed(comm, check)
         self._native = _ferrofmm.NativeDistOctree(comm.py2f(), flat, ls, ml)
@@ -336,8 +337,8 @@ class Fmm:
                 )
             folder, default_cache = _cache(cache, cache_dir)
             return dict(
-                src=_flat64(src),
-                tgt=None if tgt is None else _flat64(tgt),
+                src=_flat(src, _F64),
+                tgt=None if tgt is None else _flat(tgt, _F64),
                 n=len(src),
                 m=len(src) if tgt is None else len(tgt),
                 run=run,
@@ -446,8 +447,6 @@ class Fmm:
         info["dtype"] = str(self._dtype)
         self._last_info = info
         if info.get("verified") is False:
-            import warnings
-
             measured = info.get("measured_error") or {}
             warnings.warn(
                 f"the tolerance eps={info.get('eps'):g} was not met: error measured on "

@@ -50,7 +50,7 @@ impl NativeDistOctree {
             Ok(())
         };
         agree_text(adopted.comm(), local).map_err(PyValueError::new_err)?;
-        let work = Work::new(adopted, Some(1))?;
+        let work = Work::new(adopted, None)?;
         let points = points.as_slice()?.to_vec();
         let options = DistOptions {
             max_level,
