@@ -23,7 +23,11 @@
 //!               or null (no --tolerance, or --verify off; see verify),
 //! verify ("on", "off", or "n/a" without --tolerance),
 //! errors:     { n_sampled, potential, gradient, hessian } or null,
-//! direct_check_s, peak_rss_bytes (null where unknown), wall_s
+//! direct_check_s, peak_rss_bytes (null where unknown), wall_s,
+//! memory:     { n_points, points, tree, expansions, evaluation_scratch,
+//!               m2l_interactions, operators, m2l, inputs, total,
+//!               bytes_per_point, peak_bytes_per_point }
+//!               (bytes of the big buffers by component, see MemoryFigures)
 //! ```
 
 use std::fmt::Write as _;
@@ -130,6 +134,100 @@ pub struct RunReport {
     pub peak_rss_bytes: Option<u64>,
     /// Wall time of the whole command.
     pub wall_s: f64,
+    /// The big buffers by component (`None` only in reports of older
+    /// versions).
+    #[serde(default)]
+    pub memory: Option<MemoryFigures>,
+}
+
+/// Bytes of the big buffers of a run by component: the library's
+/// ([`ferrofmm_fmm::MemoryReport`], counted from the buffers' lengths)
+/// and the command's own inputs and results.
+#[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
+pub struct MemoryFigures {
+    /// Points the per-point figures divide by (sources plus separate
+    /// targets).
+    pub n_points: usize,
+    /// The FMM's sorted points and the tree's permutations.
+    pub points: u64,
+    /// Tree structure: per-box arrays and the U/V/W/X lists.
+    pub tree: u64,
+    /// Multipole and local expansions.
+    pub expansions: u64,
+    /// Check potentials, densities in tree order, the outputs and the M2L
+    /// scheme's working memory (the FFT scheme's source spectra).
+    pub evaluation_scratch: u64,
+    /// M2L interaction groups of every level.
+    pub m2l_interactions: u64,
+    /// Check-to-equivalent, M2M and L2L operators.
+    pub operators: u64,
+    /// M2L operators.
+    pub m2l: u64,
+    /// The command's own: the densities, and the caller's points where
+    /// they are kept (in `f32`, or wrapped into a periodic cell; in `f64`
+    /// the FMM's copy gives them back exactly, see `Fmm::points_f64`).
+    pub inputs: u64,
+    /// All of the above.
+    pub total: u64,
+    /// `total / n_points`.
+    pub bytes_per_point: f64,
+    /// The process's peak resident memory over `n_points` (`None` where
+    /// unknown).
+    pub peak_bytes_per_point: Option<f64>,
+}
+
+impl MemoryFigures {
+    /// The figures of `library` and `inputs` bytes of the command's own
+    /// for `n_points` points, with the process's peak.
+    pub fn new(
+        library: &ferrofmm_fmm::MemoryReport,
+        inputs: u64,
+        n_points: usize,
+        peak_rss_bytes: Option<u64>,
+    ) -> Self {
+        let total = library.total as u64 + inputs;
+        let per = |b: u64| b as f64 / n_points.max(1) as f64;
+        MemoryFigures {
+            n_points,
+            points: library.points as u64,
+            tree: library.tree as u64,
+            expansions: library.expansions as u64,
+            evaluation_scratch: library.evaluation_scratch as u64,
+            m2l_interactions: library.m2l_interactions as u64,
+            operators: library.operators as u64,
+            m2l: library.m2l as u64,
+            inputs,
+            total,
+            bytes_per_point: per(total),
+            peak_bytes_per_point: peak_rss_bytes.map(per),
+        }
+    }
+
+    /// One line per component: bytes a point and MiB.
+    fn rows(&self, o: &mut String) {
+        let per = |b: u64| b as f64 / self.n_points.max(1) as f64;
+        let mib = |b: u64| b as f64 / (1024.0 * 1024.0);
+        let _ = writeln!(
+            o,
+            "memory by component   bytes a point (MiB), {} points",
+            thousands(self.n_points)
+        );
+        for (name, b) in [
+            ("points", self.points),
+            ("tree", self.tree),
+            ("expansions", self.expansions),
+            ("evaluation", self.evaluation_scratch),
+            ("M2L lists", self.m2l_interactions),
+            ("operators", self.operators + self.m2l),
+            ("inputs", self.inputs),
+            ("total", self.total),
+        ] {
+            let _ = writeln!(o, "  {name:<19}{:>10.1} ({:.0})", per(b), mib(b));
+        }
+        if let Some(p) = self.peak_bytes_per_point {
+            let _ = writeln!(o, "  {:<19}{p:>10.1}", "peak (measured)");
+        }
+    }
 }
 
 /// Tree and operator figures of a built FMM.
@@ -603,6 +701,9 @@ impl RunReport {
             "peak memory          {:>10}",
             mebibytes(self.peak_rss_bytes)
         );
+        if let Some(m) = &self.memory {
+            m.rows(&mut o);
+        }
         let _ = writeln!(o, "wall time            {:>10}", seconds(self.wall_s));
         o
     }

@@ -370,6 +370,21 @@ impl M2lInteractions {
         self.siblings.get_or_init(|| SiblingBlocks::new(self))
     }
 
+    /// Bytes held: the grouped pairs, the sibling slots, and the sibling
+    /// blocks once made ([`M2lInteractions::sibling_blocks`]).
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.chunks[..])
+            + size_of_val(&self.groups[..])
+            + size_of_val(&self.sources[..])
+            + size_of_val(&self.local_targets[..])
+            + self
+                .slots
+                .as_ref()
+                .map_or(0, |(t, s)| size_of_val(&t[..]) + size_of_val(&s[..]))
+            + self.siblings.get().map_or(0, SiblingBlocks::memory_bytes)
+    }
+
     /// The chunks in target order: chunk `c` owns a contiguous range of
     /// target columns, the next chunk starts where it ends, and together
     /// they cover `0..n_target_cols`. See

@@ -278,6 +278,18 @@ impl SiblingBlocks {
         }
     }
 
+    /// Bytes held by the regrouped pairs.
+    pub fn memory_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.target_columns[..])
+            + size_of_val(&self.source_columns[..])
+            + size_of_val(&self.group_starts[..])
+            + size_of_val(&self.block_starts[..])
+            + size_of_val(&self.blocks[..])
+            + size_of_val(&self.loose_starts[..])
+            + size_of_val(&self.loose[..])
+    }
+
     /// Number of target groups (the last target slot's group, plus one).
     pub fn n_target_groups(&self) -> usize {
         self.n_target_groups
@@ -331,6 +343,15 @@ impl SiblingBlocks {
     /// Total number of loose pairs.
     pub fn n_loose(&self) -> usize {
         self.loose.len()
+    }
+
+    /// The source groups target group `g` reads (those of its blocks, then
+    /// those of its loose pairs; a group may repeat).
+    pub fn source_groups(&self, g: usize) -> impl Iterator<Item = usize> + '_ {
+        self.blocks(g)
+            .iter()
+            .map(|b| b.source_group as usize)
+            .chain(self.loose(g).iter().map(|p| p.source as usize / 8))
     }
 
     /// Bit `ct` set for each child of target group `g` that receives a pair.

@@ -442,13 +442,20 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self.cache(CacheSetting::Default)
     }
 
-    /// How much memory the operator precomputation may take (default
-    /// [`MemoryLimit::Auto`]: `FERROFMM_MEMORY_LIMIT`, else the memory
-    /// available). Before precomputing, its peak memory `M` and time are
-    /// predicted from the operators the tree needs (only the levels and
-    /// transfer vectors its V lists use); when `M` exceeds the limit the
-    /// build fails with [`FmmError::PrecomputeMemory`] instead of
-    /// swapping or being killed. [`MemoryLimit::Unlimited`] forces it.
+    /// How much memory the run may take (default [`MemoryLimit::Auto`]:
+    /// `FERROFMM_MEMORY_LIMIT`, else the memory available). Checked twice,
+    /// so that a run that cannot fit fails with the estimate instead of
+    /// swapping or being killed:
+    ///
+    /// * first, before anything is allocated for the points: the bytes the
+    ///   point counts alone imply ([`MemoryReport::predict`](crate::MemoryReport::predict),
+    ///   a lower bound), else [`FmmError::RunMemory`];
+    /// * then, before precomputing, the operators' peak memory `M` and
+    ///   time, predicted from the operators the tree needs (only the
+    ///   levels and transfer vectors its V lists use), else
+    ///   [`FmmError::PrecomputeMemory`].
+    ///
+    /// [`MemoryLimit::Unlimited`] forces both.
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, MemoryLimit};
@@ -461,6 +468,13 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     ///     .err()
     ///     .unwrap();
     /// assert!(err.to_string().contains("predicted to need"));
+    /// // 2000 points in 1 KiB: refused before the tree is built.
+    /// let err = FmmBuilder::<f64, _>::new(&points)
+    ///     .memory_limit(MemoryLimit::Bytes(1 << 10))
+    ///     .build_svd()
+    ///     .err()
+    ///     .unwrap();
+    /// assert!(matches!(err, ferrofmm_fmm::FmmError::RunMemory { .. }), "{err}");
     /// ```
     pub fn memory_limit(mut self, limit: MemoryLimit) -> Self {
         self.memory_limit = limit;

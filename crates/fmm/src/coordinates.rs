@@ -89,6 +89,31 @@ pub(crate) fn permute_points<T: Real>(
     }
 }
 
+/// Points already in order (a tree's sorted coordinates, handed over by
+/// [`ferrofmm_tree::Octree::take_sorted_points`]) relative to `centre`,
+/// rounded to `T`: the same values as [`permute_points`] gives from the
+/// caller's points, made in place for `f64` (no second copy).
+pub(crate) fn relative_points<T: Real>(points: Vec<f64>, centre: [f64; 3]) -> Vec<T> {
+    let any: Box<dyn std::any::Any> = Box::new(points);
+    match any.downcast::<Vec<T>>() {
+        Ok(same) => {
+            let mut same = *same;
+            for p in same.chunks_exact_mut(3) {
+                for c in 0..3 {
+                    p[c] = T::from_f64(p[c].to_f64() - centre[c]);
+                }
+            }
+            same
+        }
+        Err(any) => {
+            let points = any
+                .downcast::<Vec<f64>>()
+                .expect("the box holds the Vec<f64> it was made from");
+            permute_points(&points, None, centre)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::coordinate_origin;

@@ -137,6 +137,24 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         from_chosen: ConfigFromChosen<S::Config, S>,
     ) -> Result<Self, FmmError> {
         b.validate()?;
+        // A run whose points alone cannot fit is refused before anything
+        // is allocated for them (the operators are checked later, once
+        // the tree says which are needed).
+        let size = crate::RunSize {
+            n_sources: b.sources.len() / 3,
+            n_targets: b.targets.map(|t| t.len() / 3),
+            values_per_source: b.kernel.values_per_source(b.source_kind),
+            values_per_target: b.kernel.values_per_target(b.mode),
+            n_vectors: 1,
+        };
+        crate::check_memory(
+            MemoryReport::predict::<T>(&size),
+            b.memory_limit,
+            &format!(
+                "an FMM of {} points",
+                size.n_sources + size.n_targets.unwrap_or(0)
+            ),
+        )?;
         let t0 = Instant::now();
         let mut setup = SetupTimings::default();
 

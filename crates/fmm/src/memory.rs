@@ -8,11 +8,11 @@
 //! levels deep, where `8^17` boxes could not be stored, but as many boxes as
 //! uniform points of the same `N`.
 
-use std::mem::size_of;
+use std::mem::{size_of, size_of_val};
 
-use ferrofmm_field::M2lScheme;
 #[cfg(doc)]
 use ferrofmm_field::MemoryLimit;
+use ferrofmm_field::{M2lInteractions, M2lScheme};
 use ferrofmm_kernels::{Kernel, Real};
 
 use crate::Fmm;
@@ -33,16 +33,19 @@ pub struct MemoryReport {
     /// Multipole and local expansions of one evaluation:
     /// `2 n n_boxes size_of::<T>()`.
     pub expansions: usize,
-    /// Other buffers of one evaluation: check potentials of the upward
-    /// pass (`n n_boxes`), charges in tree order, sorted and returned
-    /// outputs.
+    /// Other buffers of one evaluation: check potentials (`n n_boxes`),
+    /// densities in tree order, the outputs (made in tree order and put in
+    /// the caller's order in place: one copy) and the M2L scheme's working
+    /// memory ([`M2lScheme::apply_scratch_bytes`], the largest level's).
     pub evaluation_scratch: usize,
-    /// Points kept by the FMM (sorted, in `T`) and by the tree (sorted,
-    /// `f64`, with the permutations).
+    /// Points kept by the FMM (sorted, in `T`, relative to the tree's
+    /// origin) and the tree's permutations (and sorted `f64` coordinates,
+    /// where the tree still holds them: a caller's tree).
     pub points: usize,
     /// Tree structure: per-box arrays, colleague table, U/V/W/X lists.
     pub tree: usize,
-    /// M2L interaction groups of every level.
+    /// M2L interaction groups of every level (and their sibling blocks,
+    /// for the FFT scheme, once it has made them).
     pub m2l_interactions: usize,
     /// Check-to-equivalent, M2M and L2L operators.
     pub operators: usize,
@@ -64,6 +67,7 @@ impl MemoryReport {
         let mut m2l_interactions = 0;
         let mut operators = 0;
         let mut m2l = 0;
+        let mut m2l_scratch = 0;
         for part in &fmm.parts {
             // Caller indices of a cluster's points.
             let ids = part.source_ids.as_ref().map_or(0, Vec::len)
@@ -76,12 +80,13 @@ impl MemoryReport {
                 Body::Tree(tp) => {
                     let tree = &tp.tree;
                     n_boxes += tree.n_boxes();
-                    let sorted = |count: usize| count * (3 * size_of::<f64>() + 2 * us);
-                    let tree_points = sorted(tree.n_sources())
+                    let held =
+                        |coords: &[f64], perm: &[usize]| size_of_val(coords) + size_of_val(perm);
+                    let tree_points = held(tree.sorted_sources(), tree.source_permutation())
                         + if tree.sources_are_targets() {
                             0
                         } else {
-                            sorted(tree.n_targets())
+                            held(tree.sorted_targets(), tree.target_permutation())
                         };
                     points += (tp.sources.len() + tp.targets.as_ref().map_or(0, Vec::len)) * t
                         + tree_points;
@@ -96,21 +101,25 @@ impl MemoryReport {
                         + csr(&lists.v)
                         + csr(&lists.w)
                         + csr(&lists.x);
-                    // Per pair a source column and a local target (u32
-                    // each); per group a vector index and a pair range; per
-                    // chunk four bounds.
                     m2l_interactions += tp
                         .m2l_interactions
                         .iter()
-                        .map(|i| 8 * i.len() + 3 * us * i.n_groups() + 4 * us * i.n_chunks())
+                        .map(M2lInteractions::memory_bytes)
                         .sum::<usize>();
                     operators += tp.operators.memory_bytes();
                     m2l += tp.m2l.memory_bytes();
+                    m2l_scratch = tp
+                        .m2l_interactions
+                        .iter()
+                        .map(|i| tp.m2l.apply_scratch_bytes(i))
+                        .fold(m2l_scratch, usize::max);
                 }
             }
         }
         let expansions = 2 * n * n_boxes * t;
-        let evaluation_scratch = n * n_boxes * t + fmm.n_sources * t + 2 * w * fmm.n_targets * t;
+        let nq = fmm.kernel.values_per_source(fmm.source_kind);
+        let evaluation_scratch =
+            n * n_boxes * t + nq * fmm.n_sources * t + w * fmm.n_targets * t + m2l_scratch;
         let total = expansions
             + evaluation_scratch
             + points
@@ -154,33 +163,37 @@ impl MemoryReport {
     /// Bytes that building an [`Fmm`] in `T` for `size` and evaluating
     /// `size.n_vectors` density vectors need at least: the buffers whose
     /// length follows from the point counts alone, with the same per-point
-    /// figures as `MemoryReport::of` (`points`, and of
-    /// `evaluation_scratch` the densities in tree order and the sorted and
-    /// returned outputs), plus the `f64` copy of the points the build
-    /// sorts them from and the results of every vector. Boxes, expansions
-    /// and operators are not counted (they depend on the tree), so this is
-    /// a lower bound of the peak: a run it puts beyond the memory
-    /// available cannot fit ([`check_memory`]).
+    /// figures as [`Fmm::memory`] (`points`, and of `evaluation_scratch`
+    /// the densities in tree order and the outputs), plus what the build
+    /// holds while it sorts (see [`MemoryReport::predict_points`]) and the
+    /// results of every vector. Boxes, expansions and operators are not
+    /// counted (they depend on the tree), so this is a lower bound of the
+    /// peak: a run it puts beyond the memory available cannot fit
+    /// ([`check_memory`]).
     ///
     /// Saturates at `u64::MAX` instead of overflowing.
     pub fn predict<T: Real>(size: &RunSize) -> u64 {
         Self::predict_points::<T>(size).saturating_add(Self::predict_evaluation::<T>(size))
     }
 
-    /// The build's share of [`MemoryReport::predict`]: sorted points in
-    /// `T`, sorted `f64` points with the permutations (the tree), and the
-    /// `f64` copy the tree is built from.
+    /// The build's share of [`MemoryReport::predict`], per point (source
+    /// or separate target): the sorted points the FMM keeps in `T` and the
+    /// tree's permutation (`3 size_of::<T>() + size_of::<usize>()`), and
+    /// while the tree sorts, the finest-cell Morton codes before and after
+    /// the sort (`16`) and, in `f32`, the sorted `f64` coordinates the
+    /// `f32` copy is made from (`24`; in `f64` they become the FMM's).
     pub fn predict_points<T: Real>(size: &RunSize) -> u64 {
         let t = size_of::<T>() as u128;
         let us = size_of::<usize>() as u128;
         let points = size.n_sources as u128 + size.n_targets.unwrap_or(0) as u128;
-        u64::try_from(points * (3 * t + 3 * 8 + 2 * us + 3 * 8)).unwrap_or(u64::MAX)
+        let f64_copy = if t == 8 { 0 } else { 3 * 8 };
+        u64::try_from(points * (3 * t + us + 16 + f64_copy)).unwrap_or(u64::MAX)
     }
 
     /// The evaluation's share of [`MemoryReport::predict`] (of an
-    /// [`Fmm`] already built): the densities in tree order, the outputs
-    /// sorted and returned for one vector, and the results of every
-    /// vector.
+    /// [`Fmm`] already built): the densities in tree order and the
+    /// outputs of every vector (those of the vector being evaluated are
+    /// made in tree order and put in the caller's order in place).
     pub fn predict_evaluation<T: Real>(size: &RunSize) -> u64 {
         let t = size_of::<T>() as u128;
         let n = size.n_sources as u128;
@@ -190,7 +203,17 @@ impl MemoryReport {
             size.values_per_target as u128,
             size.n_vectors.max(1) as u128,
         );
-        u64::try_from(n * s * t + 2 * w * m * t + k * w * m * t).unwrap_or(u64::MAX)
+        u64::try_from(n * s * t + k * w * m * t).unwrap_or(u64::MAX)
+    }
+
+    /// [`total`](Self::total) per point: bytes over `n_points` (sources
+    /// plus separate targets), `0` for none.
+    pub fn bytes_per_point(&self, n_points: usize) -> f64 {
+        if n_points == 0 {
+            0.0
+        } else {
+            self.total as f64 / n_points as f64
+        }
     }
 }
 

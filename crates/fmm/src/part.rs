@@ -26,7 +26,7 @@ use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, se
 
 use crate::FmmError;
 use crate::builder::FmmBuilder;
-use crate::coordinates::{coordinate_origin, permute_points};
+use crate::coordinates::{coordinate_origin, permute_points, relative_points};
 use crate::precompute::{build_operators, level_interactions};
 use crate::timings::SetupTimings;
 use crate::validate::check_domain_width;
@@ -83,16 +83,29 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
         let m2l_interactions = (0..=tree.depth())
             .map(|level| level_interactions(&tree, level))
             .collect::<Result<_, _>>()?;
+        let mut tree = tree;
         let centre = coordinate_origin(tree.domain());
-        let (src_order, tgt_order) = match permute {
-            true => (
-                Some(tree.source_permutation()),
-                Some(tree.target_permutation()),
+        // Points in the caller's order come sorted from the tree, whose
+        // copy is taken over (not held twice); points already in the
+        // tree's order (a caller's tree) are copied.
+        let (sources, targets) = match permute {
+            true => {
+                let (s, t) = tree.take_sorted_points();
+                let s = relative_points(s, centre);
+                let t = match (targets, t) {
+                    (Some(_), Some(t)) => Some(relative_points(t, centre)),
+                    (Some(t), None) => {
+                        Some(permute_points(t, Some(tree.target_permutation()), centre))
+                    }
+                    (None, _) => None,
+                };
+                (s, t)
+            }
+            false => (
+                permute_points(sources, None, centre),
+                targets.map(|t| permute_points(t, None, centre)),
             ),
-            false => (None, None),
         };
-        let sources = permute_points(sources, src_order, centre);
-        let targets = targets.map(|t| permute_points(t, tgt_order, centre));
         Ok(TreePart {
             tree,
             operators,
@@ -254,17 +267,21 @@ impl<T: Real, S: M2lScheme<T>> Part<T, S> {
         }
     }
 
-    /// The caller's index of each stored target, in stored order.
-    pub(crate) fn stored_target_ids(&self) -> Vec<usize> {
+    /// The number of targets the part stores values for (none for a tree
+    /// part without targets).
+    pub(crate) fn n_stored_targets(&self) -> usize {
         match &self.body {
-            Body::Tree(t) if !t.has_targets => Vec::new(),
-            Body::Tree(t) => t
-                .tree
-                .target_permutation()
-                .iter()
-                .map(|&k| self.target_id(k))
-                .collect(),
-            Body::Points(_) => (0..self.n_targets).map(|k| self.target_id(k)).collect(),
+            Body::Tree(t) if !t.has_targets => 0,
+            _ => self.n_targets,
+        }
+    }
+
+    /// The caller's index of stored target `k` (`k <`
+    /// [`n_stored_targets`](Self::n_stored_targets)).
+    pub(crate) fn stored_target_id(&self, k: usize) -> usize {
+        match &self.body {
+            Body::Tree(t) => self.target_id(t.tree.target_permutation()[k]),
+            Body::Points(_) => self.target_id(k),
         }
     }
 

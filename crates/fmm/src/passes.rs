@@ -160,14 +160,59 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         );
     }
 
-    let mut out = vec![T::ZERO; w * fmm.n_targets];
-    for (part, v) in fmm.parts.iter().zip(&values) {
-        for (k, i) in part.stored_target_ids().into_iter().enumerate() {
-            out[w * i..w * (i + 1)].copy_from_slice(&v[w * k..w * (k + 1)]);
+    // The values in the caller's order: one part holding every target is
+    // put in order in place (no second copy of the outputs); several are
+    // gathered into a new vector.
+    drop((local_q, multipoles, root_checks));
+    let out = match &fmm.parts[..] {
+        [part] if part.n_stored_targets() == fmm.n_targets => {
+            let mut v = values.pop().expect("one part, one vector");
+            permute_in_place(&mut v, w, |k| part.stored_target_id(k));
+            v
         }
-    }
+        _ => {
+            let mut out = vec![T::ZERO; w * fmm.n_targets];
+            for (part, v) in fmm.parts.iter().zip(&values) {
+                for k in 0..part.n_stored_targets() {
+                    let i = part.stored_target_id(k);
+                    out[w * i..w * (i + 1)].copy_from_slice(&v[w * k..w * (k + 1)]);
+                }
+            }
+            out
+        }
+    };
     timings.total = t0.elapsed();
     (out, timings)
+}
+
+/// Move block `k` of `values` (`w` values each) to block `dest(k)`, for a
+/// permutation `dest`, in place: each cycle of the permutation is followed
+/// once, carrying one block, with one bit a block to mark those moved.
+pub(crate) fn permute_in_place<T: Copy>(values: &mut [T], w: usize, dest: impl Fn(usize) -> usize) {
+    if w == 0 {
+        return;
+    }
+    let m = values.len() / w;
+    let mut moved = vec![0u64; m.div_ceil(64)];
+    let mut carry: Vec<T> = Vec::with_capacity(w);
+    for start in 0..m {
+        if moved[start / 64] >> (start % 64) & 1 == 1 {
+            continue;
+        }
+        carry.clear();
+        carry.extend_from_slice(&values[w * start..w * (start + 1)]);
+        let mut j = start;
+        loop {
+            moved[j / 64] |= 1 << (j % 64);
+            let d = dest(j);
+            if d == start {
+                values[w * start..w * (start + 1)].copy_from_slice(&carry);
+                break;
+            }
+            carry.swap_with_slice(&mut values[w * d..w * (d + 1)]);
+            j = d;
+        }
+    }
 }
 
 /// The work units of one evaluation ([`crate::progress`]).
@@ -582,4 +627,40 @@ fn leaf_output_slices<'a, T: Real>(
         slices.push((b, mine));
     }
     slices
+}
+
+#[cfg(test)]
+mod tests {
+    use super::permute_in_place;
+
+    /// In place equals the plain gather, for permutations with long and
+    /// short cycles, fixed points, and several values a block.
+    #[test]
+    fn permuting_in_place_matches_a_copy() {
+        let mut state = 7u64;
+        let mut next = || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            state
+        };
+        for (m, w) in [(0, 4), (1, 1), (2, 3), (65, 1), (1000, 4), (777, 10)] {
+            // A random permutation (Fisher-Yates), and the identity.
+            let mut dest: Vec<usize> = (0..m).collect();
+            for i in (1..m).rev() {
+                dest.swap(i, (next() % (i as u64 + 1)) as usize);
+            }
+            for dest in [dest, (0..m).collect()] {
+                let values: Vec<f64> = (0..m * w).map(|x| x as f64).collect();
+                let mut want = vec![0.0; m * w];
+                for k in 0..m {
+                    want[w * dest[k]..w * (dest[k] + 1)]
+                        .copy_from_slice(&values[w * k..w * (k + 1)]);
+                }
+                let mut got = values.clone();
+                permute_in_place(&mut got, w, |k| dest[k]);
+                assert_eq!(got, want, "m {m}, w {w}");
+            }
+        }
+    }
 }

@@ -249,19 +249,32 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             rebuild_s: 0.0,
         };
         let mut chosen = chosen;
-        // The tree and the points stay when the order is raised: one copy
-        // in the caller's order serves every attempt.
-        let points = self.original_points();
+        // The points in the caller's order, for the direct sums: made for
+        // each check and dropped before an evaluation (24 bytes a point
+        // not held through it), except in a periodic cell, whose Ewald
+        // truth keeps them for every attempt.
+        let periodic_points = self.periodic().is_some().then(|| self.original_points());
+        let mut fresh: Option<OriginalPoints> = None;
         // The model fitted to the points, computed at the first miss.
         let mut fitted: Option<ErrorModel> = None;
         // A periodic run's truth (its Ewald sum's setup counts as the
         // first check's time).
         let t = Instant::now();
-        let truth = self.periodic_truth(&points, charges, eps)?;
+        let truth = match &periodic_points {
+            Some(points) => self.periodic_truth(points, charges, eps)?,
+            None => None,
+        };
         let mut truth_s = t.elapsed().as_secs_f64();
         loop {
+            if periodic_points.is_none() {
+                fresh = Some(self.original_points());
+            }
+            let points = periodic_points
+                .as_ref()
+                .or(fresh.as_ref())
+                .expect("points for the check");
             let mut attempt = self.check_attempt(
-                &points,
+                points,
                 charges,
                 &values,
                 &timings,
@@ -286,13 +299,18 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 break;
             }
             let fitted = fitted.get_or_insert_with(|| {
-                let (sources, targets) = &points;
-                let separate = self.separate_targets.then_some(&targets[..]);
-                Occupancy::new(sources, separate, None, ferrofmm_tree::DEEPEST_LEVEL)
-                    .map(|o| model.in_scene(&Scene::of(&o)))
-                    .unwrap_or_else(|_| model.clone())
+                let separate = points.targets.as_deref();
+                Occupancy::new(
+                    &points.sources,
+                    separate,
+                    None,
+                    ferrofmm_tree::DEEPEST_LEVEL,
+                )
+                .map(|o| model.in_scene(&Scene::of(&o)))
+                .unwrap_or_else(|_| model.clone())
             });
             let (next, tau, predicted) = raised_order(fitted, &chosen, measured, eps, ratio);
+            fresh = None;
             let raised = ChosenParameters {
                 order: next,
                 svd_tolerance: tau,
@@ -350,7 +368,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     #[allow(clippy::type_complexity)]
     fn periodic_truth<'s>(
         &self,
-        (sources, targets): &'s (Vec<f64>, Vec<f64>),
+        points: &'s OriginalPoints,
         charges: &[T],
         eps: f64,
     ) -> Result<Option<Box<Truth<'s>>>, FmmError> {
@@ -360,9 +378,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
         let truth = PeriodicTruth::new(
             cell,
-            sources,
+            &points.sources,
             &charges[..self.n_sources],
-            self.separate_targets.then_some(&targets[..]),
+            points.targets.as_deref(),
             self.mode,
             tolerance,
             2 * MIN_VERIFY_SAMPLE,
@@ -380,7 +398,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     /// [`Fmm::estimate_error`] with the points in the caller's order given.
     fn estimate_error_at(
         &self,
-        (sources, targets): &(Vec<f64>, Vec<f64>),
+        points: &OriginalPoints,
         charges: &[T],
         values: &[T],
         eval_time: Duration,
@@ -391,9 +409,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             &self.kernel,
             self.source_kind,
             self.mode,
-            sources,
+            &points.sources,
             charges,
-            targets,
+            points.targets(),
             values,
             eval_time.mul_f64(VERIFY_BUDGET),
             min_sample,
@@ -409,7 +427,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 
     fn check_attempt(
         &self,
-        points: &(Vec<f64>, Vec<f64>),
+        points: &OriginalPoints,
         charges: &[T],
         values: &[T],
         timings: &EvalTimings,
@@ -452,10 +470,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         }
     }
 
+    /// The sources and (when they are a separate set) the targets, in the
+    /// caller's order and coordinates (`f64`), rebuilt from the copy the
+    /// FMM keeps (in tree order, relative to the tree's coordinate origin;
+    /// periodic points wrapped into the cell). Exact in `f64` (the
+    /// differences to the origin are exact, see the `coordinates` module);
+    /// in `f32` the relative coordinates were rounded to `f32`. So a caller
+    /// of an `f64` run that needs its points only now and then need not
+    /// hold them (`24` bytes a point).
+    pub fn points_f64(&self) -> (Vec<f64>, Option<Vec<f64>>) {
+        let p = self.original_points();
+        (p.sources, p.targets)
+    }
+
     /// Sources and targets in the caller's original order (absolute
     /// coordinates, `f64`): the stored points are in tree order and
     /// relative to the domain's centre.
-    fn original_points(&self) -> (Vec<f64>, Vec<f64>) {
+    fn original_points(&self) -> OriginalPoints {
         let mut sources = vec![0.0f64; 3 * self.n_sources];
         let mut targets = vec![
             0.0f64;
@@ -468,10 +499,23 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         for part in &self.parts {
             part.write_original_points(&mut sources, &mut targets);
         }
-        if !self.separate_targets {
-            targets = sources.clone();
+        OriginalPoints {
+            sources,
+            targets: self.separate_targets.then_some(targets),
         }
-        (sources, targets)
+    }
+}
+
+/// The points of an [`Fmm`] in the caller's order, absolute, `f64`.
+struct OriginalPoints {
+    sources: Vec<f64>,
+    /// `None`: the targets are the sources (not held twice).
+    targets: Option<Vec<f64>>,
+}
+
+impl OriginalPoints {
+    fn targets(&self) -> &[f64] {
+        self.targets.as_deref().unwrap_or(&self.sources)
     }
 }
 

@@ -20,6 +20,7 @@
 //! [`lists`](crate::lists)).
 
 use std::ops::Range;
+use std::sync::OnceLock;
 
 use crate::balance::balance;
 use crate::build::{Node, PointKeys, Refinement, SortedPoints, refine, sort_points};
@@ -36,20 +37,28 @@ use crate::options::TreeOptions;
 struct Sorted {
     coords: Vec<f64>,
     perm: Vec<usize>,
-    inverse: Vec<usize>,
+    /// The inverse of `perm`, made when first asked for (the FMM never
+    /// asks: 8 bytes a point saved).
+    inverse: OnceLock<Vec<usize>>,
 }
 
 impl Sorted {
     fn new(s: SortedPoints) -> Self {
-        let mut inverse = vec![0; s.perm.len()];
-        for (k, &i) in s.perm.iter().enumerate() {
-            inverse[i] = k;
-        }
         Sorted {
             coords: s.coords,
             perm: s.perm,
-            inverse,
+            inverse: OnceLock::new(),
         }
+    }
+
+    fn inverse(&self) -> &[usize] {
+        self.inverse.get_or_init(|| {
+            let mut inverse = vec![0; self.perm.len()];
+            for (k, &i) in self.perm.iter().enumerate() {
+                inverse[i] = k;
+            }
+            inverse
+        })
     }
 }
 
@@ -374,7 +383,7 @@ impl Octree {
             sources: Sorted {
                 coords: Vec::new(),
                 perm: Vec::new(),
-                inverse: Vec::new(),
+                inverse: OnceLock::new(),
             },
             targets: None,
             colleagues: ColleagueTable::default(),
@@ -597,14 +606,30 @@ impl Octree {
 
     /// Original source `i` is at sorted position
     /// `source_inverse_permutation()[i]`.
+    /// Made (`8` bytes a point) when first asked for.
     pub fn source_inverse_permutation(&self) -> &[usize] {
-        &self.sources.inverse
+        self.sources.inverse()
     }
 
     /// Original target `i` is at sorted position
     /// `target_inverse_permutation()[i]`.
+    /// Made (`8` bytes a point) when first asked for.
     pub fn target_inverse_permutation(&self) -> &[usize] {
-        &self.target_set().inverse
+        self.target_set().inverse()
+    }
+
+    /// Hand the sorted coordinates over to the caller (sources, and targets
+    /// unless [`sources_are_targets`](Self::sources_are_targets)), leaving
+    /// [`sorted_sources`](Self::sorted_sources) and
+    /// [`sorted_targets`](Self::sorted_targets) empty: for a caller that
+    /// keeps its own copy of the points in tree order (the FMM keeps them
+    /// relative to a centre, in its float type), so that they are not held
+    /// twice (`24` bytes a point). Ranges, permutations, lists and
+    /// everything else are unchanged.
+    pub fn take_sorted_points(&mut self) -> (Vec<f64>, Option<Vec<f64>>) {
+        let sources = std::mem::take(&mut self.sources.coords);
+        let targets = self.targets.as_mut().map(|t| std::mem::take(&mut t.coords));
+        (sources, targets)
     }
 
     /// `true` if the tree was built with `targets == None`: target ranges,

@@ -271,6 +271,7 @@ pub(crate) mod tests {
             direct_check_s: Some(0.01),
             peak_rss_bytes: Some(50 << 20),
             wall_s: 1.0,
+            memory: None,
         }
     }
 

@@ -21,7 +21,8 @@ use crate::error::{CliError, Result};
 use crate::memory::peak_rss_bytes;
 use crate::progress::with_stage;
 use crate::report::{
-    ErrorFigures, EvalSeconds, OperatorSeconds, RunReport, SetupSeconds, TreeFigures, cache_report,
+    ErrorFigures, EvalSeconds, MemoryFigures, OperatorSeconds, RunReport, SetupSeconds,
+    TreeFigures, cache_report,
 };
 use ferrofmm_io::{self as io, Values};
 
@@ -424,6 +425,18 @@ where
         S::build(builder)
     }?;
 
+    // One copy of the points: in f64 and free space the FMM's own gives
+    // them back exactly for the check (`Fmm::points_f64`), so the caller's
+    // is dropped before evaluating (24 bytes a point). In f32, or wrapped
+    // into a periodic cell, the caller's own coordinates are kept.
+    let separate_targets = targets.is_some();
+    let held = (T::PRECISION == Precision::F32 || settings.periodic.is_some())
+        .then_some((sources, targets));
+    let inputs_bytes = (std::mem::size_of_val(&q[..])
+        + held.as_ref().map_or(0, |(s, t)| {
+            std::mem::size_of_val(&s[..]) + t.as_ref().map_or(0, |t| std::mem::size_of_val(&t[..]))
+        })) as u64;
+
     let repeats = settings.repeats.max(1);
     let mut totals = Vec::with_capacity(repeats);
     let mut best: Option<EvalTimings> = None;
@@ -475,6 +488,7 @@ where
 
     let (errors, direct_check_s) = if settings.check > 0 {
         let t0 = Instant::now();
+        let (sources, targets) = held.unwrap_or_else(|| fmm.points_f64());
         let tgt = targets.as_deref().unwrap_or(&sources);
         let sample = sample_indices(fmm.n_targets(), settings.check);
         let e = match &settings.periodic {
@@ -602,6 +616,12 @@ where
         direct_check_s,
         peak_rss_bytes: peak_rss_bytes(),
         wall_s: start.elapsed().as_secs_f64(),
+        memory: Some(MemoryFigures::new(
+            &fmm.memory(),
+            inputs_bytes,
+            fmm.n_sources() + if separate_targets { fmm.n_targets() } else { 0 },
+            peak_rss_bytes(),
+        )),
     })
 }
 

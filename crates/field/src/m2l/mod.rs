@@ -23,7 +23,7 @@ mod fft;
 mod svd;
 
 pub use dense::{DenseConfig, DenseM2l};
-pub use fft::{FftConfig, FftM2l};
+pub use fft::{FftConfig, FftM2l, SPECTRA_BUDGET_BYTES};
 pub use svd::{SvdConfig, SvdM2l, default_svd_tolerance};
 
 use faer::Mat;
@@ -186,6 +186,13 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
 
     /// Bytes held by the precomputed operators.
     fn memory_bytes(&self) -> usize;
+
+    /// Bytes of working memory one [`M2lScheme::apply`] of `interactions`
+    /// holds beyond its arguments (the FFT scheme's source spectra, at most
+    /// its budget); default none.
+    fn apply_scratch_bytes(&self, _interactions: &M2lInteractions) -> usize {
+        0
+    }
 
     /// Floating-point operations of one [`M2lScheme::apply`] of
     /// `interactions` (multiply and add counted separately), for GFLOP/s

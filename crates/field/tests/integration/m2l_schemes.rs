@@ -283,3 +283,57 @@ fn svd_factors_each_transfer_vector_at_its_own_rank() {
     assert!(tol.flops(&inter) < 0.6 * fixed.flops(&inter));
     assert!(tol.memory_bytes() < fixed.memory_bytes());
 }
+
+/// The FFT scheme applies a level in runs whose source spectra fit its
+/// budget: any budget gives the same check potentials, bit for bit, and
+/// they agree with the dense scheme (the same operator).
+#[test]
+fn fft_results_do_not_depend_on_the_spectra_budget() {
+    use ferrofmm_field::{FftConfig, FftM2l, SPECTRA_BUDGET_BYTES};
+    use ferrofmm_kernels::Helmholtz3d;
+    fn run<K: Kernel>(kernel: &K, p: usize) {
+        let params = OperatorParams::new(p);
+        let len = kernel.components() * ferrofmm_field::n_surface_points(p);
+        let nb = (SIDE * SIDE * SIDE) as usize;
+        let m: Vec<f64> = {
+            let mut rng = SplitMix64(5);
+            (0..len * nb).map(|_| rng.uniform() - 0.5).collect()
+        };
+        // Columns in Morton order, so that siblings share a group.
+        let morton = |i: usize| {
+            let side = SIDE as usize;
+            let p = [i / (side * side), (i / side) % side, i % side];
+            (0..3)
+                .flat_map(|bit| (0..3).map(move |d| (bit, d)))
+                .fold(0, |k, (bit, d)| k | ((p[d] >> bit) & 1) << (3 * bit + d))
+        };
+        let pairs: Vec<_> = uniform_v_lists(SIDE)
+            .into_iter()
+            .map(|(t, s, v)| (morton(t), morton(s), v))
+            .collect();
+        let mut mm = vec![0.0; m.len()];
+        for i in 0..nb {
+            mm[morton(i) * len..(morton(i) + 1) * len].copy_from_slice(&m[i * len..(i + 1) * len]);
+        }
+        let inter = M2lInteractions::new(nb, nb, &pairs);
+        let mut fft = FftM2l::<f64>::precompute(kernel, &params, &FftConfig, 1.0, LEVEL).unwrap();
+        let mut whole = vec![0.0; len * nb];
+        fft.apply(LEVEL, &inter, &mm, &mut whole);
+        let level_bytes = fft.apply_scratch_bytes(&inter);
+        assert!(level_bytes > 0 && level_bytes < SPECTRA_BUDGET_BYTES);
+        for budget in [1, 100_000, 2_000_000] {
+            fft.set_spectra_budget(budget);
+            assert!(fft.apply_scratch_bytes(&inter) <= budget.max(level_bytes));
+            let mut runs = vec![0.0; len * nb];
+            fft.apply(LEVEL, &inter, &mm, &mut runs);
+            assert_eq!(runs, whole, "{} budget {budget}", kernel.name());
+        }
+        let dense = DenseM2l::<f64>::precompute(kernel, &params, &DenseConfig, 1.0, LEVEL).unwrap();
+        let mut want = vec![0.0; len * nb];
+        dense.apply(LEVEL, &inter, &mm, &mut want);
+        let e = relative_l2(&whole, &want);
+        assert!(e < 1e-12, "{}: fft vs dense {e:.2e}", kernel.name());
+    }
+    run(&Laplace3d, 4);
+    run(&Helmholtz3d::new(2.0).unwrap(), 3);
+}

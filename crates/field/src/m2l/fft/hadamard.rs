@@ -12,7 +12,9 @@
 //!
 //! * Kernel slab of a frequency block: `[vector 0..=316][a][b][W]` (vector
 //!   316 is zero, the entry of adjacent children), `317 c^2 W` values.
-//! * Source spectra of a sibling group: `[block][child 0..8][b][W]`.
+//! * Source spectra of a sibling group: `[block][child 0..8][b][W]`, at
+//!   the group's slot among the spectra of the run being applied
+//!   ([`super::chunks`]).
 //! * Target spectra of a sibling group: `[block][child 0..8][a][W]`.
 //!
 //! A quantity row `r = c ct + a` (target child `ct`, component `a`) and a
@@ -108,8 +110,11 @@ pub(super) struct Products<'a, C: Components> {
     pub components: C,
     /// Kernel slabs of the level's operator set, `[block][SLAB_VECTORS][c][c][W]`.
     pub kernels: &'a [f64],
-    /// Source spectra, `[group][block][8][c][W]`.
+    /// Source spectra, `[slot][block][8][c][W]`: source group `s` at slot
+    /// `source_slots[s]`.
     pub sources: &'a [f64],
+    /// The slot in `sources` of each source group the groups read.
+    pub source_slots: &'a [u32],
     /// The level's pairs.
     pub siblings: &'a SiblingBlocks,
     /// Slab entries of every block of the level ([`block_tables`]).
@@ -129,6 +134,7 @@ impl<'a> Products<'a, One> {
             components,
             kernels: self.kernels,
             sources: self.sources,
+            source_slots: self.source_slots,
             siblings: self.siblings,
             tables: self.tables,
             first: self.first,
@@ -160,9 +166,11 @@ impl<C: Components> SimdTask<f64> for Products<'_, C> {
                     group_len,
                     block: b * block_len,
                 };
-                dense_blocks(s, at, slab, self.sources, blocks, tables, out);
+                let slots = self.source_slots;
+                dense_blocks(s, at, slab, self.sources, slots, blocks, tables, out);
                 for (blk, table) in blocks.iter().zip(tables).filter(|(_, t)| !t.dense) {
-                    let x = &self.sources[blk.source_group as usize * group_len + at.block..];
+                    let slot = slots[blk.source_group as usize] as usize;
+                    let x = &self.sources[slot * group_len + at.block..];
                     let mut m = blk.mask;
                     while m != 0 {
                         let bit = m.trailing_zeros() as usize;
@@ -174,7 +182,8 @@ impl<C: Components> SimdTask<f64> for Products<'_, C> {
                 }
                 for p in self.siblings.loose(group) {
                     let (ct, cs) = (p.target as usize % 8, p.source as usize % 8);
-                    let x = &self.sources[(p.source as usize / 8) * group_len + at.block..];
+                    let slot = slots[p.source as usize / 8] as usize;
+                    let x = &self.sources[slot * group_len + at.block..];
                     let k = p.vector as usize;
                     block_multiply_add(s, self.components, slab, k, x, cs, out, ct);
                 }
@@ -234,12 +243,14 @@ pub(super) fn block_tables(siblings: &SiblingBlocks) -> Vec<BlockTable> {
 /// block, written (not added) to `out` (`8 c W` values; zeros when there
 /// are none). Source children without pairs are skipped; a missing pair
 /// multiplies by the zero entry.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn dense_blocks<S: Simd<f64>, C: Components>(
     s: S,
     at: Offsets<C>,
     slab: &[f64],
     sources: &[f64],
+    source_slots: &[u32],
     blocks: &[crate::siblings::SiblingBlock],
     tables: &[BlockTable],
     out: &mut [f64],
@@ -261,8 +272,8 @@ fn dense_blocks<S: Simd<f64>, C: Components>(
             let comp: [usize; 8] = std::array::from_fn(|i| (r0 + i) % c);
             let mut acc = [[zero; 2]; 8];
             for (blk, table) in blocks.iter().zip(tables).filter(|(_, t)| t.dense) {
-                let x =
-                    &sources[blk.source_group as usize * at.group_len + at.block..][..block_len];
+                let slot = source_slots[blk.source_group as usize] as usize;
+                let x = &sources[slot * at.group_len + at.block..][..block_len];
                 for cs in (0..8).filter(|cs| table.sources >> cs & 1 == 1) {
                     for b in 0..c {
                         let q = (cs * c + b) * W;

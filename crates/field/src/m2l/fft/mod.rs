@@ -62,15 +62,21 @@
 //! eight children of a target parent and a neighbouring source parent as
 //! one `8 x 8` block per frequency, so each source spectrum value loaded
 //! serves eight targets and each accumulator eight sources
-//! ([`hadamard`] has the layout and the register blocking). The spectra of
-//! all source boxes of the level are made first (in parallel over sibling
-//! groups, `16 N^2 (floor(N/2) + 1)` bytes per box); then each task takes a run of
-//! target groups, forms their spectra frequency block by frequency block
-//! (the kernel slab of a block, `317 x 256` bytes, stays in cache while all
-//! the run's groups use it), inverts them and adds the lattice values to its
-//! own columns of the check potentials.
+//! ([`hadamard`] has the layout and the register blocking). The level's
+//! target groups are taken in runs whose source spectra fit
+//! [`SPECTRA_BUDGET_BYTES`] ([`chunks`]: `16 N^2 (floor(N/2) + 1)` bytes
+//! per source box, which for a whole level would outweigh the rest of a
+//! large run). For each run the spectra of its source boxes are made first
+//! (in parallel over sibling groups); then each task takes a few of the
+//! run's target groups, forms their spectra frequency block by frequency
+//! block (the kernel slab of a block, `317 x 256` bytes, stays in cache
+//! while all the task's groups use it), inverts them and adds the lattice
+//! values to its own columns of the check potentials.
 
+mod chunks;
 mod hadamard;
+
+pub use self::chunks::SPECTRA_BUDGET_BYTES;
 
 use std::marker::PhantomData;
 
@@ -79,6 +85,7 @@ use ferrofmm_kernels::{Kernel, Real, SimdLevel};
 use rayon::prelude::*;
 use rustfft::num_complex::Complex;
 
+use self::chunks::plan_chunks;
 use self::hadamard::{FREQ_BLOCK, Many, One, Products, SLAB_VECTORS, W, block_tables};
 use super::{M2lScheme, Plan, check_lengths, planned_sets};
 use crate::cache::{CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader};
@@ -137,6 +144,8 @@ pub struct FftM2l<T: Real> {
     /// `present[set][v]`: whether `That_v` was computed.
     present: Vec<Vec<bool>>,
     cache_status: CacheStatus,
+    /// Bytes of source spectra [`M2lScheme::apply`] holds at once.
+    spectra_budget: usize,
     _values: PhantomData<T>,
 }
 
@@ -273,6 +282,58 @@ impl<T: Real> FftM2l<T> {
                 }
             }
         }
+    }
+
+    /// Invert the target spectra `targets` of target groups `groups` and
+    /// add `scale` times their lattice values to the check columns `out`
+    /// (the first of them column `col0`).
+    #[allow(clippy::too_many_arguments)]
+    fn add_lattice_values(
+        &self,
+        siblings: &SiblingBlocks,
+        groups: std::ops::Range<usize>,
+        targets: &[f64],
+        scale: f64,
+        scratch: &mut Scratch,
+        col0: usize,
+        out: &mut [T],
+    ) {
+        let c = self.components;
+        let n = c * self.n;
+        let group_len = self.blocks * 8 * c * W;
+        for (i, g) in groups.enumerate() {
+            let hit = siblings.targets_hit(g);
+            for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
+                let col = siblings
+                    .target_column(8 * g + ct)
+                    .expect("a target slot with pairs has a column");
+                let y = &targets[i * group_len..(i + 1) * group_len];
+                let column = &mut out[(col - col0) * n..(col - col0 + 1) * n];
+                for a in 0..c {
+                    for (f, z) in scratch.spectrum.iter_mut().enumerate() {
+                        let at = (((f / FREQ_BLOCK) * 8 + ct) * c + a) * W + f % FREQ_BLOCK;
+                        *z = Complex::new(y[at], y[at + FREQ_BLOCK]);
+                    }
+                    let Scratch {
+                        grid,
+                        spectrum,
+                        work,
+                    } = scratch;
+                    self.fft.inverse(spectrum, grid, self.order, work);
+                    for (o, &at) in column[a..].iter_mut().step_by(c).zip(&self.lattice) {
+                        *o += T::from_f64(scale * grid[at]);
+                    }
+                }
+            }
+        }
+    }
+
+    /// Hold at most `bytes` of source spectra at once in
+    /// [`M2lScheme::apply`] (default [`SPECTRA_BUDGET_BYTES`]; at least one
+    /// target group's sources are held whatever the budget). A smaller
+    /// budget repeats more forward transforms; the results do not change.
+    pub fn set_spectra_budget(&mut self, bytes: usize) {
+        self.spectra_budget = bytes;
     }
 
     /// Panic unless every vector of `interactions` is in operator set
@@ -436,6 +497,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             slabs,
             present,
             cache_status,
+            spectra_budget: SPECTRA_BUDGET_BYTES,
             _values: PhantomData,
         })
     }
@@ -484,79 +546,67 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             spectrum: vec![Complex::new(0.0, 0.0); self.fft.spectrum_len()],
             work: self.fft.workspace(),
         };
-        // Spectra of every source box, by sibling group.
-        let mut sources = vec![0.0f64; siblings.n_source_groups() * group_len];
-        sources
-            .par_chunks_mut(group_len)
-            .enumerate()
-            .for_each_init(scratch, |scratch, (g, out)| {
-                self.source_group(multipoles, siblings, g, scratch, out)
-            });
-        // Runs of target groups: products, inverse FFTs, lattice values
-        // into the run's own check columns.
-        let n_groups = siblings.n_target_groups();
-        let threads = rayon::current_num_threads().max(1);
-        let per_task = n_groups.div_ceil(4 * threads).clamp(1, GROUPS_PER_TASK);
         let kernels = &self.slabs[set];
         let level_simd = SimdLevel::active();
-        // Each task's groups and its own columns of `check` (consecutive:
-        // the slots increase with the column).
-        let mut tasks = Vec::with_capacity(n_groups.div_ceil(per_task));
+        let threads = rayon::current_num_threads().max(1);
+        // Runs of target groups whose source spectra fit the budget
+        // ([`chunks`]); the slot of each source group in the run's spectra.
+        let max_groups = (self.spectra_budget / (group_len * std::mem::size_of::<f64>())).max(1);
+        let mut slots = vec![0u32; siblings.n_source_groups()];
+        let mut sources: Vec<f64> = Vec::new();
         let mut rest = check;
-        for first in (0..n_groups).step_by(per_task) {
-            let groups = first..(first + per_task).min(n_groups);
-            let columns = siblings.group_columns(groups.clone());
-            let (mine, next) = rest.split_at_mut(columns.len() * n);
-            tasks.push((groups, columns.start, mine));
-            rest = next;
-        }
-        tasks.into_par_iter().for_each_init(
-            || (scratch(), Vec::new()),
-            |(scratch, targets), (groups, col0, out)| {
-                targets.clear();
-                targets.resize(groups.len() * group_len, 0.0);
-                let products = Products {
-                    components: One,
-                    kernels,
-                    sources: &sources,
-                    siblings,
-                    tables: &tables,
-                    first: groups.start,
-                    targets,
-                    blocks: self.blocks,
-                };
-                if c == 1 {
-                    run_task(level_simd, products);
-                } else {
-                    run_task(level_simd, products.with_components(Many(c)));
-                }
-                for (i, g) in groups.enumerate() {
-                    let hit = siblings.targets_hit(g);
-                    for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
-                        let col = siblings
-                            .target_column(8 * g + ct)
-                            .expect("a target slot with pairs has a column");
-                        let y = &targets[i * group_len..(i + 1) * group_len];
-                        let column = &mut out[(col - col0) * n..(col - col0 + 1) * n];
-                        for a in 0..c {
-                            for (f, z) in scratch.spectrum.iter_mut().enumerate() {
-                                let at = (((f / FREQ_BLOCK) * 8 + ct) * c + a) * W + f % FREQ_BLOCK;
-                                *z = Complex::new(y[at], y[at + FREQ_BLOCK]);
-                            }
-                            let Scratch {
-                                grid,
-                                spectrum,
-                                work,
-                            } = scratch;
-                            self.fft.inverse(spectrum, grid, self.order, work);
-                            for (o, &at) in column[a..].iter_mut().step_by(c).zip(&self.lattice) {
-                                *o += T::from_f64(scale * grid[at]);
-                            }
-                        }
+        for chunk in plan_chunks(siblings, max_groups) {
+            for (slot, &g) in chunk.sources.iter().enumerate() {
+                slots[g as usize] = slot as u32;
+            }
+            // Spectra of the run's source groups.
+            sources.clear();
+            sources.resize(chunk.sources.len() * group_len, 0.0);
+            sources
+                .par_chunks_mut(group_len)
+                .zip(&chunk.sources)
+                .for_each_init(scratch, |scratch, (out, &g)| {
+                    self.source_group(multipoles, siblings, g as usize, scratch, out)
+                });
+            // Tasks of consecutive target groups: products, inverse FFTs,
+            // lattice values into the task's own check columns
+            // (consecutive: the slots increase with the column).
+            let n_groups = chunk.targets.len();
+            let per_task = n_groups.div_ceil(4 * threads).clamp(1, GROUPS_PER_TASK);
+            let mut tasks = Vec::with_capacity(n_groups.div_ceil(per_task));
+            for first in chunk.targets.clone().step_by(per_task) {
+                let groups = first..(first + per_task).min(chunk.targets.end);
+                let columns = siblings.group_columns(groups.clone());
+                let (mine, next) = std::mem::take(&mut rest).split_at_mut(columns.len() * n);
+                tasks.push((groups, columns.start, mine));
+                rest = next;
+            }
+            let (sources, slots) = (&sources, &slots);
+            tasks.into_par_iter().for_each_init(
+                || (scratch(), Vec::new()),
+                |(scratch, targets), (groups, col0, out)| {
+                    targets.clear();
+                    targets.resize(groups.len() * group_len, 0.0);
+                    let products = Products {
+                        components: One,
+                        kernels,
+                        sources,
+                        source_slots: slots,
+                        siblings,
+                        tables: &tables,
+                        first: groups.start,
+                        targets,
+                        blocks: self.blocks,
+                    };
+                    if c == 1 {
+                        run_task(level_simd, products);
+                    } else {
+                        run_task(level_simd, products.with_components(Many(c)));
                     }
-                }
-            },
-        );
+                    self.add_lattice_values(siblings, groups, targets, scale, scratch, col0, out);
+                },
+            );
+        }
     }
 
     fn cache_status(&self) -> CacheStatus {
@@ -566,6 +616,26 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     fn memory_bytes(&self) -> usize {
         let values: usize = self.slabs.iter().map(Vec::len).sum();
         values * std::mem::size_of::<f64>()
+    }
+
+    /// The source spectra held at once: those of the largest run
+    /// ([`chunks`]), at most the budget (or one target group's sources);
+    /// the blocks' slab tables; and per thread the target spectra of a
+    /// task and the transforms' grids.
+    fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
+        let group = self.blocks * 8 * self.components * W * std::mem::size_of::<f64>();
+        let max_groups = (self.spectra_budget / group).max(1);
+        let siblings = interactions.sibling_blocks();
+        let largest = plan_chunks(siblings, max_groups)
+            .iter()
+            .map(|c| c.sources.len())
+            .max()
+            .unwrap_or(0);
+        let per_thread =
+            GROUPS_PER_TASK * group + 2 * (self.fft.real_len() * 8 + self.fft.spectrum_len() * 16);
+        largest * group
+            + siblings.n_blocks() * std::mem::size_of::<hadamard::BlockTable>()
+            + rayon::current_num_threads() * per_thread
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
