@@ -88,6 +88,29 @@ fn demo_json_last_line_has_the_expected_keys() {
     if cfg!(target_os = "linux") {
         assert!(v["peak_rss_bytes"].as_u64().unwrap() > 1 << 20);
     }
+    // Memory by component: the parts add up to the total, per point too;
+    // in f64 the FMM's points (one sorted copy, one permutation: 32 bytes
+    // a point) stand in for the caller's, which are not kept.
+    let m = &v["memory"];
+    assert_eq!(m["n_points"], 2000);
+    let parts: u64 = [
+        "points",
+        "tree",
+        "expansions",
+        "evaluation_scratch",
+        "m2l_interactions",
+        "operators",
+        "m2l",
+        "inputs",
+    ]
+    .iter()
+    .map(|k| m[k].as_u64().unwrap_or_else(|| panic!("memory.{k}")))
+    .sum();
+    assert_eq!(parts, m["total"].as_u64().unwrap());
+    assert_eq!(m["points"], 2000 * 32);
+    assert_eq!(m["inputs"], 2000 * 8, "the charges only");
+    let per = m["bytes_per_point"].as_f64().unwrap();
+    assert!((per - parts as f64 / 2000.0).abs() < 1e-9);
 }
 
 #[test]
@@ -120,6 +143,9 @@ fn demo_table_is_readable() {
         "relative L2 error vs direct summation (1000 sampled targets",
         "potential",
         "peak memory",
+        "memory by component   bytes a point (MiB), 2,000 points",
+        "  points                   20.0", // f32 points and a permutation
+        "  inputs                   28.0", // f32 charges and the f64 points
     ] {
         assert!(
             stdout.contains(needle),
