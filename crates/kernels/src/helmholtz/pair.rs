@@ -370,7 +370,10 @@ fn hessian_pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
     }
     acc[0] = s.add(acc[0], ur);
     acc[1] = s.add(acc[1], ui);
-    let (b, ad) = ([br, bi], [ar, ai].map(|x| [0, 1, 2].map(|c| s.mul(x, d[c]))));
+    let (b, ad) = (
+        [br, bi],
+        [ar, ai].map(|x| [0, 1, 2].map(|c| s.mul(x, d[c]))),
+    );
     for c in 0..3 {
         for part in 0..2 {
             // -B d_c - f1 n_c

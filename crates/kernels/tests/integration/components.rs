@@ -204,7 +204,10 @@ fn check_hessian(k: &Helmholtz3d, kind: SourceKind, seed: u64) {
         "k={} {kind:?} Hessian vs differences: {err:e}",
         k.k
     );
-    let head: Vec<f64> = full.chunks_exact(20).flat_map(|o| o[..8].to_vec()).collect();
+    let head: Vec<f64> = full
+        .chunks_exact(20)
+        .flat_map(|o| o[..8].to_vec())
+        .collect();
     let err = relative_l2(&head, &grad);
     assert!(err < 1e-14, "k={} {kind:?}: leading values {err:e}", k.k);
     let k2 = k.k * k.k;
