@@ -370,10 +370,11 @@ fn hessian_pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
     }
     acc[0] = s.add(acc[0], ur);
     acc[1] = s.add(acc[1], ui);
-    let (b, ad) = (
-        [br, bi],
-        [ar, ai].map(|x| [0, 1, 2].map(|c| s.mul(x, d[c]))),
-    );
+    let b = [br, bi];
+    let ad = [
+        [s.mul(ar, d[0]), s.mul(ar, d[1]), s.mul(ar, d[2])],
+        [s.mul(ai, d[0]), s.mul(ai, d[1]), s.mul(ai, d[2])],
+    ];
     for c in 0..3 {
         for part in 0..2 {
             // -B d_c - f1 n_c
