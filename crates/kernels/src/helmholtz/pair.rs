@@ -197,7 +197,7 @@ impl PairKernel for Helmholtz3d {
 
     /// The formulas of the module docs (`helmholtz/pair.rs`): charges unless `NQ = 6`,
     /// dipoles when `NQ >= 6`, gradients when `W = 8`, gradients and
-    /// Hessians when `W = 20` ([`hessian_pair`]).
+    /// Hessians when `W = 20` (`hessian_pair`).
     #[inline(always)]
     fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
         &self,
