@@ -352,8 +352,8 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// P2P) see the dipoles; the expansions stay those of the kernel.
     ///
     /// The kernel must [support](Kernel::supports) the kind with the
-    /// [mode](FmmBuilder::mode) (Laplace and modified Helmholtz support
-    /// every pair), else building fails with
+    /// [mode](FmmBuilder::mode) (Laplace, modified Helmholtz and Helmholtz
+    /// support every pair), else building fails with
     /// [`KernelError::Unsupported`](ferrofmm_kernels::KernelError::Unsupported).
     ///
     /// ```

@@ -113,7 +113,7 @@ def test_bad_input_is_a_value_error(rng):
     with pytest.raises(ValueError):
         ferrofmm.Fmm(x, kernel="stokes", order=4, dipoles=True)
     with pytest.raises(ValueError):
-        ferrofmm.Fmm(x, kernel="helmholtz", k=1.0, order=4, hessian=True)
+        ferrofmm.Fmm(x, kernel="stokes", order=4, hessian=True)
     with pytest.raises(ValueError, match=r"\(n, 3\)"):
         ferrofmm.stokes(x, np.ones(200), order=4)
     with pytest.raises(ValueError, match="NaN"):

@@ -18,7 +18,8 @@ FOUR_PI = 4.0 * np.pi
 
 
 def radial(r, k):
-    """f0..f3 of exp(-k r) / (4 pi r) (k = 0: Laplace)."""
+    """f0..f3 of exp(-k r) / (4 pi r) (k = 0: Laplace; k = -i kappa: the
+    Helmholtz kernel exp(i kappa r) / (4 pi r))."""
     x = k * r
     e = np.exp(-x) / FOUR_PI
     return (
@@ -37,9 +38,10 @@ def direct(sources, targets, charges=None, dipoles=None, k=0.0):
     f0, f1, f2, f3 = (np.where(same, 0.0, f) for f in radial(np.where(same, 1.0, r), k))
     eye = np.eye(3)
     dd = d[..., :, None] * d[..., None, :]  # (m, n, 3, 3)
-    u = np.zeros(len(targets))
-    g = np.zeros((len(targets), 3))
-    h = np.zeros((len(targets), 3, 3))
+    dtype = np.result_type(f0, *(a for a in (charges, dipoles) if a is not None))
+    u = np.zeros(len(targets), dtype)
+    g = np.zeros((len(targets), 3), dtype)
+    h = np.zeros((len(targets), 3, 3), dtype)
     if charges is not None:
         q = charges[None, :]
         u += (q * f0).sum(1)
@@ -77,6 +79,25 @@ def test_dipoles_and_hessians_meet_eps(rng, kernel, carry):
     assert r.info["measured_error"]["hessian"] is not None
     idx = np.random.default_rng(3).choice(N, SAMPLE, replace=False)
     u, g, h = direct(x, x[idx], q, n, k)
+    for got, want in ((r.potential[idx], u), (r.gradient[idx], g), (r.hessian[idx], h)):
+        assert rel(got, want) <= 3e-6
+
+
+@pytest.mark.parametrize("carry", ["charges", "both"])
+def test_helmholtz_hessians_meet_eps(rng, carry):
+    """Complex charges (and dipoles) with zero mean, k D = 5 on the unit cube."""
+    n_pts = 3000
+    x = rng.random((n_pts, 3))
+    q = rng.random(n_pts) - 0.5 + 1j * (rng.random(n_pts) - 0.5)
+    n = rng.random((n_pts, 3)) - 0.5 + 1j * (rng.random((n_pts, 3)) - 0.5)
+    n = n if carry == "both" else None
+    r = ferrofmm.helmholtz(x, q, dipoles=n, k=5.0, eps=1e-6, hessian=True)
+    assert r.potential.shape == (n_pts,) and r.potential.dtype == np.complex128
+    assert r.gradient.shape == (n_pts, 3) and r.hessian.shape == (n_pts, 6)
+    assert r.hessian.dtype == np.complex128
+    assert r.info["measured_error"]["hessian"] is not None
+    idx = np.random.default_rng(4).choice(n_pts, SAMPLE, replace=False)
+    u, g, h = direct(x, x[idx], q, n, -5.0j)
     for got, want in ((r.potential[idx], u), (r.gradient[idx], g), (r.hessian[idx], h)):
         assert rel(got, want) <= 3e-6
 

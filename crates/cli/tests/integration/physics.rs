@@ -132,6 +132,111 @@ fn demo_runs_yukawa_with_hessians_and_reports_the_error() {
     assert!(e < 1e-3, "{line}");
 }
 
+/// Helmholtz Hessians: complex charges (CSV `re, im`) and dipoles (npy
+/// `(N, 6)`) with `--hessians`, every one of the 20 real columns (potential,
+/// gradient and `hess_xx .. hess_yz`, each `re, im`) against direct
+/// summation, the header of a CSV output, and the demo's Hessian error.
+#[test]
+fn helmholtz_hessians_match_direct_summation() {
+    let dir = scratch("physics-helmholtz-hessians");
+    let n = 2000;
+    let sources = points(n, 31);
+    let targets = points(400, 32);
+    let (src, tgt) = (dir.join("s.npy"), dir.join("t.npy"));
+    write_npy(&src, &sources, &[n as u64, 3]);
+    write_npy(&tgt, &targets, &[400, 3]);
+    let q2 = charges(2 * n, 33);
+    let n6 = charges(6 * n, 34);
+    let (q_path, n_path) = (dir.join("q.csv"), dir.join("n.npy"));
+    write_csv(&q_path, &q2, 2, Some("re,im"));
+    write_npy(&n_path, &n6, &[n as u64, 6]);
+    let both: Vec<f64> = (0..n)
+        .flat_map(|i| {
+            q2[2 * i..2 * i + 2]
+                .iter()
+                .chain(&n6[6 * i..6 * i + 6])
+                .copied()
+        })
+        .collect();
+    let helmholtz = Helmholtz3d::new(6.0).unwrap();
+    let mode = EvalMode::PotentialGradientHessian;
+    let mut want = vec![0.0; 20 * 400];
+    direct_sum_sources(
+        &helmholtz,
+        SourceKind::ChargeDipole,
+        mode,
+        &sources,
+        &both,
+        &targets,
+        &mut want,
+    );
+    let (out_npy, out_csv) = (dir.join("out.npy"), dir.join("out.csv"));
+    for out in [&out_npy, &out_csv] {
+        let o = ferrofmm(&[
+            "eval",
+            "--sources",
+            src.to_str().unwrap(),
+            "--targets",
+            tgt.to_str().unwrap(),
+            "--charges",
+            q_path.to_str().unwrap(),
+            "--dipoles",
+            n_path.to_str().unwrap(),
+            "--kernel",
+            "helmholtz:6",
+            "--hessians",
+            "--order",
+            "7",
+            "--check",
+            "100",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        let (stdout, stderr) = texts(&o);
+        assert!(o.status.success(), "{stderr}");
+        assert!(stdout.contains("Hessian"), "{stdout}");
+    }
+    let (shape, values) = read_npy(&out_npy);
+    assert_eq!(shape, vec![400, 20]);
+    // Column by column (order 7: about 1e-6).
+    for c in 0..20 {
+        let e = relative_l2_columns(&values, &want, 20, c..c + 1);
+        assert!(e < 1e-4, "column {c}: {e:e}");
+    }
+    let text = std::fs::read_to_string(&out_csv).unwrap();
+    let header = text.lines().next().unwrap();
+    assert!(
+        header.ends_with(
+            "grad_z_re,grad_z_im,hess_xx_re,hess_xx_im,hess_yy_re,hess_yy_im,hess_zz_re,\
+             hess_zz_im,hess_xy_re,hess_xy_im,hess_xz_re,hess_xz_im,hess_yz_re,hess_yz_im"
+        ),
+        "{header}"
+    );
+    // The demo measures the Hessian's error (an FMM at order 6: about 1e-6).
+    let o = ferrofmm(&[
+        "demo",
+        "--n",
+        "5000",
+        "--kernel",
+        "helmholtz:5",
+        "--hessians",
+        "--order",
+        "6",
+        "--leaf-size",
+        "32",
+        "--check",
+        "100",
+    ]);
+    let (stdout, stderr) = texts(&o);
+    assert!(o.status.success(), "{stderr}");
+    let line = stdout
+        .lines()
+        .find(|l| l.trim_start().starts_with("Hessian"))
+        .expect(&stdout);
+    let e: f64 = line.split_whitespace().last().unwrap().parse().unwrap();
+    assert!(e > 0.0 && e < 1e-4, "{line}");
+}
+
 #[test]
 fn bad_kernels_and_dipole_files_are_clear_errors() {
     let dir = scratch("physics-bad");

@@ -8,26 +8,40 @@
 //! f0 = e^{ikr} / (4 pi r)
 //! f1 = f0' / r = e^{ikr} (ikr - 1) / (4 pi r^3)
 //! f2 = f1' / r = e^{ikr} (3 - 3ikr - k^2 r^2) / (4 pi r^5)
+//! f3 = f2' / r = e^{ikr} (-15 + 15ikr + 6k^2 r^2 - ik^3 r^3) / (4 pi r^7)
 //! ```
 //!
-//! a source with complex charge `q` and complex dipole vector `n` adds at `y`
+//! (the modified Helmholtz functions with `k -> -ik`), a source with
+//! complex charge `q` and complex dipole vector `n` adds at `y`
 //!
 //! ```text
 //! u      = q f0 - f1 (n . d)
 //! grad u = q f1 d - f2 (n . d) d - f1 n
 //! ```
 //!
-//! (`n . grad_x G = -f1 n . d`: FMM3D's `dipvec` convention). At `k = 0`
-//! these are the Laplace functions `1/(4 pi r)`, `-1/(4 pi r^3)`,
-//! `3/(4 pi r^5)`.
+//! (`n . grad_x G = -f1 n . d`: FMM3D's `dipvec` convention). The Hessian
+//! `H_ab = d_{y_a} d_{y_b} u` follows from `d_{y_b} f_m = f_{m+1} d_b` and
+//! `d_{y_b} d_a = delta_ab`:
+//!
+//! ```text
+//! charge q:  H_ab = q (f2 d_a d_b + f1 delta_ab)
+//! dipole n:  H_ab = -f3 (n . d) d_a d_b - f2 ((n . d) delta_ab + n_a d_b + n_b d_a)
+//! ```
+//!
+//! which for a charge is `H_ab = delta_ab g'/r + d_a d_b (g'' - g'/r) / r^2`
+//! with `g(r) = e^{ikr} / (4 pi r)`. Its trace is `-k^2 u` (away from the
+//! sources, `(Delta + k^2) u = 0`). At `k = 0` these are the Laplace
+//! functions `1/(4 pi r)`, `-1/(4 pi r^3)`, `3/(4 pi r^5)`, `-15/(4 pi r^7)`.
 //!
 //! # Real form
 //! Complex numbers are stored as `[re, im]` pairs, so the kernel has two
 //! [components](Kernel::components) and a complex product `G q` is the
 //! 2 x 2 block `[[Re G, -Im G], [Im G, Re G]]` applied to `[Re q, Im q]`.
 //! Densities per source are `[q, nx, ny, nz]` as complex pairs (8 values for
-//! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs:
-//! the memory of NumPy `complex128` arrays.
+//! charge + dipole), outputs per target `[u, ux, uy, uz]` as complex pairs,
+//! followed with Hessians by `[H_xx, H_yy, H_zz, H_xy, H_xz, H_yz]` as
+//! complex pairs (20 values; the order of Laplace's and modified
+//! Helmholtz's ten): the memory of NumPy `complex128` arrays.
 
 mod pair;
 
@@ -43,7 +57,8 @@ use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
 ///   level, and [`Kernel::wavenumber`] is `k`: the FMM refuses domains
 ///   wider than the low-frequency limit
 ///   (`ferrofmm_fmm::MAX_WAVENUMBER_WIDTH / k`);
-/// * charges and dipoles (alone or together), potentials and gradients.
+/// * charges and dipoles (alone or together), potentials, gradients and
+///   Hessians.
 ///
 /// ```
 /// use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, SourceKind};
@@ -134,9 +149,10 @@ impl Kernel for Helmholtz3d {
 
     crate::lanes::kernel_entry_points!();
 
-    /// Charges, dipoles or both, with potentials or gradients (no Hessians).
-    fn supports(&self, _kind: SourceKind, mode: EvalMode) -> bool {
-        !mode.has_hessian()
+    /// Every source kind (charges, dipoles or both) and output (potentials,
+    /// gradients and Hessians).
+    fn supports(&self, _kind: SourceKind, _mode: EvalMode) -> bool {
+        true
     }
 
     /// `[[Re G, -Im G], [Im G, Re G]]` blocks (`2 n_targets x 2 n_sources`,
@@ -185,18 +201,15 @@ impl Helmholtz3d {
         {
             panic!("helmholtz3d: {e}");
         }
-        assert!(
-            self.supports(kind, mode),
-            "helmholtz3d: no Hessians (Kernel::supports)"
-        );
         let k = T::from_f64(self.k);
         let vps = 2 * kind.values_per_source();
         let w = 2 * mode.values_per_target();
-        let grad = mode.has_gradient();
+        let (grad, hess) = (mode.has_gradient(), mode.has_hessian());
         let (has_q, has_n) = (kind != SourceKind::Dipole, kind.has_dipoles());
         let n_off = if has_q { 2 } else { 0 };
+        let three = T::from_f64(3.0);
         for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
-            let mut acc = [T::ZERO; 8];
+            let mut acc = [T::ZERO; 20];
             for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(vps)) {
                 let d = [y[0] - x[0], y[1] - x[1], y[2] - x[2]];
                 let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
@@ -211,9 +224,17 @@ impl Helmholtz3d {
                     let (a, b) = cmul(gr, gi, -T::ONE, kr);
                     (a * rinv2, b * rinv2)
                 };
-                // Coefficient of d in the gradient, and the potential.
+                // f2 = f0 (3 - 3ikr - k^2 r^2) / r^4
+                let (f2r, f2i) = {
+                    let (a, b) = cmul(gr, gi, three - kr * kr, -three * kr);
+                    (a * rinv2 * rinv2, b * rinv2 * rinv2)
+                };
+                // Coefficient of d in the gradient, and the potential; with
+                // Hessians the coefficients of d_a d_b (`h`) and delta_ab
+                // (`c`, the gradient's).
                 let (mut pr, mut pi) = (T::ZERO, T::ZERO);
                 let (mut cr, mut ci) = (T::ZERO, T::ZERO);
+                let (mut hr, mut hi) = (T::ZERO, T::ZERO);
                 if has_q {
                     let (a, b) = cmul(gr, gi, q[0], q[1]);
                     pr += a;
@@ -222,6 +243,11 @@ impl Helmholtz3d {
                         let (a, b) = cmul(f1r, f1i, q[0], q[1]);
                         cr += a;
                         ci += b;
+                    }
+                    if hess {
+                        let (a, b) = cmul(f2r, f2i, q[0], q[1]);
+                        hr += a;
+                        hi += b;
                     }
                 }
                 let n = &q[n_off..];
@@ -232,15 +258,23 @@ impl Helmholtz3d {
                     pr -= a;
                     pi -= b;
                     if grad {
-                        // f2 = f0 (3 - 3ikr - k^2 r^2) / r^4
-                        let three = T::from_f64(3.0);
-                        let (f2r, f2i) = {
-                            let (a, b) = cmul(gr, gi, three - kr * kr, -three * kr);
-                            (a * rinv2 * rinv2, b * rinv2 * rinv2)
-                        };
                         let (a, b) = cmul(f2r, f2i, ndr, ndi);
                         cr -= a;
                         ci -= b;
+                    }
+                    if hess {
+                        // f3 = f0 (-15 + 15ikr + 6k^2 r^2 - ik^3 r^3) / r^6
+                        let (kr2, fifteen) = (kr * kr, T::from_f64(15.0));
+                        let (a, b) = cmul(
+                            gr,
+                            gi,
+                            T::from_f64(6.0) * kr2 - fifteen,
+                            kr * (fifteen - kr2),
+                        );
+                        let r6 = rinv2 * rinv2 * rinv2;
+                        let (a, b) = cmul(a * r6, b * r6, ndr, ndi);
+                        hr -= a;
+                        hi -= b;
                     }
                 }
                 acc[0] += pr;
@@ -253,6 +287,27 @@ impl Helmholtz3d {
                             let (a, b) = cmul(f1r, f1i, n[2 * m], n[2 * m + 1]);
                             acc[2 + 2 * m] -= a;
                             acc[3 + 2 * m] -= b;
+                        }
+                    }
+                }
+                if hess {
+                    // H_ab = h d_a d_b + c delta_ab - f2 (n_a d_b + n_b d_a)
+                    for (slot, (a, b)) in [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+                        .into_iter()
+                        .enumerate()
+                    {
+                        let at = 8 + 2 * slot;
+                        acc[at] += hr * d[a] * d[b];
+                        acc[at + 1] += hi * d[a] * d[b];
+                        if a == b {
+                            acc[at] += cr;
+                            acc[at + 1] += ci;
+                        }
+                        if has_n {
+                            let (ar, ai) = cmul(f2r, f2i, n[2 * a], n[2 * a + 1]);
+                            let (br, bi) = cmul(f2r, f2i, n[2 * b], n[2 * b + 1]);
+                            acc[at] -= ar * d[b] + br * d[a];
+                            acc[at + 1] -= ai * d[b] + bi * d[a];
                         }
                     }
                 }

@@ -12,8 +12,20 @@
 //! grad u += (q g1 - f2 (n . d)) d + g1 n
 //! ```
 //!
-//! in complex arithmetic on `(re, im)` registers. Coincident pairs get
-//! `1/r = 0` from [`Simd::rsqrt_or_zero`], which zeroes `f0`, `g1`, `f2`.
+//! in complex arithmetic on `(re, im)` registers. With Hessians (`W = 20`)
+//! a separate micro-kernel (`hessian_pair`) uses the radial functions
+//! `f0 .. f3` of [`Helmholtz3d`]'s module with this `d` (the convention of
+//! [`crate::lanes::radial`]): `f1 = -g1`, `f3 = f0 ((-15 + 6 k^2 r^2) +
+//! i (15 kr - k^3 r^3)) / r^6`, `p = n . d`, and
+//!
+//! ```text
+//! u    += q f0 + f1 p
+//! u_a  += -(q f1 + f2 p) d_a - f1 n_a
+//! H_ab += (q f2 + f3 p) d_a d_b + (q f1 + f2 p) delta_ab + f2 (n_a d_b + n_b d_a)
+//! ```
+//!
+//! Coincident pairs get `1/r = 0` from [`Simd::rsqrt_or_zero`], which
+//! zeroes `f0 .. f3`.
 //!
 //! # `sin` and `cos` of `x = kr >= 0`
 //! `n = round(x / 2 pi)` (the round-to-integer step of adding and
@@ -64,8 +76,9 @@ const COS_TAYLOR: [f64; 11] = [
 const TWO_PI_F64_LO: f64 = 2.449_293_598_294_706_4e-16;
 
 impl LaneSources for Helmholtz3d {
-    /// `NQ = 2, 6, 8` (complex charge, dipole, both) and `W = 2, 8`
-    /// (complex potential, with the gradient).
+    /// `NQ = 2, 6, 8` (complex charge, dipole, both) and `W = 2, 8, 20`
+    /// (complex potential, with the gradient, with the gradient and the
+    /// Hessian).
     fn run_sources<T: Real>(
         &self,
         level: SimdLevel,
@@ -76,15 +89,19 @@ impl LaneSources for Helmholtz3d {
         targets: &[T],
         out: &mut [T],
     ) {
+        use EvalMode::{Potential as P, PotentialGradient as G, PotentialGradientHessian as H};
         use SourceKind::{Charge, ChargeDipole, Dipole};
         let (s, q, t, o) = (sources, densities, targets, out);
-        match (kind, mode.has_gradient()) {
-            (Charge, false) => run::<_, _, 2, 2>(level, self, s, q, t, o),
-            (Charge, true) => run::<_, _, 2, 8>(level, self, s, q, t, o),
-            (Dipole, false) => run::<_, _, 6, 2>(level, self, s, q, t, o),
-            (Dipole, true) => run::<_, _, 6, 8>(level, self, s, q, t, o),
-            (ChargeDipole, false) => run::<_, _, 8, 2>(level, self, s, q, t, o),
-            (ChargeDipole, true) => run::<_, _, 8, 8>(level, self, s, q, t, o),
+        match (kind, mode) {
+            (Charge, P) => run::<_, _, 2, 2>(level, self, s, q, t, o),
+            (Charge, G) => run::<_, _, 2, 8>(level, self, s, q, t, o),
+            (Charge, H) => run::<_, _, 2, 20>(level, self, s, q, t, o),
+            (Dipole, P) => run::<_, _, 6, 2>(level, self, s, q, t, o),
+            (Dipole, G) => run::<_, _, 6, 8>(level, self, s, q, t, o),
+            (Dipole, H) => run::<_, _, 6, 20>(level, self, s, q, t, o),
+            (ChargeDipole, P) => run::<_, _, 8, 2>(level, self, s, q, t, o),
+            (ChargeDipole, G) => run::<_, _, 8, 8>(level, self, s, q, t, o),
+            (ChargeDipole, H) => run::<_, _, 8, 20>(level, self, s, q, t, o),
         }
     }
 }
@@ -179,7 +196,8 @@ impl PairKernel for Helmholtz3d {
     }
 
     /// The formulas of the module docs (`helmholtz/pair.rs`): charges unless `NQ = 6`,
-    /// dipoles when `NQ >= 6`, gradients when `W = 8`.
+    /// dipoles when `NQ >= 6`, gradients when `W = 8`, gradients and
+    /// Hessians when `W = 20` (`hessian_pair`).
     #[inline(always)]
     fn pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
         &self,
@@ -190,6 +208,10 @@ impl PairKernel for Helmholtz3d {
         q: &[S::V; NQ],
         acc: &mut [S::V; W],
     ) {
+        if W == 20 {
+            hessian_pair::<T, S, NQ, W>(s, k, d, r2, q, acc);
+            return;
+        }
         let (has_q, has_n, grad) = (NQ != 6, NQ >= 6, W == 8);
         let zero = s.splat(T::ZERO);
         let rinv = s.rsqrt_or_zero(r2);
@@ -254,6 +276,131 @@ impl PairKernel for Helmholtz3d {
     const TWO_REGISTERS_UP_TO: usize = 0;
     /// ... and 16 lanes with portable ones.
     const PORTABLE_LANES: usize = 16;
+}
+
+/// One source's potential, gradient and Hessian (`W = 20`, complex pairs
+/// in the order `u, u_x, u_y, u_z, H_xx, H_yy, H_zz, H_xy, H_xz, H_yz`) for
+/// `NQ` densities: the complex radial functions `f_0 .. f_3` of the module
+/// docs (`f_3` only with dipoles), then
+///
+/// ```text
+/// A = q f2 + f3 p,   B = q f1 + f2 p,   m_a = f2 n_a,   p = n . d
+/// u      += q f0 + f1 p
+/// u_a    += -B d_a - f1 n_a
+/// H_ab   += A d_a d_b + B delta_ab + m_a d_b + m_b d_a
+/// ```
+///
+/// (the terms in `q` without dipoles, in `n` without charges).
+#[inline(always)]
+fn hessian_pair<T: LaneFloat, S: Simd<T>, const NQ: usize, const W: usize>(
+    s: S,
+    k: &Consts<S::V>,
+    d: &[S::V; 3],
+    r2: S::V,
+    q: &[S::V; NQ],
+    acc: &mut [S::V; W],
+) {
+    let (has_q, has_n) = (NQ != 6, NQ >= 6);
+    let zero = s.splat(T::ZERO);
+    let rinv = s.rsqrt_or_zero(r2);
+    let kr = s.mul(k.k, s.mul(r2, rinv));
+    let (sn, cs) = sin_cos(s, k, kr);
+    let a = s.mul(k.scale, rinv);
+    // f0 = e^{ikr} / (4 pi r)
+    let (f0r, f0i) = (s.mul(cs, a), s.mul(sn, a));
+    let rinv2 = s.mul(rinv, rinv);
+    let kr2 = s.mul(kr, kr);
+    // f1 = f0 (-1 + i kr) / r^2
+    let (f1r, f1i) = {
+        let (a, b) = (s.mul_add(f0i, kr, f0r), s.sub(s.mul(f0r, kr), f0i));
+        (s.sub(zero, s.mul(a, rinv2)), s.mul(b, rinv2))
+    };
+    // f2 = f0 ((3 - k^2 r^2) - 3 i kr) / r^4
+    let rinv4 = s.mul(rinv2, rinv2);
+    let (f2r, f2i) = {
+        let (a, b) = cmul(
+            s,
+            f0r,
+            f0i,
+            s.sub(k.three, kr2),
+            s.sub(zero, s.mul(k.three, kr)),
+        );
+        (s.mul(a, rinv4), s.mul(b, rinv4))
+    };
+    let (mut ur, mut ui) = (zero, zero);
+    let (mut ar, mut ai) = (zero, zero);
+    let (mut br, mut bi) = (zero, zero);
+    if has_q {
+        (ur, ui) = cmul(s, f0r, f0i, q[0], q[1]);
+        (ar, ai) = cmul(s, f2r, f2i, q[0], q[1]);
+        (br, bi) = cmul(s, f1r, f1i, q[0], q[1]);
+    }
+    let n = &q[NQ - 6.min(NQ)..];
+    // m_a = f2 n_a and f1 n_a (dipoles only).
+    let mut m = [[zero; 2]; 3];
+    let mut f1n = [[zero; 2]; 3];
+    if has_n {
+        let pr = s.mul_add(n[4], d[2], s.mul_add(n[2], d[1], s.mul(n[0], d[0])));
+        let pi = s.mul_add(n[5], d[2], s.mul_add(n[3], d[1], s.mul(n[1], d[0])));
+        // f3 = f0 ((-15 + 6 k^2 r^2) + i (15 kr - k^3 r^3)) / r^6
+        let fifteen = s.splat(T::from_f64(15.0));
+        let six = s.splat(T::from_f64(6.0));
+        let (f3r, f3i) = {
+            let re = s.mul_add(six, kr2, s.sub(zero, fifteen));
+            let im = s.mul(kr, s.sub(fifteen, kr2));
+            let (a, b) = cmul(s, f0r, f0i, re, im);
+            let rinv6 = s.mul(rinv4, rinv2);
+            (s.mul(a, rinv6), s.mul(b, rinv6))
+        };
+        let (a, b) = cmul(s, f1r, f1i, pr, pi);
+        ur = s.add(ur, a);
+        ui = s.add(ui, b);
+        let (a, b) = cmul(s, f3r, f3i, pr, pi);
+        ar = s.add(ar, a);
+        ai = s.add(ai, b);
+        let (a, b) = cmul(s, f2r, f2i, pr, pi);
+        br = s.add(br, a);
+        bi = s.add(bi, b);
+        for c in 0..3 {
+            let (a, b) = cmul(s, f2r, f2i, n[2 * c], n[2 * c + 1]);
+            m[c] = [a, b];
+            let (a, b) = cmul(s, f1r, f1i, n[2 * c], n[2 * c + 1]);
+            f1n[c] = [a, b];
+        }
+    }
+    acc[0] = s.add(acc[0], ur);
+    acc[1] = s.add(acc[1], ui);
+    let b = [br, bi];
+    let ad = [
+        [s.mul(ar, d[0]), s.mul(ar, d[1]), s.mul(ar, d[2])],
+        [s.mul(ai, d[0]), s.mul(ai, d[1]), s.mul(ai, d[2])],
+    ];
+    for c in 0..3 {
+        for part in 0..2 {
+            // -B d_c - f1 n_c
+            let mut g = s.sub(acc[2 + 2 * c + part], s.mul(b[part], d[c]));
+            if has_n {
+                g = s.sub(g, f1n[c][part]);
+            }
+            acc[2 + 2 * c + part] = g;
+            // H_cc = A d_c d_c + B + 2 m_c d_c
+            let mut h = s.mul_add(ad[part][c], d[c], s.add(acc[8 + 2 * c + part], b[part]));
+            if has_n {
+                let md = s.mul(m[c][part], d[c]);
+                h = s.add(h, s.add(md, md));
+            }
+            acc[8 + 2 * c + part] = h;
+        }
+    }
+    for (slot, (i, j)) in [(14, (0, 1)), (16, (0, 2)), (18, (1, 2))] {
+        for part in 0..2 {
+            let mut h = s.mul_add(ad[part][i], d[j], acc[slot + part]);
+            if has_n {
+                h = s.mul_add(m[i][part], d[j], s.mul_add(m[j][part], d[i], h));
+            }
+            acc[slot + part] = h;
+        }
+    }
 }
 
 #[cfg(test)]

@@ -27,7 +27,10 @@ const MAX_BLOCK: usize = 64;
 ///
 /// Coincident lanes (`r2 < T::MIN_POSITIVE`) must add exactly zero (see
 /// the [module docs](super)). Mark `pair` and `regs` `#[inline(always)]`:
-/// they are compiled into each instruction set's loop.
+/// they are compiled into each instruction set's loop. Keep closures
+/// (`array::map` and the like) out of `pair`: they are not inlined into
+/// that loop, and each register operation in one becomes a call (measured:
+/// one `.map` made the Helmholtz Hessian micro-kernel 3x slower).
 pub trait PairKernel {
     /// Registers a call computes once (splatted constants).
     type Regs<T: LaneFloat, S: Simd<T>>;

@@ -157,6 +157,111 @@ fn helmholtz_dipoles_are_source_derivatives_of_charges() {
     assert!(err < 1e-7, "dipoles vs source differences: {err:e}");
 }
 
+/// Hessian columns (complex `H_xx, H_yy, H_zz, H_xy, H_xz, H_yz` after
+/// the gradient) against central differences of the gradient in each
+/// target coordinate (`h = 1e-4`: truncation `~(k h)^2 / 6` and
+/// cancellation `~eps / h` relative, both below `1e-7` for `k <= 7`), with
+/// `k r` from 1 to about 50 (separations 1 to 7); the leading eight values
+/// are the gradient mode's, and the trace of the Hessian is `-k^2 u`.
+fn check_hessian(k: &Helmholtz3d, kind: SourceKind, seed: u64) {
+    let (s, d, t) = separated(k, kind, seed);
+    let full = eval(k, kind, EvalMode::PotentialGradientHessian, &s, &d, &t);
+    let grad = eval(k, kind, EvalMode::PotentialGradient, &s, &d, &t);
+    let h = 1e-4;
+    let nt = t.len() / 3;
+    // dg[j][c][2 a + part]: d/dy_c of gradient component a at target j.
+    let mut dg = vec![[[0.0; 6]; 3]; nt];
+    for c in 0..3 {
+        let (mut tp, mut tm) = (t.clone(), t.clone());
+        for j in 0..nt {
+            tp[3 * j + c] += h;
+            tm[3 * j + c] -= h;
+        }
+        let gp = eval(k, kind, EvalMode::PotentialGradient, &s, &d, &tp);
+        let gm = eval(k, kind, EvalMode::PotentialGradient, &s, &d, &tm);
+        for j in 0..nt {
+            for v in 0..6 {
+                dg[j][c][v] = (gp[8 * j + 2 + v] - gm[8 * j + 2 + v]) / (2.0 * h);
+            }
+        }
+    }
+    let (mut got, mut want) = (Vec::new(), Vec::new());
+    for j in 0..nt {
+        for (slot, (a, b)) in [(0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2)]
+            .into_iter()
+            .enumerate()
+        {
+            for part in 0..2 {
+                got.push(full[20 * j + 8 + 2 * slot + part]);
+                want.push(0.5 * (dg[j][a][2 * b + part] + dg[j][b][2 * a + part]));
+            }
+        }
+    }
+    let err = relative_l2(&got, &want);
+    eprintln!("k={} {kind:?} Hessian vs differences: {err:e}", k.k);
+    assert!(
+        err < 1e-7,
+        "k={} {kind:?} Hessian vs differences: {err:e}",
+        k.k
+    );
+    let head: Vec<f64> = full
+        .chunks_exact(20)
+        .flat_map(|o| o[..8].to_vec())
+        .collect();
+    let err = relative_l2(&head, &grad);
+    assert!(err < 1e-14, "k={} {kind:?}: leading values {err:e}", k.k);
+    let k2 = k.k * k.k;
+    for o in full.chunks_exact(20) {
+        for part in 0..2 {
+            let tr = o[8 + part] + o[10 + part] + o[12 + part];
+            let scale = o[8 + part].abs() + o[10 + part].abs() + o[12 + part].abs();
+            assert!(
+                (tr + k2 * o[part]).abs() <= 1e-12 * (scale + k2 * o[part].abs()),
+                "k={} {kind:?}: trace {tr:e} vs -k^2 u = {:e}",
+                k.k,
+                -k2 * o[part]
+            );
+        }
+    }
+}
+
+#[test]
+fn helmholtz_hessians_match_differences_of_the_gradient() {
+    for (i, kw) in [0.0, 0.5, 3.0, 7.0].into_iter().enumerate() {
+        let k = Helmholtz3d::new(kw).unwrap();
+        for kind in [
+            SourceKind::Charge,
+            SourceKind::Dipole,
+            SourceKind::ChargeDipole,
+        ] {
+            check_hessian(&k, kind, 10 * i as u64 + 71);
+        }
+    }
+}
+
+/// At `k = 0` the real and imaginary parts are Laplace fields of the real
+/// and imaginary charges (dipoles), Hessians included.
+#[test]
+fn helmholtz_hessians_at_zero_wavenumber_are_laplace_per_part() {
+    let k = Helmholtz3d::new(0.0).unwrap();
+    let mode = EvalMode::PotentialGradientHessian;
+    for kind in [
+        SourceKind::Charge,
+        SourceKind::Dipole,
+        SourceKind::ChargeDipole,
+    ] {
+        let (s, d, t) = separated(&k, kind, 33);
+        let got = eval(&k, kind, mode, &s, &d, &t);
+        for part in 0..2 {
+            let q: Vec<f64> = d.iter().skip(part).step_by(2).copied().collect();
+            let want = eval(&Laplace3d, kind, mode, &s, &q, &t);
+            let mine: Vec<f64> = got.iter().skip(part).step_by(2).copied().collect();
+            let err = relative_l2(&mine, &want);
+            assert!(err < 1e-14, "{kind:?} part {part}: {err:e}");
+        }
+    }
+}
+
 /// At `k = 0` the real and imaginary parts are Laplace fields of the real
 /// and imaginary charges.
 #[test]
@@ -238,6 +343,37 @@ fn single_precision_follows_double() {
     check(&Stokes3d::default(), SourceKind::Charge);
 }
 
+/// Helmholtz Hessians in `f32` follow `f64`, every source kind, at every
+/// SIMD level (the scalar reference loop in `f32` too).
+#[test]
+fn helmholtz_single_precision_hessians_follow_double() {
+    let mode = EvalMode::PotentialGradientHessian;
+    let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
+    for kw in [0.0, 5.0] {
+        let k = Helmholtz3d::new(kw).unwrap();
+        for kind in [
+            SourceKind::Charge,
+            SourceKind::Dipole,
+            SourceKind::ChargeDipole,
+        ] {
+            let (s, d, t) = separated(&k, kind, 57);
+            let want = eval(&k, kind, mode, &s, &d, &t);
+            let mut out = vec![0.0f32; want.len()];
+            k.evaluate_sources_pairwise(kind, mode, &f(&s), &f(&d), &f(&t), &mut out);
+            let runs = [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512].map(|level| {
+                let mut o = vec![0.0f32; want.len()];
+                lanes::evaluate_sources_with(level, &k, kind, mode, &f(&s), &f(&d), &f(&t), &mut o);
+                (format!("{level:?}"), o)
+            });
+            for (label, o) in std::iter::once(("pairwise".to_string(), out)).chain(runs) {
+                let got: Vec<f64> = o.iter().map(|&x| x as f64).collect();
+                let err = relative_l2(&got, &want);
+                assert!(err < 1e-5, "k={kw} {kind:?} {label} f32: {err:e}");
+            }
+        }
+    }
+}
+
 #[test]
 fn bad_input_is_refused_with_the_component_count() {
     let h = Helmholtz3d::new(1.0).unwrap();
@@ -292,7 +428,8 @@ fn bad_input_is_refused_with_the_component_count() {
         err,
         Err(KernelError::OutputLength { expected: 2, .. })
     ));
-    // Stokes takes forces only, and no kernel here has Hessians.
+    // Stokes takes forces only, and has no Hessians; Helmholtz Hessians
+    // need 20 values per target.
     let mut out = [0.0; 3];
     let err = direct_sum_sources_checked(
         &Stokes3d::default(),
@@ -307,7 +444,21 @@ fn bad_input_is_refused_with_the_component_count() {
         matches!(err, Err(KernelError::Unsupported { .. })),
         "{err:?}"
     );
-    let mut out = [0.0; 20];
+    let mut out = [0.0; 30];
+    let err = direct_sum_sources_checked(
+        &Stokes3d::default(),
+        SourceKind::Charge,
+        EvalMode::PotentialGradientHessian,
+        &s,
+        &[1.0; 6],
+        &t,
+        &mut out,
+    );
+    assert!(
+        matches!(err, Err(KernelError::Unsupported { .. })),
+        "{err:?}"
+    );
+    let mut out = [0.0; 10];
     let err = direct_sum_sources_checked(
         &h,
         SourceKind::Charge,
@@ -318,7 +469,7 @@ fn bad_input_is_refused_with_the_component_count() {
         &mut out,
     );
     assert!(
-        matches!(err, Err(KernelError::Unsupported { .. })),
+        matches!(err, Err(KernelError::OutputLength { expected: 20, .. })),
         "{err:?}"
     );
     assert!(Helmholtz3d::new(-1.0).is_err());
@@ -345,7 +496,11 @@ fn helmholtz_vector_loop_matches_the_pairwise_loop_at_every_level() {
                 .collect();
             let mut t = uniform_cube(37, -1.5, 3.0, 63);
             t[3..6].copy_from_slice(&s[9..12]);
-            for mode in [EvalMode::Potential, EvalMode::PotentialGradient] {
+            for mode in [
+                EvalMode::Potential,
+                EvalMode::PotentialGradient,
+                EvalMode::PotentialGradientHessian,
+            ] {
                 let mut want = vec![0.0; k.values_per_target(mode) * 37];
                 k.evaluate_sources_pairwise(kind, mode, &s, &d, &t, &mut want);
                 for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {

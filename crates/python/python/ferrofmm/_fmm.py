@@ -669,6 +669,7 @@ def helmholtz(
     eps: Optional[float] = None,
     order: Optional[int] = None,
     gradient: bool = False,
+    hessian: bool = False,
     dtype: Any = None,
     threads: Optional[int] = None,
     leaf_size: Optional[int] = None,
@@ -685,9 +686,10 @@ def helmholtz(
     ``r = |y - x_i|``, ``k >= 0`` the wavenumber. ``charges`` is complex
     ``(n,)`` or ``(k, n)``, ``dipoles`` complex ``(n, 3)`` or ``(k, n, 3)``
     (real arrays are taken as complex); ``.potential`` is complex ``(m,)``,
-    ``.gradient`` complex ``(m, 3)``. The low-frequency method: ``k`` times
-    the width of the points' bounding cube is limited (about 6 wavelengths
-    across), beyond it ``ValueError`` names the limit. No Hessians.
+    ``.gradient`` complex ``(m, 3)``, with ``hessian=True`` ``.hessian``
+    complex ``(m, 6)`` (``xx, yy, zz, xy, xz, yz``). The low-frequency
+    method: ``k`` times the width of the points' bounding cube is limited
+    (about 6 wavelengths across), beyond it ``ValueError`` names the limit.
     ``scheme="auto"`` is the FFT scheme (it builds 7-40x faster
     than SVD at N = 2e4, to the same accuracy). The other parameters are as for
     :func:`laplace`.
@@ -702,7 +704,7 @@ def helmholtz(
     """
     return _one_call(
         "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
-        gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
+        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,
     )
