@@ -163,17 +163,21 @@ impl MemoryReport {
     /// Bytes that building an [`Fmm`] in `T` for `size` and evaluating
     /// `size.n_vectors` density vectors need at least: the buffers whose
     /// length follows from the point counts alone, with the same per-point
-    /// figures as [`Fmm::memory`] (`points`, and of `evaluation_scratch`
-    /// the densities in tree order and the outputs), plus what the build
-    /// holds while it sorts (see [`MemoryReport::predict_points`]) and the
-    /// results of every vector. Boxes, expansions and operators are not
-    /// counted (they depend on the tree), so this is a lower bound of the
-    /// peak: a run it puts beyond the memory available cannot fit
-    /// ([`check_memory`]).
+    /// figures as [`Fmm::memory`]. What the FMM keeps (its sorted points and
+    /// the tree's permutation) plus the larger of what the build holds
+    /// while it sorts and what the evaluation holds (the densities in tree
+    /// order and the outputs of every vector): `kept + max(build,
+    /// evaluation)` of [`MemoryReport::predict_points`] and
+    /// [`MemoryReport::predict_evaluation`]. Boxes, expansions and
+    /// operators are not counted (they depend on the tree), nor the
+    /// caller's own inputs, so this is a lower bound of the peak: a run it
+    /// puts beyond the memory available cannot fit ([`check_memory`]).
     ///
     /// Saturates at `u64::MAX` instead of overflowing.
     pub fn predict<T: Real>(size: &RunSize) -> u64 {
-        Self::predict_points::<T>(size).saturating_add(Self::predict_evaluation::<T>(size))
+        let (kept, build) = Self::points_share::<T>(size);
+        let evaluation = Self::predict_evaluation::<T>(size);
+        kept.saturating_add(build.max(evaluation))
     }
 
     /// The build's share of [`MemoryReport::predict`], per point (source
@@ -183,11 +187,19 @@ impl MemoryReport {
     /// the sort (`16`) and, in `f32`, the sorted `f64` coordinates the
     /// `f32` copy is made from (`24`; in `f64` they become the FMM's).
     pub fn predict_points<T: Real>(size: &RunSize) -> u64 {
+        let (kept, build) = Self::points_share::<T>(size);
+        kept.saturating_add(build)
+    }
+
+    /// What the FMM keeps per point, and what the build holds besides
+    /// while it sorts (see [`MemoryReport::predict_points`]).
+    fn points_share<T: Real>(size: &RunSize) -> (u64, u64) {
         let t = size_of::<T>() as u128;
         let us = size_of::<usize>() as u128;
         let points = size.n_sources as u128 + size.n_targets.unwrap_or(0) as u128;
         let f64_copy = if t == 8 { 0 } else { 3 * 8 };
-        u64::try_from(points * (3 * t + us + 16 + f64_copy)).unwrap_or(u64::MAX)
+        let bytes = |per: u128| u64::try_from(points * per).unwrap_or(u64::MAX);
+        (bytes(3 * t + us), bytes(16 + f64_copy))
     }
 
     /// The evaluation's share of [`MemoryReport::predict`] (of an
@@ -251,8 +263,14 @@ mod tests {
             values_per_target: 4,
             n_vectors: 1,
         };
+        // Kept 32 bytes a point, then the larger of the sort's 16 and the
+        // evaluation's 8 + 32.
         let small = MemoryReport::predict::<f64>(&size(1000, None));
-        assert!(small > 1000 * 3 * 8 * 3);
+        assert_eq!(small, 1000 * (32 + 40));
+        assert_eq!(
+            MemoryReport::predict_points::<f64>(&size(1000, None)),
+            1000 * (32 + 16)
+        );
         assert!(MemoryReport::predict::<f64>(&size(1000, Some(1000))) > small);
         assert!(MemoryReport::predict::<f32>(&size(1000, None)) < small);
         assert_eq!(

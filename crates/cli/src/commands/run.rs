@@ -13,7 +13,7 @@ use ferrofmm_fmm::{
     Charges, EvalTimings, Fmm, FmmBuilder, FmmError, Geometry, effective_tolerance,
     relative_errors_sources, sample_indices,
 };
-use ferrofmm_fmm::{MemoryLimit, PrecomputeMonitor, Verification};
+use ferrofmm_fmm::{MemoryLimit, MemoryReport, PrecomputeMonitor, Verification};
 use ferrofmm_kernels::{EvalMode, Kernel, KernelVisitor, Precision, Real, SourceKind};
 
 use super::{KernelArg, PrecisionArg, SchemeArg};
@@ -136,6 +136,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         default_tolerance: settings.tolerance.is_none() && settings.order.is_none(),
         ..settings.clone()
     };
+    check_generated_memory(&input, settings, mode)?;
     // The points, made once, for the automatic choices (only with a
     // tolerance and an `auto` setting that needs them).
     let needs_points = (settings.tolerance.is_some() && settings.precision == Auto)
@@ -181,6 +182,42 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         settings,
         output,
     })
+}
+
+/// Built-in points are refused before they are made when they and the
+/// FMM's per-point buffers cannot fit ([`MemoryReport::predict`], in the
+/// smaller float type a `--precision auto` could pick, plus the charges
+/// the command holds; the points, which in f64 it holds only until the FMM
+/// is built, are left out of this lower bound). The builder checks the
+/// same for points from files, once they are read.
+fn check_generated_memory(input: &Input, settings: &Settings, mode: EvalMode) -> Result<()> {
+    let Input::Generated { n, .. } = input else {
+        return Ok(());
+    };
+    let c = settings.kernel.components();
+    let size = ferrofmm_fmm::RunSize {
+        n_sources: *n,
+        n_targets: None,
+        values_per_source: c,
+        values_per_target: c * mode.values_per_target(),
+        n_vectors: 1,
+    };
+    let (library, t) = match settings.precision {
+        PrecisionArg::F64 => (MemoryReport::predict::<f64>(&size), 8),
+        _ => (MemoryReport::predict::<f32>(&size), 4),
+    };
+    let charges = (*n as u64).saturating_mul(c as u64 * t);
+    let limit = if settings.force {
+        MemoryLimit::Unlimited
+    } else {
+        MemoryLimit::Auto
+    };
+    ferrofmm_fmm::check_memory(
+        library.saturating_add(charges),
+        limit,
+        &format!("a demo of {n} points"),
+    )?;
+    Ok(())
 }
 
 /// The rest of [`run`] for the kernel `--kernel` names.

@@ -79,6 +79,28 @@ fn memory_estimate_refuses_unless_forced() {
     assert!(texts(&bad).1.contains("FERROFMM_MEMORY_LIMIT"));
 }
 
+/// A run whose points alone cannot fit is refused before they are made:
+/// a billion points against a 1 GiB limit fail at once with the estimate
+/// (at least 32 bytes a point kept, 40 more while evaluating), having
+/// allocated nothing of the 24 GB they would take.
+#[test]
+fn points_beyond_the_limit_are_refused_before_they_are_made() {
+    let t = std::time::Instant::now();
+    let out = common::command()
+        .args(["demo", "-n", "1000000000", "--check", "0"])
+        .env("FERROFMM_MEMORY_LIMIT", "1G")
+        .output()
+        .unwrap();
+    let (_, stderr) = texts(&out);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("a demo of 1000000000 points is predicted to need at least"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("1.0 GiB"), "{stderr}");
+    assert!(t.elapsed().as_secs_f64() < 5.0, "{:?}", t.elapsed());
+}
+
 fn timed(args: &[&str], env: Option<(&str, &str)>) -> f64 {
     let mut cmd = common::command();
     cmd.args(args).env_remove("RAYON_NUM_THREADS");
