@@ -63,6 +63,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         charges: ChargesArg::parse(&args.charges)?.charges(),
         n: args.n,
         seed: args.seed,
+        points: None,
     };
     let settings = Settings {
         command: "demo",

@@ -39,6 +39,9 @@ pub enum Input {
         n: usize,
         /// Random seed.
         seed: u64,
+        /// The points, once made (by the automatic choices, which need
+        /// them before the run): `None` until then.
+        points: Option<Vec<f64>>,
     },
     /// Points and densities read from files (interleaved `f64`).
     Given {
@@ -137,6 +140,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         ..settings.clone()
     };
     check_generated_memory(&input, settings, mode)?;
+    let mut input = input;
     // The points, made once, for the automatic choices (only with a
     // tolerance and an `auto` setting that needs them).
     let needs_points = (settings.tolerance.is_some() && settings.precision == Auto)
@@ -145,6 +149,20 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
             .needs_points(settings.kernel, settings.tolerance, settings.order);
     // A periodic run's tree is built on the points wrapped into its cell:
     // the choices see those.
+    // Built-in points are made once, here, and kept for the run.
+    if let (
+        true,
+        Input::Generated {
+            geometry,
+            n,
+            seed,
+            points: points @ None,
+            ..
+        },
+    ) = (needs_points, &mut input)
+    {
+        *points = Some(geometry.points(*n, *seed));
+    }
     let points = needs_points.then(|| {
         let (s, t) = points_of(&input);
         match &settings.periodic {
@@ -274,6 +292,9 @@ fn run_kernel<K: Kernel>(
 fn points_of(input: &Input) -> (std::borrow::Cow<'_, [f64]>, Option<&[f64]>) {
     match input {
         Input::Generated {
+            points: Some(p), ..
+        } => (p.as_slice().into(), None),
+        Input::Generated {
             geometry, n, seed, ..
         } => (geometry.points::<f64>(*n, *seed).into(), None),
         Input::Given {
@@ -398,6 +419,7 @@ where
             charges,
             n,
             seed,
+            points,
         } => with_stage(
             format!("generating {n} points ({})", geometry.name()),
             || {
@@ -408,7 +430,7 @@ where
                     q.iter_mut().for_each(|x| *x -= mean);
                 }
                 (
-                    geometry.points(n, seed),
+                    points.unwrap_or_else(|| geometry.points(n, seed)),
                     None,
                     SourceKind::Charge,
                     convert(q),
