@@ -122,6 +122,13 @@ pub struct EvalArgs {
     /// stdout) instead of the table.
     #[arg(long)]
     pub(crate) json: bool,
+    /// No report: a successful run prints nothing (its output file is its
+    /// result). Errors and warnings (such as the note that --threads was
+    /// lowered) still print on stderr, and the exit status is unchanged;
+    /// the JSON of --json, asked for explicitly, is still printed. As
+    /// `ferrofmm --quiet`.
+    #[arg(short = 'q', long)]
+    pub(crate) quiet: bool,
 }
 
 /// This rank's points and densities (`kind`, `kernel.values_per_source`
@@ -251,6 +258,7 @@ fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
         ("--cache-dir", path(&a.cache_dir)),
         ("--no-cache", a.no_cache.to_string()),
         ("--json", a.json.to_string()),
+        ("--quiet", a.quiet.to_string()),
     ]
 }
 
@@ -470,7 +478,8 @@ fn go(
     mine.push(solver.setup_stats().active_boxes as f64);
     let mut all = vec![0.0f64; FIGURES * size];
     world.all_gather_into(&mine[..], &mut all[..]);
-    if me == 0 {
+    // `--quiet` silences the table, not a JSON asked for.
+    if me == 0 && (a.json || !a.quiet) {
         let plan = solver.plan();
         let info = RunInfo {
             json: a.json,

@@ -986,3 +986,34 @@ fn eval_with_separate_targets() {
     assert!(rel(&pot(&checked), &pot(&direct)) <= eps);
     assert!(rel(&checked, &direct) <= 2.0 * eps);
 }
+
+/// `eval --quiet`: a successful run prints nothing on any rank (its output
+/// file is its result); `--json` asked for is still printed, alone; an
+/// error still prints.
+#[test]
+fn eval_quiet_prints_nothing_but_what_is_asked_for() {
+    let dir = std::env::temp_dir().join(format!("ferrofmm-mpi-quiet-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let out = dir.join("v.npy").to_string_lossy().into_owned();
+    let base = ["eval", "--generate", "cube", "--n", "3000", "--order", "4"];
+    let with = |extra: &[&str]| -> Vec<String> {
+        base.iter().chain(extra).map(|s| s.to_string()).collect()
+    };
+    let run = |args: Vec<String>| {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        mpirun(2, &args)
+    };
+    let (ok, text) = run(with(&["--quiet", "--out", &out]));
+    assert!(ok, "{text}");
+    assert!(text.trim().is_empty(), "quiet printed:\n{text}");
+    assert!(std::fs::metadata(&out).unwrap().len() > 3000 * 8);
+    let (ok, text) = run(with(&["-q", "--json"]));
+    assert!(ok, "{text}");
+    let lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    assert_eq!(lines.len(), 1, "{text}");
+    assert!(lines[0].starts_with('{') && json_number(lines[0], "ranks") == Some(2.0));
+    let (ok, text) = run(with(&["--quiet", "--leaf-size", "0"]));
+    assert!(!ok);
+    assert!(text.contains("error:"), "{text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
