@@ -142,7 +142,8 @@ pub struct RunReport {
 
 /// Bytes of the big buffers of a run by component: the library's
 /// ([`ferrofmm_fmm::MemoryReport`], counted from the buffers' lengths)
-/// and the command's own inputs and results.
+/// and the command's own inputs (its results are the library's outputs,
+/// counted in `evaluation_scratch`).
 #[derive(Clone, Copy, Debug, Default, Serialize, Deserialize, PartialEq)]
 pub struct MemoryFigures {
     /// Points the per-point figures divide by (sources plus separate

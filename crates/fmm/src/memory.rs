@@ -217,16 +217,6 @@ impl MemoryReport {
         );
         u64::try_from(n * s * t + k * w * m * t).unwrap_or(u64::MAX)
     }
-
-    /// [`total`](Self::total) per point: bytes over `n_points` (sources
-    /// plus separate targets), `0` for none.
-    pub fn bytes_per_point(&self, n_points: usize) -> f64 {
-        if n_points == 0 {
-            0.0
-        } else {
-            self.total as f64 / n_points as f64
-        }
-    }
 }
 
 /// [`FmmError::RunMemory`](crate::FmmError::RunMemory) when `needed` bytes exceed `limit` (resolved as

@@ -90,16 +90,14 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
         // tree's order (a caller's tree) are copied.
         let (sources, targets) = match permute {
             true => {
+                // The tree was built on these points: it has a target set
+                // of its own exactly when `targets` is given.
                 let (s, t) = tree.take_sorted_points();
-                let s = relative_points(s, centre);
-                let t = match (targets, t) {
-                    (Some(_), Some(t)) => Some(relative_points(t, centre)),
-                    (Some(t), None) => {
-                        Some(permute_points(t, Some(tree.target_permutation()), centre))
-                    }
-                    (None, _) => None,
-                };
-                (s, t)
+                debug_assert_eq!(t.is_some(), targets.is_some());
+                (
+                    relative_points(s, centre),
+                    t.map(|t| relative_points(t, centre)),
+                )
             }
             false => (
                 permute_points(sources, None, centre),

@@ -328,6 +328,16 @@ impl<T: Real> FftM2l<T> {
         }
     }
 
+    /// Bytes of the spectra of one sibling group (`8 c` spectra).
+    fn group_bytes(&self) -> usize {
+        self.blocks * 8 * self.components * W * std::mem::size_of::<f64>()
+    }
+
+    /// Source groups whose spectra fit the budget (at least one).
+    fn groups_per_run(&self) -> usize {
+        (self.spectra_budget / self.group_bytes()).max(1)
+    }
+
     /// Hold at most `bytes` of source spectra at once in
     /// [`M2lScheme::apply`] (default [`SPECTRA_BUDGET_BYTES`]; at least one
     /// target group's sources are held whatever the budget). A smaller
@@ -551,7 +561,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let threads = rayon::current_num_threads().max(1);
         // Runs of target groups whose source spectra fit the budget
         // ([`chunks`]); the slot of each source group in the run's spectra.
-        let max_groups = (self.spectra_budget / (group_len * std::mem::size_of::<f64>())).max(1);
+        let max_groups = self.groups_per_run();
         let mut slots = vec![0u32; siblings.n_source_groups()];
         let mut sources: Vec<f64> = Vec::new();
         let mut rest = check;
@@ -623,10 +633,9 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     /// the blocks' slab tables; and per thread the target spectra of a
     /// task and the transforms' grids.
     fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
-        let group = self.blocks * 8 * self.components * W * std::mem::size_of::<f64>();
-        let max_groups = (self.spectra_budget / group).max(1);
+        let group = self.group_bytes();
         let siblings = interactions.sibling_blocks();
-        let largest = plan_chunks(siblings, max_groups)
+        let largest = plan_chunks(siblings, self.groups_per_run())
             .iter()
             .map(|c| c.sources.len())
             .max()
