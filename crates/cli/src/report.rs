@@ -260,10 +260,19 @@ pub struct TreeFigures {
     /// Sources plus targets outside the largest cluster.
     #[serde(default)]
     pub far_points: usize,
+    /// Width of the root box as a multiple of the points' bounding cube
+    /// (1 unless the chooser widened it, see
+    /// [`ferrofmm_fmm::tuning::choose_root`]).
+    #[serde(default = "one_f64")]
+    pub root_scale: f64,
 }
 
 fn one() -> usize {
     1
+}
+
+fn one_f64() -> f64 {
+    1.0
 }
 
 impl From<&FmmSummary> for TreeFigures {
@@ -280,6 +289,7 @@ impl From<&FmmSummary> for TreeFigures {
             m2l_bytes: s.m2l_bytes,
             clusters: s.clusters,
             far_points: s.far_points,
+            root_scale: s.chosen.as_ref().map_or(1.0, |c| c.root_scale),
         }
     }
 }
@@ -544,10 +554,18 @@ impl RunReport {
             &mut o,
             "tree",
             format!(
-                "depth {}, {} leaves, {} boxes{}",
+                "depth {}, {} leaves, {} boxes{}{}",
                 self.tree.depth,
                 thousands(self.tree.n_leaves),
                 thousands(self.tree.n_boxes),
+                if self.tree.root_scale > 1.0 {
+                    format!(
+                        "; root {:.2}x the points' bounding cube",
+                        self.tree.root_scale
+                    )
+                } else {
+                    String::new()
+                },
                 if self.tree.clusters > 1 {
                     format!(
                         "; {} far clusters ({} points outside the largest)",

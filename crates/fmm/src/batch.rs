@@ -65,9 +65,81 @@ pub(crate) fn par_columns<T: Real>(
         .for_each(|(i, o)| f(i, o));
 }
 
+/// `data[:, j] = Op * data[:, j]` for the columns `j` with `keep(j)` (every
+/// column without `keep`), the others set to zero; `op(input, output)`
+/// computes `output += Op * input` for a column-major block. Each block of
+/// [`BLOCK`] columns is copied aside, zeroed and written back, so the
+/// working memory is one block per thread, not a second copy of `data`
+/// (the downward pass turns a level's check potentials into its local
+/// expansions in the same buffer this way).
+pub(crate) fn par_columns_in_place<T: Real>(
+    n: usize,
+    data: &mut [T],
+    keep: Option<&(dyn Fn(usize) -> bool + Sync)>,
+    op: impl Fn(&[T], &mut [T]) + Sync,
+) {
+    if n == 0 || data.is_empty() {
+        return;
+    }
+    data.par_chunks_mut(n * BLOCK)
+        .enumerate()
+        .for_each(|(k, block)| match keep {
+            None => {
+                let input = block.to_vec();
+                block.fill(T::ZERO);
+                op(&input, block);
+            }
+            Some(keep) => {
+                let kept: Vec<usize> = (0..block.len() / n)
+                    .filter(|&c| keep(k * BLOCK + c))
+                    .collect();
+                let mut input = Vec::with_capacity(n * kept.len());
+                for &c in &kept {
+                    input.extend_from_slice(&block[n * c..n * (c + 1)]);
+                }
+                let mut output = vec![T::ZERO; n * kept.len()];
+                op(&input, &mut output);
+                block.fill(T::ZERO);
+                for (&c, col) in kept.iter().zip(output.chunks_exact(n)) {
+                    block[n * c..n * (c + 1)].copy_from_slice(col);
+                }
+            }
+        });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn columns_in_place_match_a_separate_output() {
+        // Op = [[1, 2], [3, 4]] on 2-vectors, over more than one block.
+        let n = 2;
+        let op = |i: &[f64], o: &mut [f64]| {
+            for (x, y) in i.chunks_exact(2).zip(o.chunks_exact_mut(2)) {
+                y[0] += x[0] + 2.0 * x[1];
+                y[1] += 3.0 * x[0] + 4.0 * x[1];
+            }
+        };
+        let cols = 3 * BLOCK + 5;
+        let data: Vec<f64> = (0..n * cols).map(|i| (i % 13) as f64 - 6.0).collect();
+        let mut expect = vec![0.0; data.len()];
+        par_columns(n, &data, &mut expect, op);
+        let mut all = data.clone();
+        par_columns_in_place(n, &mut all, None, op);
+        assert_eq!(all, expect);
+        let keep = |j: usize| j % 3 != 1;
+        let mut some = data.clone();
+        par_columns_in_place(n, &mut some, Some(&keep), op);
+        for j in 0..cols {
+            let want = if keep(j) {
+                &expect[n * j..n * (j + 1)]
+            } else {
+                &[0.0, 0.0][..]
+            };
+            assert_eq!(&some[n * j..n * (j + 1)], want, "column {j}");
+        }
+    }
 
     #[test]
     fn gather_apply_scatter_matches_loop() {

@@ -225,17 +225,40 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 tuner = tuner.with_leaf_size(b.leaf_size);
             }
             error_model = Some(tuner.error.clone());
-            let occupancy = tuning::Occupancy::new(
-                s.as_deref().unwrap_or(&src64),
-                if clusters.len() == 1 {
-                    tgt64.as_deref()
-                } else {
-                    tg.as_deref()
-                },
-                b.domain,
-                b.max_level,
-            )?;
-            let mut c = tuner.choose_for(eps, &occupancy)?;
+            let tune_sources = s.as_deref().unwrap_or(&src64);
+            let tune_targets = if clusters.len() == 1 {
+                tgt64.as_deref()
+            } else {
+                tg.as_deref()
+            };
+            // A root wider than the bounding cube is weighed where the
+            // tree is ours to shape (`tuning::choose_root`).
+            let widen = b.domain.is_none()
+                && b.periodic.is_none()
+                && clusters.len() == 1
+                && !b.leaf_given
+                && b.kernel.homogeneity().is_some();
+            let mut c = if widen {
+                // The memory left for the boxes beside the points' buffers.
+                let box_budget = b
+                    .memory_limit
+                    .resolve()?
+                    .map(|limit| limit.saturating_sub(MemoryReport::predict::<T>(&size)));
+                let (c, root) = tuning::choose_root(
+                    &tuner,
+                    eps,
+                    tune_sources,
+                    tune_targets,
+                    b.max_level,
+                    box_budget,
+                )?;
+                b.domain = root;
+                c
+            } else {
+                let occupancy =
+                    tuning::Occupancy::new(tune_sources, tune_targets, b.domain, b.max_level)?;
+                tuner.choose_for(eps, &occupancy)?
+            };
             // A direct sum is a candidate when the leaf size is ours to
             // choose, the points are one cluster (far clusters keep their
             // own trees and coordinate origins) and the float type is

@@ -23,7 +23,7 @@ use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
-use crate::batch::{gather_apply_scatter, par_columns};
+use crate::batch::{gather_apply_scatter, par_columns, par_columns_in_place};
 use crate::part::{Body, TreePart, image_points, shift_at};
 use crate::progress::{self, Work};
 use crate::timings::EvalTimings;
@@ -431,7 +431,12 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         if r.is_empty() {
             continue;
         }
-        let mut check = vec![T::ZERO; n * r.len()];
+        // The level's check potentials are gathered in its local
+        // expansions' own columns (still zero: L2L into them comes after)
+        // and turned into local expansions there, so no level-sized buffer
+        // is held beside them.
+        let (parents, level_locals) = locals.split_at_mut(n * r.start);
+        let check = &mut level_locals[..n * r.len()];
 
         let t = Instant::now();
         let interactions = &part.m2l_interactions[level as usize];
@@ -440,7 +445,7 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
                 level,
                 interactions,
                 &multipoles[n * r.start..n * r.end],
-                &mut check,
+                check,
             );
         }
         timings.m2l += t.elapsed();
@@ -466,23 +471,16 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
             },
         );
         timings.p2l += t.elapsed();
-        on_checks(level, r.clone(), &mut check);
+        on_checks(level, r.clone(), check);
 
         let t = Instant::now();
-        let (parents, level_locals) = locals.split_at_mut(n * r.start);
-        let level_locals = &mut level_locals[..n * r.len()];
-        if part.active.is_some() {
-            let pairs: Vec<(usize, usize)> = r
-                .clone()
-                .filter(|&b| part.is_active(b))
-                .map(|b| (b - r.start, b - r.start))
-                .collect();
-            gather_apply_scatter(n, &pairs, &check, level_locals, |c, d| {
-                ops.dc2e(level, c, d)
-            });
-        } else {
-            par_columns(n, &check, level_locals, |c, d| ops.dc2e(level, c, d));
-        }
+        let level_locals = check;
+        let active = |j: usize| part.is_active(r.start + j);
+        let keep: Option<&(dyn Fn(usize) -> bool + Sync)> = match part.active {
+            Some(_) => Some(&active),
+            None => None,
+        };
+        par_columns_in_place(n, level_locals, keep, |c, d| ops.dc2e(level, c, d));
         if (level >= 2 || from_root) && level > ops.first_level() {
             for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {
                 let pairs: Vec<(usize, usize)> = pairs.iter().map(|&(c, p)| (p, c)).collect();

@@ -238,6 +238,7 @@ pub(crate) mod tests {
                 m2l_bytes: 1 << 20,
                 clusters: 1,
                 far_points: 0,
+                root_scale: 1.0,
             },
             setup: SetupSeconds {
                 tree_s: 0.01,

@@ -35,6 +35,10 @@ pub struct ChosenParameters {
     pub order: usize,
     /// Leaf size (largest number of points in a leaf).
     pub leaf_size: usize,
+    /// Width of the root box as a multiple of the points' bounding cube
+    /// (1: the bounding cube; larger roots put a near-uniform set's points
+    /// in leaves of a better size, see [`choose_root`](super::choose_root)).
+    pub root_scale: f64,
     /// SVD tolerance of the M2L compression.
     pub svd_tolerance: f64,
     /// Rank of the built SVD M2L operators (`None` before building, or for
@@ -495,6 +499,7 @@ impl Tuner {
             precision: self.error.precision.name().to_string(),
             order: best.order,
             leaf_size: best.leaf_size,
+            root_scale: 1.0,
             svd_tolerance: best.svd_tolerance,
             svd_rank: None,
             estimated_svd_rank: best.estimated_rank,

@@ -117,6 +117,7 @@ mod error_model;
 mod model;
 mod occupancy;
 mod precompute_cost;
+mod root;
 mod scene;
 mod work;
 
@@ -145,5 +146,6 @@ pub use precompute_cost::{
     DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_SET_SECONDS, SVD_ESTIMATE_SHARE,
     precompute_seconds,
 };
+pub use root::{ROOT_SCALES, ROOT_TIME_SLACK, RootChoice, choose_root};
 pub use scene::{SCENE_LEAF_SIZE, Scene};
 pub use work::WorkCounts;

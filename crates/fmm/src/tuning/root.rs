@@ -1,0 +1,234 @@
+//! The root box: a cube larger than the points' bounding cube when that
+//! makes the run cheaper.
+//!
+//! On the bounding cube of width `W`, a near-uniform set of `N` points has
+//! leaves of about `N / 8^d` points at depth `d`: the leaf occupancies the
+//! adaptive tree can reach step 8x at a time, whatever the leaf size. The
+//! cost per point is about `a s + b / s` for leaves of `s` points (the
+//! near field grows with `s`, the far field with the number of boxes), so
+//! at an unlucky `N` the best reachable `s` sits up to `sqrt 8 = 2.8`
+//! times away from the best one, and the run costs up to 1.5x what it
+//! could (measured: 2.7 us a point at 1e5 against 4.5 us at 1e8 on the
+//! same tolerance, docs/performance.md "Memory and large N").
+//!
+//! A root of width `c W` with the same lower corner puts the same points in
+//! leaves of `N c^3 / 8^d`: with `c` in [`ROOT_SCALES`] (`c^3` = 1, 2, 4)
+//! the reachable occupancies step 2x, and the best is within `sqrt 2` of
+//! the optimum, where `a s + b / s` is within 6% of its minimum. The
+//! boxes along the upper faces are only partly filled, and the choice
+//! weighs that too: [`choose_root`] runs the chooser's simulation
+//! ([`Tuner::choose_for`]) on each root and keeps the cheapest prediction,
+//! or one with fewer boxes (less memory) predicted at most
+//! [`ROOT_TIME_SLACK`] slower. A wider root whose boxes would not fit the
+//! memory left beside the points ([`box_bytes`] against the builder's
+//! [`MemoryLimit`](ferrofmm_field::MemoryLimit)) is not taken: more boxes
+//! cost memory (about 30 bytes a point more at 1e8 for leaves half as
+//! full), so the fastest run is the one that fits.
+//! A larger root never changes the accuracy (the error model's tables do
+//! not depend on where the points sit in their boxes), only the tree.
+//!
+//! The larger roots are tried only for kernels without a length scale
+//! (Laplace, Stokes): for a wavenumber `k` the operators and the error
+//! depend on `k W`, which a larger root would raise. A periodic cell, a
+//! domain given by the caller, far-separated clusters and a leaf size
+//! given by the caller keep the bounding cube (the caller's leaf size
+//! describes a tree on it).
+
+use ferrofmm_kernels::Precision;
+use ferrofmm_tree::Domain;
+
+use super::chooser::{ChosenParameters, Tuner};
+use super::occupancy::Occupancy;
+use crate::FmmError;
+
+/// Root widths weighed by [`choose_root`], as multiples of the points'
+/// bounding cube: `2^(j/3)` for `j = 0, 1, 2`, so that leaf occupancies
+/// step 2x instead of 8x.
+pub const ROOT_SCALES: [f64; 3] = [1.0, 1.259_921_049_894_873_2, 1.587_401_051_968_199_4];
+
+/// A chosen run and its root: `None` for the bounding cube of the points.
+pub type RootChoice = (ChosenParameters, Option<Domain>);
+
+/// The cheapest predicted parameters over the roots of [`ROOT_SCALES`]
+/// (each the bounding cube of `sources` and `targets` widened from its
+/// lower corner), or the fewest boxes among those within
+/// [`ROOT_TIME_SLACK`] of it, with the root when it is not the bounding
+/// cube.
+/// [`ChosenParameters::root_scale`] says which was taken. The search of
+/// each root is [`Tuner::choose_for`]'s; the pre-pass's Morton codes are
+/// made once per root (about one sort of the points each).
+///
+/// A wider root is weighed only when [`box_bytes`] of its choice is at
+/// most `box_budget` (`None`: no limit).
+///
+/// # Errors
+/// As [`Tuner::choose_for`] on the bounding cube; a larger root that has
+/// no admissible setting is skipped.
+pub fn choose_root(
+    tuner: &Tuner,
+    eps: Option<f64>,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    max_level: u32,
+    box_budget: Option<u64>,
+) -> Result<RootChoice, FmmError> {
+    let tight = match targets {
+        Some(t) => Domain::from_points(&[sources, t])?,
+        None => Domain::from_points(&[sources])?,
+    };
+    let occupancy = Occupancy::new(sources, targets, Some(tight), max_level)?;
+    let mut weighed: Vec<RootChoice> = vec![(tuner.choose_for(eps, &occupancy)?, None)];
+    drop(occupancy);
+    for &scale in &ROOT_SCALES[1..] {
+        let Ok(domain) = Domain::new(tight.origin, tight.width * scale) else {
+            continue;
+        };
+        let occupancy = Occupancy::new(sources, targets, Some(domain), max_level)?;
+        if let Ok(mut chosen) = tuner.choose_for(eps, &occupancy)
+            && box_budget.is_none_or(|b| {
+                box_bytes(&chosen.estimated_work, chosen.order, tuner.precision) <= b
+            })
+        {
+            chosen.root_scale = scale;
+            weighed.push((chosen, Some(domain)));
+        }
+    }
+    Ok(fewest_boxes_near_cheapest(weighed))
+}
+
+/// Of the weighed roots, the one with the fewest boxes (so the least
+/// memory for expansions, lists and tree) among those predicted within
+/// [`ROOT_TIME_SLACK`] of the cheapest; on a tie, the smaller root.
+fn fewest_boxes_near_cheapest(weighed: Vec<RootChoice>) -> RootChoice {
+    let cheapest = weighed
+        .iter()
+        .map(|(c, _)| c.predicted_seconds)
+        .fold(f64::INFINITY, f64::min);
+    weighed
+        .into_iter()
+        .filter(|(c, _)| c.predicted_seconds <= (1.0 + ROOT_TIME_SLACK) * cheapest)
+        .min_by_key(|(c, _)| c.estimated_work.n_boxes)
+        .expect("the bounding cube is always weighed")
+}
+
+/// Bytes of the buffers that grow with the boxes of a tree of `work` at
+/// expansion order `order`: the multipole and local expansions (`2 n`
+/// values a box, `n = 6 (p - 1)^2 + 2`), the tree's per-box arrays (about
+/// 200 bytes a box), its U lists (8 bytes an entry) and its V lists with
+/// the M2L interaction groups made from them (16 bytes a pair). Within a
+/// few percent of [`MemoryReport`](crate::MemoryReport)'s tree, expansions
+/// and M2L lists (2e6 uniform points, order 8: 153 MB against 155).
+pub fn box_bytes(work: &super::WorkCounts, order: usize, precision: Precision) -> u64 {
+    let n = 6 * order.saturating_sub(1).pow(2) + 2;
+    let t = match precision {
+        Precision::F32 => 4,
+        Precision::F64 => 8,
+    };
+    let per_box = (2 * n * t + 200) as f64;
+    (work.n_boxes as f64 * per_box + 8.0 * work.u_entries + 16.0 * work.m2l_pairs) as u64
+}
+
+/// A root with fewer boxes is taken over the cheapest one when predicted
+/// at most this fraction slower: near its best leaf occupancy the cost
+/// per point is flat (`a s + b / s`), while the memory of expansions,
+/// lists and tree grows with the boxes. Measured at 1e7 (uniform cube,
+/// 1e-6, potential and gradient): leaves of 76 points are predicted 2%
+/// faster than leaves of 152, with twice the boxes.
+pub const ROOT_TIME_SLACK: f64 = 0.05;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::Geometry;
+    use ferrofmm_kernels::{EvalMode, Precision};
+    use ferrofmm_tree::DEEPEST_LEVEL;
+
+    use crate::tuning::{LaplaceModel, M2lCostShape};
+    use std::sync::Arc;
+
+    fn tuner() -> Tuner {
+        Tuner::from_model(
+            Arc::new(LaplaceModel),
+            Precision::F64,
+            EvalMode::PotentialGradient,
+            M2lCostShape::Fft,
+        )
+    }
+
+    #[test]
+    fn the_root_is_never_predicted_much_slower_than_the_bounding_cube() {
+        for n in [20_000, 60_000, 150_000] {
+            let points: Vec<f64> = Geometry::Cube.points(n, 3);
+            let occ = Occupancy::new(&points, None, None, DEEPEST_LEVEL).unwrap();
+            let tight = tuner().choose_for(Some(1e-6), &occ).unwrap();
+            let (chosen, root) =
+                choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, None).unwrap();
+            assert!(chosen.predicted_seconds <= (1.0 + ROOT_TIME_SLACK) * tight.predicted_seconds);
+            assert_eq!(
+                chosen.order, tight.order,
+                "the accuracy does not depend on the root"
+            );
+            match root {
+                None => assert_eq!(chosen.root_scale, 1.0),
+                Some(d) => {
+                    assert!(ROOT_SCALES[1..].contains(&chosen.root_scale));
+                    assert_eq!(d.origin, occ.domain().origin);
+                    assert!((d.width / occ.domain().width - chosen.root_scale).abs() < 1e-12);
+                    for p in points.chunks_exact(3) {
+                        assert!(d.contains([p[0], p[1], p[2]]));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_uniform_set_between_two_depths_gets_a_larger_root() {
+        // 2.5e5 points: leaves of 61 or 488 on the bounding cube, both far
+        // from the best occupancy; a root of 2^(1/3) or 2^(2/3) gives 122 or
+        // 244.
+        let points: Vec<f64> = Geometry::Cube.points(250_000, 5);
+        let (chosen, root) =
+            choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, None).unwrap();
+        assert!(root.is_some(), "kept the bounding cube: {chosen:?}");
+        // Without room for the boxes of that choice, another is taken:
+        // one that fits, or the bounding cube.
+        let room = box_bytes(&chosen.estimated_work, chosen.order, Precision::F64) - 1;
+        let (other, other_root) = choose_root(
+            &tuner(),
+            Some(1e-6),
+            &points,
+            None,
+            DEEPEST_LEVEL,
+            Some(room),
+        )
+        .unwrap();
+        assert_ne!(other, chosen);
+        if other_root.is_some() {
+            assert!(box_bytes(&other.estimated_work, other.order, Precision::F64) <= room);
+        } else {
+            assert_eq!(other.root_scale, 1.0);
+        }
+    }
+
+    #[test]
+    fn box_bytes_follow_the_built_tree() {
+        use crate::{FmmBuilder, MemoryReport};
+        let points: Vec<f64> = Geometry::Cube.points(40_000, 7);
+        let fmm = FmmBuilder::new(&points)
+            .order(6)
+            .leaf_size(64)
+            .build_with::<ferrofmm_field::FftM2l<f64>>(ferrofmm_field::FftConfig)
+            .unwrap();
+        // The FFT scheme's sibling blocks are made by the first evaluation.
+        fmm.evaluate(&vec![1.0; 40_000]).unwrap();
+        let work = crate::tuning::WorkCounts::of_tree(fmm.tree());
+        let predicted = box_bytes(&work, 6, Precision::F64) as f64;
+        let m: MemoryReport = fmm.memory();
+        let held = (m.expansions + m.tree + m.m2l_interactions) as f64;
+        assert!(
+            (predicted / held - 1.0).abs() < 0.15,
+            "{predicted} against {held}"
+        );
+    }
+}
