@@ -21,7 +21,7 @@ use crate::part::TreePart;
 
 /// A snapshot of an evaluation's progress, given to the callback of
 /// [`Fmm::set_progress`](crate::Fmm::set_progress).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EvalProgress {
     /// Work units done (each pass weighted by its estimated cost).
     pub done: u64,
