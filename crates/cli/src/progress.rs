@@ -147,6 +147,9 @@ mod tests {
         pre(PrecomputeProgress { done: 1, total: 2 });
         assert_eq!((s.0.position(), s.0.length()), (0, None));
         set_quiet(false);
-        assert_eq!(stage("setup").0.is_hidden(), !std::io::stderr().is_terminal());
+        assert_eq!(
+            stage("setup").0.is_hidden(),
+            !std::io::stderr().is_terminal()
+        );
     }
 }
