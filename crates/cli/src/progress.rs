@@ -126,3 +126,30 @@ pub fn with_stage<R>(message: impl Into<String>, f: impl FnOnce() -> R) -> R {
     let _stage = stage(message);
     f()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// With `--quiet` nothing is drawn, terminal or not, and the progress
+    /// callbacks leave the (hidden) bar alone; without it, bars are drawn
+    /// only when stderr is a terminal (under a test harness it usually is
+    /// not; the integration tests check the empty stderr of real runs).
+    #[test]
+    fn quiet_or_no_terminal_draws_nothing() {
+        set_quiet(true);
+        let s = stage("setup");
+        assert!(s.0.is_hidden());
+        assert!(bar(10).is_hidden());
+        let eval = s.eval_progress("evaluating".into());
+        eval(EvalProgress { done: 1, total: 2 });
+        let pre = s.precompute_progress();
+        pre(PrecomputeProgress { done: 1, total: 2 });
+        assert_eq!((s.0.position(), s.0.length()), (0, None));
+        set_quiet(false);
+        assert_eq!(
+            stage("setup").0.is_hidden(),
+            !std::io::stderr().is_terminal()
+        );
+    }
+}

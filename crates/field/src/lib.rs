@@ -113,8 +113,8 @@ pub use interactions::{
     M2lInteractions, N_TRANSFER_VECTORS, transfer_vector_index, transfer_vectors,
 };
 pub use m2l::{
-    DenseConfig, DenseM2l, FftConfig, FftM2l, M2lCostShape, M2lScheme, SPECTRA_BUDGET_BYTES,
-    SvdConfig, SvdM2l, default_svd_tolerance, fft_frequencies,
+    DenseConfig, DenseM2l, FftConfig, FftM2l, M2lCostShape, M2lProgress, M2lScheme,
+    SPECTRA_BUDGET_BYTES, SvdConfig, SvdM2l, default_svd_tolerance, fft_frequencies,
 };
 pub use memory::MemoryLimit;
 pub use monitor::{PrecomputeMonitor, PrecomputeProgress};

@@ -19,7 +19,7 @@
 use std::ops::Range;
 use std::time::Instant;
 
-use ferrofmm_field::M2lScheme;
+use ferrofmm_field::{M2lProgress, M2lScheme};
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
@@ -440,13 +440,26 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
 
         let t = Instant::now();
         let interactions = &part.m2l_interactions[level as usize];
+        // The M2L's units are counted as the scheme reports its pieces;
+        // the rest of the level's when it ends.
+        let mut m2l_counted = 0;
         if part.has_sources && !interactions.is_empty() {
-            part.m2l.apply(
-                level,
-                interactions,
-                &multipoles[n * r.start..n * r.end],
-                check,
-            );
+            let multipoles = &multipoles[n * r.start..n * r.end];
+            if work.active() {
+                m2l_counted = progress::m2l_units(part, level);
+                let share = work.share(m2l_counted);
+                let report = |done, total| share.advance(done, total);
+                part.m2l.apply_with_progress(
+                    level,
+                    interactions,
+                    multipoles,
+                    check,
+                    M2lProgress::new(&report),
+                );
+                share.finish();
+            } else {
+                part.m2l.apply(level, interactions, multipoles, check);
+            }
         }
         timings.m2l += t.elapsed();
 
@@ -490,7 +503,7 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
             }
         }
         timings.l2l += t.elapsed();
-        work.add_with(|| progress::level_units(part, level));
+        work.add_with(|| progress::level_units(part, level) - m2l_counted);
     }
 }
 

@@ -6,7 +6,8 @@
 //! a kernel evaluation (one source at one target) is one unit, a matrix
 //! entry applied (the translations and check-to-equivalent operators)
 //! [`MATRIX_ENTRY`] units. The passes add their units when a pass (or a
-//! level of the downward pass) ends; P2P, usually the longest, adds them
+//! level of the downward pass) ends; the M2L, as its scheme reports its
+//! pieces ([`M2lScheme::apply_with_progress`]); P2P, usually the longest,
 //! per block of targets. Nothing is counted without a callback, and the
 //! callback runs only when the done fraction moves by 1/1000 or more.
 
@@ -20,7 +21,7 @@ use crate::part::TreePart;
 
 /// A snapshot of an evaluation's progress, given to the callback of
 /// [`Fmm::set_progress`](crate::Fmm::set_progress).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub struct EvalProgress {
     /// Work units done (each pass weighted by its estimated cost).
     pub done: u64,
@@ -104,6 +105,17 @@ impl<'a> Work<'a> {
         }
     }
 
+    /// A share of `units` of this counter for one M2L apply, counted as
+    /// the scheme reports its pieces ([`M2lProgress`](ferrofmm_field::M2lProgress)).
+    pub(crate) fn share(&self, units: u64) -> Share<'_, 'a> {
+        Share {
+            work: self,
+            units,
+            parts: AtomicU64::new(0),
+            total: AtomicU64::new(0),
+        }
+    }
+
     fn report(&self, done: u64) {
         if let Some(f) = self.callback {
             f(EvalProgress {
@@ -111,6 +123,44 @@ impl<'a> Work<'a> {
                 total: self.total,
             });
         }
+    }
+}
+
+/// `units` of a [`Work`] handed out in parts: the M2L scheme says
+/// "`done` more parts of `total`" and the share adds the units in
+/// proportion; [`Share::finish`] adds what the scheme did not report.
+pub(crate) struct Share<'w, 'a> {
+    work: &'w Work<'a>,
+    units: u64,
+    parts: AtomicU64,
+    /// The scheme's `total` (0 until it reports).
+    total: AtomicU64,
+}
+
+impl Share<'_, '_> {
+    /// Units of the first `parts` of `total`.
+    fn units_of(&self, parts: u64, total: u64) -> u64 {
+        (self.units as u128 * parts.min(total) as u128 / total.max(1) as u128) as u64
+    }
+
+    /// `done` more parts of `total` are done.
+    pub(crate) fn advance(&self, done: u64, total: u64) {
+        self.total.store(total, Ordering::Relaxed);
+        let before = self.parts.fetch_add(done, Ordering::Relaxed);
+        let after = before.saturating_add(done);
+        self.work
+            .add(self.units_of(after, total) - self.units_of(before, total));
+    }
+
+    /// The apply ended: its units are all done.
+    pub(crate) fn finish(&self) {
+        let total = self.total.load(Ordering::Relaxed);
+        let reported = if total == 0 {
+            0
+        } else {
+            self.units_of(self.parts.load(Ordering::Relaxed), total)
+        };
+        self.work.add(self.units - reported);
     }
 }
 
@@ -134,17 +184,23 @@ pub(crate) fn upward_units<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>) -> u
     p2m + matrix(n as usize * n as usize * tree.n_boxes())
 }
 
+/// M2L of one level of a tree part.
+pub(crate) fn m2l_units<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, level: u32) -> u64 {
+    let n = part.operators.n_surface();
+    let m2l = part
+        .m2l_interactions
+        .get(level as usize)
+        .map_or(0, |i| i.len());
+    matrix(n * n * m2l)
+}
+
 /// M2L, P2L and L2L of one level of a tree part.
 pub(crate) fn level_units<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, level: u32) -> u64 {
     let n = part.operators.n_surface();
     let tree = &part.tree;
     let r = tree.level_range(level);
-    let m2l = part
-        .m2l_interactions
-        .get(level as usize)
-        .map_or(0, |i| i.len());
     let p2l: u64 = r.clone().map(|b| sources_of(part, tree.x_list(b))).sum();
-    matrix(n * n * (m2l + 2 * r.len())) + n as u64 * p2l
+    m2l_units(part, level) + matrix(n * n * 2 * r.len()) + n as u64 * p2l
 }
 
 /// The downward pass of a tree part (every level).
@@ -220,5 +276,72 @@ mod tests {
 
         fmm.set_progress(None);
         assert_eq!(fmm.evaluate(&q).unwrap(), plain);
+    }
+
+    /// The progress of each scheme's evaluation moves in small steps within
+    /// the M2L (the schemes report per chunk or task), rises monotonically
+    /// and ends at the total: no single report jumps by a large share of
+    /// the work, as the M2L of a whole level did when it was counted at
+    /// the level's end.
+    #[test]
+    fn the_m2l_reports_within_a_level() {
+        use ferrofmm_field::FftM2l;
+
+        fn steps<K: ferrofmm_kernels::Kernel, S: M2lScheme<f64>>(
+            fmm: &mut crate::Fmm<f64, K, S>,
+        ) -> Vec<u64> {
+            let n = fmm.n_sources();
+            let q: Vec<f64> = charges(n, 5);
+            let seen = Arc::new(Mutex::new(Vec::new()));
+            let log = seen.clone();
+            fmm.set_progress(Some(Arc::new(move |p: EvalProgress| {
+                log.lock().unwrap().push(p);
+            })));
+            let plain = fmm.evaluate(&q).unwrap();
+            fmm.set_progress(None);
+            assert_eq!(
+                fmm.evaluate(&q).unwrap(),
+                plain,
+                "same values without a callback"
+            );
+            let seen = seen.lock().unwrap().clone();
+            let total = seen[0].total;
+            assert!(seen.iter().all(|p| p.total == total));
+            let done: Vec<u64> = seen.iter().map(|p| p.done).collect();
+            assert!(
+                done.windows(2).all(|w| w[0] <= w[1]),
+                "not monotone: {done:?}"
+            );
+            assert_eq!(done.first(), Some(&0));
+            assert_eq!(done.last(), Some(&total));
+            done
+        }
+
+        let n = 30_000;
+        let points: Vec<f64> = Geometry::Cube.points(n, 7);
+        let build = || FmmBuilder::new(&points).order(5).leaf_size(32);
+        let mut fft = build()
+            .build_with::<FftM2l<f64>>(Default::default())
+            .unwrap();
+        let mut dense = build().build_dense().unwrap();
+        let mut svd = build().build_svd().unwrap();
+        for (name, done) in [
+            ("fft", steps(&mut fft)),
+            ("dense", steps(&mut dense)),
+            ("svd", steps(&mut svd)),
+        ] {
+            let total = *done.last().unwrap();
+            let largest = done.windows(2).map(|w| w[1] - w[0]).max().unwrap();
+            let mut distinct = done.clone();
+            distinct.dedup();
+            // The FFT scheme reports per task of at most 16 target groups;
+            // the others per chunk of 32 to 256 target boxes, fewer here.
+            let many = if name == "fft" { 50 } else { 20 };
+            assert!(
+                largest * 10 < total && distinct.len() > many,
+                "{name}: largest step {largest} of {total}, {} distinct values",
+                distinct.len()
+            );
+        }
     }
 }

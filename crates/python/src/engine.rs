@@ -10,8 +10,8 @@ use ferrofmm_field::{
     PrecomputeMonitor,
 };
 use ferrofmm_fmm::{
-    EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, Periodic, PeriodicAxes, SchemeChoice,
-    SetupTimings, SurfaceTerm, Verification,
+    EvalProgress, EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, Periodic, PeriodicAxes,
+    ProgressFn, SchemeChoice, SetupTimings, SurfaceTerm, Verification,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, Real, SourceKind};
 use numpy::{Element, PyArray1, PyReadonlyArray1, PyUntypedArrayMethods};
@@ -21,7 +21,7 @@ use serde_json::{Value, json};
 
 use crate::errors::fmm_error;
 use crate::limits::check_cache_dir;
-use crate::run::{Threads, interruptible};
+use crate::run::{Threads, interruptible, interruptible_polling};
 
 /// A float type a run can use: the library's [`Real`] and a NumPy element.
 pub(crate) trait Float: Real + Element {
@@ -143,6 +143,8 @@ trait Engine: Send + Sync {
         n_vectors: usize,
     ) -> Result<Evaluated, FmmError>;
     fn summary(&self) -> FmmSummary;
+    /// [`Fmm::set_progress`].
+    fn set_progress(&mut self, progress: Option<Arc<ProgressFn>>);
     fn setup_timings(&self) -> SetupTimings;
     fn n_sources(&self) -> usize;
     fn n_targets(&self) -> usize;
@@ -173,6 +175,10 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
             energies,
             verification: None,
         })
+    }
+
+    fn set_progress(&mut self, progress: Option<Arc<ProgressFn>>) {
+        Fmm::set_progress(self, progress);
     }
 
     fn evaluate_verified(
@@ -495,12 +501,32 @@ impl NativeFmm {
     /// Evaluate `n_vectors` charge vectors stored one after another in the
     /// flat array `charges`; returns the flat values (per vector, per
     /// target: `phi` or `phi, gx, gy, gz`) and a JSON report.
+    ///
+    /// `progress`, when given, is called as `progress(done, total)` with
+    /// the GIL held, at most every 0.1 s while the passes run and once at
+    /// the end (`done == total`), the work counted in rough cost units over
+    /// all the evaluations of the call. An exception it raises ends the
+    /// call with that exception.
+    #[pyo3(signature = (charges, n_vectors, progress=None))]
     fn evaluate<'py>(
         &self,
         py: Python<'py>,
         charges: &Bound<'py, PyAny>,
         n_vectors: usize,
+        progress: Option<Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyAny>, String)> {
+        let progress = match progress {
+            Some(p) if !p.is_none() => {
+                if !p.is_callable() {
+                    return Err(PyTypeError::new_err(format!(
+                        "progress must be a callable taking (done, total) or None, not {}",
+                        p.get_type().name()?
+                    )));
+                }
+                Some(p)
+            }
+            _ => None,
+        };
         let charges = Floats::from_numpy("charges", charges)?;
         let n_sources = self.read().n_sources();
         let per = self.options.kernel.components() * self.options.source_kind.values_per_source();
@@ -514,15 +540,37 @@ impl NativeFmm {
         }
         let verify = self.verify_pending.swap(false, Ordering::SeqCst);
         let engine = self.engine.clone();
-        let result = interruptible(py, &self.threads, None, move || {
-            if verify {
+        let sink = progress
+            .as_ref()
+            .map(|_| Arc::new(ProgressSink::new(n_vectors)));
+        let feed = sink.clone();
+        let job = move || match feed {
+            Some(feed) => {
+                let mut e = engine.write().unwrap_or_else(|p| p.into_inner());
+                e.set_progress(Some(feed.callback()));
+                let r = if verify {
+                    e.evaluate_verified(charges, n_vectors)
+                } else {
+                    e.evaluate(charges, n_vectors)
+                };
+                e.set_progress(None);
+                r
+            }
+            None if verify => {
                 let mut e = engine.write().unwrap_or_else(|p| p.into_inner());
                 e.evaluate_verified(charges, n_vectors)
-            } else {
+            }
+            None => {
                 let e = engine.read().unwrap_or_else(|p| p.into_inner());
                 e.evaluate(charges, n_vectors)
             }
-        });
+        };
+        let result = match (&progress, &sink) {
+            (Some(f), Some(sink)) => {
+                interruptible_polling(py, &self.threads, None, job, |_| sink.deliver(f))
+            }
+            _ => interruptible(py, &self.threads, None, job),
+        };
         let evaluated = match result {
             Ok(Ok(e)) => e,
             Ok(Err(e)) => {
@@ -585,6 +633,73 @@ impl NativeFmm {
     #[getter]
     fn threads(&self) -> usize {
         self.threads.count()
+    }
+}
+
+/// The progress of one Python `evaluate` call, written by the FMM passes
+/// (any thread) and handed to the Python callback by the calling thread,
+/// with the GIL held, when it wakes ([`interruptible_polling`]).
+///
+/// Each evaluation of the call (one per charge vector, more when the
+/// verification raises the order) reports from 0 to its own total; the
+/// sink adds the finished ones so that Python sees one rising count.
+struct ProgressSink {
+    /// Charge vectors of the call.
+    n_vectors: u64,
+    state: Mutex<SinkState>,
+}
+
+#[derive(Default)]
+struct SinkState {
+    /// Evaluations finished before the current one.
+    finished: u64,
+    /// Units of the evaluations finished before the current one.
+    before: u64,
+    /// The current evaluation's report.
+    current: EvalProgress,
+    /// Whether something new came since the last delivery.
+    fresh: bool,
+}
+
+impl ProgressSink {
+    /// The callback for [`Fmm::set_progress`].
+    fn callback(self: &Arc<Self>) -> Arc<ProgressFn> {
+        let sink = self.clone();
+        Arc::new(move |p: EvalProgress| {
+            let mut s = sink.state.lock().unwrap_or_else(|e| e.into_inner());
+            if p.done == 0 && s.current.done > 0 {
+                // A new evaluation starts: the previous one is done.
+                s.before += s.current.total;
+                s.finished += 1;
+            }
+            s.current = p;
+            s.fresh = true;
+        })
+    }
+
+    /// A sink for a call of `n_vectors` charge vectors.
+    fn new(n_vectors: usize) -> Self {
+        Self {
+            n_vectors: n_vectors as u64,
+            state: Mutex::default(),
+        }
+    }
+
+    /// Call `f(done, total)` when something new came: the total counts
+    /// each vector not yet finished as the current one (an order raised by
+    /// the verification adds an evaluation, so the total may grow once);
+    /// the last report of the call has `done == total`.
+    fn deliver(&self, f: &Bound<'_, PyAny>) -> PyResult<()> {
+        let (done, total) = {
+            let mut s = self.state.lock().unwrap_or_else(|e| e.into_inner());
+            if !s.fresh {
+                return Ok(());
+            }
+            s.fresh = false;
+            let left = self.n_vectors.saturating_sub(s.finished).max(1);
+            (s.before + s.current.done, s.before + left * s.current.total)
+        };
+        f.call1((done, total)).map(drop)
     }
 }
 

@@ -106,6 +106,24 @@ where
     R: Send + 'static,
     F: FnOnce() -> R + Send + 'static,
 {
+    interruptible_polling(py, threads, cancel, job, |_| Ok(()))
+}
+
+/// [`interruptible`], also running `poll` with the GIL held at each wake
+/// (every [`SIGNAL_POLL`] at most, so a bounded rate) and once when the
+/// job ends, before its result is returned. An error from `poll` is
+/// returned at once, as an interrupt is (the job's result is dropped).
+pub(crate) fn interruptible_polling<R, F>(
+    py: Python<'_>,
+    threads: &Threads,
+    cancel: Option<&Arc<AtomicBool>>,
+    job: F,
+    mut poll: impl FnMut(Python<'_>) -> PyResult<()>,
+) -> PyResult<R>
+where
+    R: Send + 'static,
+    F: FnOnce() -> R + Send + 'static,
+{
     let (tx, rx) = mpsc::channel();
     let pool = threads.0.clone();
     std::thread::Builder::new()
@@ -127,9 +145,12 @@ where
         });
         rx = back;
         match received {
-            Ok(result) => return Ok(result),
+            Ok(result) => {
+                poll(py)?;
+                return Ok(result);
+            }
             Err(RecvTimeoutError::Timeout) => {
-                if let Err(e) = py.check_signals() {
+                if let Err(e) = py.check_signals().and_then(|()| poll(py)) {
                     if let Some(flag) = cancel {
                         flag.store(true, Ordering::Relaxed);
                     }

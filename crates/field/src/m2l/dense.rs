@@ -4,8 +4,8 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lScheme, Plan, check_lengths, for_each_chunk, for_each_vector_group,
-    m2l_matrix,
+    FIRST_M2L_LEVEL, M2lProgress, M2lScheme, Plan, check_lengths, for_each_chunk_with_progress,
+    for_each_vector_group, m2l_matrix,
 };
 use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout};
 use crate::levels::LevelMap;
@@ -188,13 +188,25 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
+        self.apply_with_progress(level, interactions, multipoles, check, M2lProgress::none());
+    }
+
+    /// Reports each chunk of target columns done (its pairs).
+    fn apply_with_progress(
+        &self,
+        level: u32,
+        interactions: &M2lInteractions,
+        multipoles: &[T],
+        check: &mut [T],
+        progress: M2lProgress<'_>,
+    ) {
         let n = self.n;
         check_lengths(n, interactions, multipoles, check);
         if interactions.is_empty() {
             return;
         }
         let (set, scale) = self.levels.lookup(level, 1.0);
-        for_each_chunk(interactions, n, check, |chunk, out| {
+        for_each_chunk_with_progress(interactions, n, check, progress, |chunk, out| {
             for_each_vector_group(&chunk, multipoles, n, out, n, |v, src, dst| {
                 let len = src.len() / n;
                 gemm_scaled(

@@ -20,10 +20,12 @@
 
 mod dense;
 mod fft;
+mod progress;
 mod svd;
 
 pub use dense::{DenseConfig, DenseM2l};
 pub use fft::{FftConfig, FftM2l, SPECTRA_BUDGET_BYTES};
+pub use progress::M2lProgress;
 pub use svd::{SvdConfig, SvdM2l, default_svd_tolerance};
 
 use faer::Mat;
@@ -184,6 +186,28 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
     /// without operators (non-homogeneous kernel, `level < 2` or `> depth`).
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]);
 
+    /// [`M2lScheme::apply`], telling `progress` how far it got within the
+    /// level (the FMM driver calls this one, so that a progress bar moves
+    /// during a long level). The results are those of `apply`, bit for bit.
+    ///
+    /// Provided: `apply`, then the whole level reported done at once. A
+    /// scheme overrides it to report per piece of work (the built-in ones
+    /// report per chunk of target columns, or per task of target groups)
+    /// and then implements `apply` as this with [`M2lProgress::none`];
+    /// [`plumbing::for_each_chunk_with_progress`](crate::plumbing::for_each_chunk_with_progress)
+    /// does the reporting for a scheme built on chunks.
+    fn apply_with_progress(
+        &self,
+        level: u32,
+        interactions: &M2lInteractions,
+        multipoles: &[T],
+        check: &mut [T],
+        progress: M2lProgress<'_>,
+    ) {
+        self.apply(level, interactions, multipoles, check);
+        progress.advance(1, 1);
+    }
+
     /// Bytes held by the precomputed operators.
     fn memory_bytes(&self) -> usize;
 
@@ -316,6 +340,23 @@ pub fn for_each_chunk<T: Real>(
     check: &mut [T],
     f: impl Fn(ChunkView<'_>, &mut [T]) + Sync + Send,
 ) {
+    for_each_chunk_with_progress(inter, rows, check, M2lProgress::none(), f)
+}
+
+/// [`for_each_chunk`], telling `progress` after each chunk its pairs done
+/// out of `inter.len()` (for [`M2lScheme::apply_with_progress`]). Without
+/// a listener nothing is counted.
+///
+/// # Panics
+/// When `check` is shorter than `rows * inter.n_target_cols()`.
+pub fn for_each_chunk_with_progress<T: Real>(
+    inter: &M2lInteractions,
+    rows: usize,
+    check: &mut [T],
+    progress: M2lProgress<'_>,
+    f: impl Fn(ChunkView<'_>, &mut [T]) + Sync + Send,
+) {
+    let total = inter.len() as u64;
     let mut blocks = Vec::with_capacity(inter.n_chunks());
     let mut rest = check;
     for c in inter.chunk_views() {
@@ -325,7 +366,13 @@ pub fn for_each_chunk<T: Real>(
     }
     blocks.into_par_iter().for_each(|(c, out)| {
         if !c.is_empty() {
-            f(c, out)
+            let pairs = if progress.is_active() {
+                c.groups().map(|g| g.sources.len() as u64).sum()
+            } else {
+                0
+            };
+            f(c, out);
+            progress.advance(pairs, total);
         }
     });
 }

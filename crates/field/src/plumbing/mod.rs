@@ -30,7 +30,9 @@
 //!   into chunks of target columns ([`ChunkView`]), each grouped by transfer
 //!   vector ([`GroupView`]): every group is one product `K_v * block`.
 //! * [`for_each_chunk`] runs a closure per chunk in parallel, giving it the
-//!   chunk's own columns of `check` (disjoint `&mut` slices, no locks).
+//!   chunk's own columns of `check` (disjoint `&mut` slices, no locks);
+//!   [`for_each_chunk_with_progress`] also reports each chunk done, for
+//!   [`M2lScheme::apply_with_progress`](crate::M2lScheme::apply_with_progress).
 //! * [`gather`] copies a group's source columns into a contiguous block,
 //!   [`crate::gemm_scaled`] multiplies, [`scatter_add`] adds the result to
 //!   the group's target columns; [`for_each_vector_group`] is that loop
@@ -66,7 +68,8 @@ pub mod conformance;
 pub use crate::interactions::{ChunkView, GroupView};
 pub use crate::levels::{FIRST_M2L_LEVEL, LevelMap, REFERENCE_HALF_WIDTH, half_width};
 pub use crate::m2l::{
-    check_lengths, for_each_chunk, for_each_vector_group, gather, m2l_matrix, scatter_add,
+    check_lengths, for_each_chunk, for_each_chunk_with_progress, for_each_vector_group, gather,
+    m2l_matrix, scatter_add,
 };
 pub use crate::siblings::{
     LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,

@@ -1,6 +1,6 @@
 """Type stubs of the native module (use the wrappers in ``ferrofmm``)."""
 
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 import numpy.typing as npt
@@ -87,7 +87,10 @@ class NativeFmm:
         The JSON of ``evaluate`` then holds ``periodic`` (the cell) and
         ``energy`` (per vector: ``1/2 sum q phi`` or ``null``)."""
     def evaluate(
-        self, charges: npt.NDArray[np.floating], n_vectors: int
+        self,
+        charges: npt.NDArray[np.floating],
+        n_vectors: int,
+        progress: Optional[Callable[[int, int], Any]] = None,
     ) -> Tuple[npt.NDArray[np.floating], str]: ...
     def summary_json(self) -> str: ...
     def setup_timings_json(self) -> str: ...

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import warnings
-from typing import Any, Dict, List, Optional, Tuple
+from typing import Any, Callable, Dict, List, Optional, Tuple
 
 import numpy as np
 
@@ -324,7 +324,13 @@ class Fmm:
         """Float type of the run."""
         return self._dtype
 
-    def evaluate(self, charges: Any = None, dipoles: Any = None) -> FmmResult:
+    def evaluate(
+        self,
+        charges: Any = None,
+        dipoles: Any = None,
+        *,
+        progress: Optional[Callable[[int, int], Any]] = None,
+    ) -> FmmResult:
         """Potentials (and gradients, Hessians) at the targets.
 
         ``charges`` is ``(n,)`` (one value per source) or ``(k, n)`` for
@@ -332,7 +338,16 @@ class Fmm:
         ``(n, 3)`` or ``(k, n, 3)``. Give what the sources were built to
         carry (``charges=True`` / ``dipoles=True`` of :class:`Fmm`);
         nothing is rebuilt.
+
+        ``progress``, when given, is called as ``progress(done, total)``
+        while the FMM passes run: the work done and in all, in rough cost
+        units (the time left is about ``elapsed * (total - done) / done``).
+        It is called from the calling thread with the GIL held, at most
+        every 0.1 s and once at the end with ``done == total``; ``total``
+        may grow once when the accuracy check raises the order. An
+        exception it raises ends the call with that exception.
         """
+        _check_progress(progress)
         given = []
         for name, value, wanted, flag in (
             ("charges", charges, self._charges, "charges"),
@@ -349,7 +364,9 @@ class Fmm:
                     f"build it with {flag}=True"
                 )
             given.append((name, name, value))
-        return self._evaluate(*_check_densities(self._kernel, self.n_sources, given))
+        return self._evaluate(
+            *_check_densities(self._kernel, self.n_sources, given), progress=progress
+        )
 
     def _evaluate(
         self,
@@ -357,6 +374,7 @@ class Fmm:
         k: int,
         batched: bool,
         stacklevel: int = 3,
+        progress: Optional[Callable[[int, int], Any]] = None,
     ) -> FmmResult:
         """Evaluate densities checked by :func:`_check_densities`.
 
@@ -370,7 +388,7 @@ class Fmm:
             _per_target(self._kernel, self._gradient, self._hessian), k, build=False,
         )
         dens = _pack_densities(self._kernel, self._dtype, arrays, n, batched)
-        values, info_json = self._native.evaluate(_flat(dens, self._dtype), k)
+        values, info_json = self._native.evaluate(_flat(dens, self._dtype), k, progress)
         info = json.loads(info_json)
         info["kernel_name"] = self._kernel
         energies = info.pop("energy", None) or []
@@ -494,11 +512,22 @@ def _shape_values(
     return pot, grad, hess
 
 
+def _check_progress(progress: Any) -> None:
+    """A clear error for a ``progress`` that cannot be called."""
+    if progress is not None and not callable(progress):
+        raise TypeError(
+            "progress must be a callable taking (done, total) or None, "
+            f"not {type(progress).__name__}"
+        )
+
+
 def _one_call(
     kernel: str, k: Optional[float], sources: Any, charges: Any, dipoles: Any, **kw: Any
 ) -> FmmResult:
     if charges is None and dipoles is None:
         raise ValueError("give charges, dipoles or both")
+    progress = kw.pop("progress", None)
+    _check_progress(progress)
     # Every argument's shape before any work (the build takes seconds).
     n = len(_points("sources", sources))
     names = {"charges": _kernel(kernel)["density_name"]}
@@ -512,7 +541,7 @@ def _one_call(
         sources, kw.pop("targets"), kernel, k=k, charges=charges is not None,
         dipoles=dipoles is not None, **kw,
     )
-    return fmm._evaluate(*checked, stacklevel=4)
+    return fmm._evaluate(*checked, stacklevel=4, progress=progress)
 
 
 def laplace(
@@ -535,6 +564,7 @@ def laplace(
     box_origin: Any = None,
     periodic: Optional[str] = None,
     surface: Optional[str] = None,
+    progress: Optional[Callable[[int, int], Any]] = None,
 ) -> FmmResult:
     """Laplace potentials ``phi(y) = sum_i q_i / (4 pi |y - x_i|)`` by the FMM.
 
@@ -589,6 +619,11 @@ def laplace(
         Repeating axes (default ``"xyz"``; only ``"xyz"`` runs in this release).
     surface : {"tin-foil", "vacuum"}, optional
         How the lattice sum is closed (default ``"tin-foil"``).
+    progress : callable, optional
+        Called as ``progress(done, total)`` while the FMM passes run (rough
+        cost units; at most every 0.1 s, with the GIL held, and once at the
+        end with ``done == total``); see :meth:`Fmm.evaluate`. The other
+        one-call functions take it too.
 
     Returns
     -------
@@ -619,6 +654,7 @@ def laplace(
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
         leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,
+        progress=progress,
     )
 
 
@@ -643,6 +679,7 @@ def yukawa(
     box_origin: Any = None,
     periodic: Optional[str] = None,
     surface: Optional[str] = None,
+    progress: Optional[Callable[[int, int], Any]] = None,
 ) -> FmmResult:
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
 
@@ -656,6 +693,7 @@ def yukawa(
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
         leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,
+        progress=progress,
     )
 
 
@@ -680,6 +718,7 @@ def helmholtz(
     box_origin: Any = None,
     periodic: Optional[str] = None,
     surface: Optional[str] = None,
+    progress: Optional[Callable[[int, int], Any]] = None,
 ) -> FmmResult:
     """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
 
@@ -707,6 +746,7 @@ def helmholtz(
         gradient=gradient, hessian=hessian, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,
+        progress=progress,
     )
 
 
@@ -728,6 +768,7 @@ def stokes(
     box_origin: Any = None,
     periodic: Optional[str] = None,
     surface: Optional[str] = None,
+    progress: Optional[Callable[[int, int], Any]] = None,
 ) -> FmmResult:
     """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
 
@@ -755,6 +796,7 @@ def stokes(
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,
+        progress=progress,
     )
 
 

@@ -87,7 +87,7 @@ use rustfft::num_complex::Complex;
 
 use self::chunks::plan_chunks;
 use self::hadamard::{FREQ_BLOCK, Many, One, Products, SLAB_VECTORS, W, block_tables};
-use super::{M2lScheme, Plan, check_lengths, planned_sets};
+use super::{M2lProgress, M2lScheme, Plan, check_lengths, planned_sets};
 use crate::cache::{CacheKey, CachePayload, CacheStatus, StoreLayout, ValueReader};
 use crate::estimate::seconds_for;
 use crate::fft3d::{Fft3d, FftWorkspace};
@@ -103,6 +103,14 @@ use crate::{
 /// spectra, `8 x 16 N^2 (floor(N/2) + 1)` bytes per group, are the task's
 /// scratch).
 const GROUPS_PER_TASK: usize = 16;
+
+/// Progress weight of one source group's forward transforms (see
+/// [`M2lScheme::apply_with_progress`]): about a quarter of a level's time
+/// goes to them when each is done once (see [`chunks`]).
+const SOURCE_GROUP_WEIGHT: u64 = 1;
+
+/// Progress weight of one target group's products and inverse transforms.
+const TARGET_GROUP_WEIGHT: u64 = 3;
 
 /// Configuration of [`FftM2l`] (nothing to configure).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -540,6 +548,21 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
+        self.apply_with_progress(level, interactions, multipoles, check, M2lProgress::none());
+    }
+
+    /// Reports each source group transformed and each task of target
+    /// groups done, weighted by their rough cost (a target group's
+    /// products and inverse transforms count [`TARGET_GROUP_WEIGHT`], a
+    /// source group's forward transform [`SOURCE_GROUP_WEIGHT`]).
+    fn apply_with_progress(
+        &self,
+        level: u32,
+        interactions: &M2lInteractions,
+        multipoles: &[T],
+        check: &mut [T],
+        progress: M2lProgress<'_>,
+    ) {
         let c = self.components;
         let n = c * self.n;
         check_lengths(n, interactions, multipoles, check);
@@ -565,7 +588,19 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let mut slots = vec![0u32; siblings.n_source_groups()];
         let mut sources: Vec<f64> = Vec::new();
         let mut rest = check;
-        for chunk in plan_chunks(siblings, max_groups) {
+        let chunks = plan_chunks(siblings, max_groups);
+        let total: u64 = if progress.is_active() {
+            chunks
+                .iter()
+                .map(|c| {
+                    SOURCE_GROUP_WEIGHT * c.sources.len() as u64
+                        + TARGET_GROUP_WEIGHT * c.targets.len() as u64
+                })
+                .sum()
+        } else {
+            0
+        };
+        for chunk in chunks {
             for (slot, &g) in chunk.sources.iter().enumerate() {
                 slots[g as usize] = slot as u32;
             }
@@ -576,7 +611,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                 .par_chunks_mut(group_len)
                 .zip(&chunk.sources)
                 .for_each_init(scratch, |scratch, (out, &g)| {
-                    self.source_group(multipoles, siblings, g as usize, scratch, out)
+                    self.source_group(multipoles, siblings, g as usize, scratch, out);
+                    progress.advance(SOURCE_GROUP_WEIGHT, total);
                 });
             // Tasks of consecutive target groups: products, inverse FFTs,
             // lattice values into the task's own check columns
@@ -613,7 +649,9 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                     } else {
                         run_task(level_simd, products.with_components(Many(c)));
                     }
+                    let done = TARGET_GROUP_WEIGHT * groups.len() as u64;
                     self.add_lattice_values(siblings, groups, targets, scale, scratch, col0, out);
+                    progress.advance(done, total);
                 },
             );
         }

@@ -20,17 +20,19 @@ use rayon::prelude::*;
 
 use super::SvdM2l;
 use super::store::VectorOp;
-use crate::m2l::{check_lengths, for_each_chunk, for_each_vector_group};
+use crate::m2l::{M2lProgress, check_lengths, for_each_chunk_with_progress, for_each_vector_group};
 use crate::{M2lInteractions, Update, gemm, gemm_scaled};
 
 impl<T: Real> SvdM2l<T> {
-    /// [`M2lScheme::apply`](crate::M2lScheme::apply): see the module docs.
+    /// [`M2lScheme::apply_with_progress`](crate::M2lScheme::apply_with_progress):
+    /// see the module docs.
     pub(super) fn apply_compressed(
         &self,
         level: u32,
         interactions: &M2lInteractions,
         multipoles: &[T],
         check: &mut [T],
+        progress: M2lProgress<'_>,
     ) {
         let n = self.n;
         check_lengths(n, interactions, multipoles, check);
@@ -53,7 +55,7 @@ impl<T: Real> SvdM2l<T> {
         let mc = &mc;
         let store = &self.store.data;
         let max_rank = ops.iter().map(|o| o.rank).max().unwrap_or(k);
-        for_each_chunk(interactions, n, check, |chunk, out| {
+        for_each_chunk_with_progress(interactions, n, check, progress, |chunk, out| {
             let nt = chunk.n_targets();
             let mut acc = vec![T::ZERO; k * nt];
             let mut mid = vec![T::ZERO; max_rank * chunk.max_group_len()];

@@ -12,7 +12,7 @@ mod store;
 
 use ferrofmm_kernels::{Kernel, Precision, Real};
 
-use super::{M2lScheme, Plan, planned_sets};
+use super::{M2lProgress, M2lScheme, Plan, planned_sets};
 use crate::cache::{CacheKey, CacheStatus, FlatStore};
 use crate::estimate::seconds_for;
 use crate::levels::LevelMap;
@@ -341,7 +341,19 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
     }
 
     fn apply(&self, level: u32, interactions: &M2lInteractions, multipoles: &[T], check: &mut [T]) {
-        self.apply_compressed(level, interactions, multipoles, check);
+        self.apply_compressed(level, interactions, multipoles, check, M2lProgress::none());
+    }
+
+    /// Reports each chunk of target columns done (its pairs).
+    fn apply_with_progress(
+        &self,
+        level: u32,
+        interactions: &M2lInteractions,
+        multipoles: &[T],
+        check: &mut [T],
+        progress: M2lProgress<'_>,
+    ) {
+        self.apply_compressed(level, interactions, multipoles, check, progress);
     }
 
     fn memory_bytes(&self) -> usize {
