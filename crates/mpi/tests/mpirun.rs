@@ -1035,7 +1035,7 @@ fn eval_refuses_a_run_that_cannot_fit_on_every_rank() {
     assert!(
         text.contains("rank 0's part of the distributed run (15000 points")
             && text.contains("is predicted to need at least")
-            && text.contains("divided among the 2 ranks of its node"),
+            && text.contains("on a node of 2 ranks that share the limit equally"),
         "{text}"
     );
     // Rank 0 prints the error once; no rank was killed by the time limit.

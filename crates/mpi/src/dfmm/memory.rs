@@ -39,14 +39,17 @@ pub fn check_rank_memory<C: Communicator, T: Real>(
             let Some(limit) = limit else { return Ok(()) };
             let points = size.n_sources + size.n_targets.unwrap_or(0);
             let share = if on_node > 1 {
-                format!(", its share of the memory limit being divided among the {on_node} ranks of its node")
+                format!(", on a node of {on_node} ranks that share the limit equally")
             } else {
                 String::new()
             };
             check_memory(
                 MemoryReport::predict::<T>(size),
                 MemoryLimit::Bytes(limit / on_node),
-                &format!("rank {}'s part of {what} ({points} points{share})", comm.rank()),
+                &format!(
+                    "rank {}'s part of {what} ({points} points{share})",
+                    comm.rank()
+                ),
             )
             .map_err(|e| e.to_string())
         });
