@@ -257,11 +257,15 @@ impl Reader {
     /// Read the rows `pick(n)` of `path`, whose `n` records are `contents`
     /// (`pick` gets the number of records and returns a range within
     /// them): those rows' values, `n`, and whether the file held complex
-    /// numbers. A C-order `.npy` or a raw `.f64` regular file is read only
-    /// where the rows lie (and `n` may be 0 records for a rank with none);
-    /// a `.csv` file, a Fortran-order array or a stream is read whole,
-    /// keeping the rows asked for. Every value read is checked to be
-    /// finite, and a file without records is [`FileError::Empty`].
+    /// numbers. A `.npy` (C or Fortran order) or a raw `.f64` regular file
+    /// is read only where the rows lie (and `n` may be 0 records for a rank
+    /// with none); a `.npy` stream is read through, keeping only the rows
+    /// asked for; a `.csv` file or a raw stream is read whole, keeping the
+    /// rows asked for. Binary data are read straight into the array
+    /// returned, a bounded chunk at a time: the memory taken is that of the
+    /// rows asked for and a small buffer, never a second full-size copy.
+    /// Every value read is checked to be finite, and a file without records
+    /// is [`FileError::Empty`].
     pub fn read_table(
         &self,
         path: &Path,

@@ -13,7 +13,9 @@ use crate::error::{FileError, Result};
 
 /// Rows `pick(n)` of the `n` records in the raw file `path`, and `n`. A
 /// regular file is read only where the rows lie; a stream (a pipe) is
-/// read whole, within `limit` bytes.
+/// read whole, within `limit` bytes, and the rows asked for kept in
+/// place. The bytes are converted as they are read, a bounded chunk at a
+/// time, straight into the array returned.
 pub fn read_table(
     path: &Path,
     contents: Contents,
@@ -30,7 +32,11 @@ pub fn read_table(
     };
     let exceeds = |bytes: u64| limit.is_some_and(|l| bytes > l);
 
-    let (bytes, rows, first_row) = if meta.is_file() {
+    // Values are converted as they are read, `CHUNK` bytes at a time,
+    // straight into the array returned.
+    let mut buf = vec![0u8; CHUNK];
+    let mut values: Vec<f64> = Vec::new();
+    let (rows, first_row) = if meta.is_file() {
         let len = meta.len();
         check_length(path, contents, len)?;
         let rows = len / record;
@@ -42,32 +48,57 @@ pub fn read_table(
         }
         file.seek(SeekFrom::Start(wanted.start * record))
             .map_err(|e| FileError::io(path, e))?;
-        let mut bytes = vec![0u8; usize::try_from(count).map_err(|_| too_large())?];
-        file.read_exact(&mut bytes)
-            .map_err(|e| FileError::io(path, e))?;
-        (bytes, rows, wanted.start)
-    } else {
-        // A stream: everything, up to the limit (one byte more tells).
-        let mut bytes = Vec::new();
-        BufReader::new(file)
-            .take(limit.map_or(u64::MAX, |l| l.saturating_add(1)))
-            .read_to_end(&mut bytes)
-            .map_err(|e| FileError::io(path, e))?;
-        if exceeds(bytes.len() as u64) {
-            return Err(too_large());
+        values
+            .try_reserve_exact(usize::try_from(count / 8).map_err(|_| too_large())?)
+            .map_err(|_| too_large())?;
+        let mut left = count;
+        while left > 0 {
+            let n = left.min(CHUNK as u64) as usize;
+            file.read_exact(&mut buf[..n])
+                .map_err(|e| FileError::io(path, e))?;
+            left -= n as u64;
+            push_values(&buf[..n], &mut values);
         }
-        check_length(path, contents, bytes.len() as u64)?;
-        let rows = bytes.len() as u64 / record;
+        (rows, wanted.start)
+    } else {
+        // A stream: everything, up to the limit (one byte more tells),
+        // then the rows asked for kept in place.
+        let mut reader = BufReader::new(file).take(limit.map_or(u64::MAX, |l| l.saturating_add(1)));
+        let mut len = 0u64;
+        let mut filled = 0;
+        loop {
+            let n = match reader.read(&mut buf[filled..]) {
+                Ok(n) => n,
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+                Err(e) => return Err(FileError::io(path, e)),
+            };
+            len += n as u64;
+            filled += n;
+            if exceeds(len) {
+                return Err(too_large());
+            }
+            // Whole values converted; a partial one waits for its rest.
+            let whole = filled / 8 * 8;
+            if n == 0 || whole == buf.len() {
+                values.try_reserve(whole / 8).map_err(|_| too_large())?;
+                push_values(&buf[..whole], &mut values);
+                buf.copy_within(whole..filled, 0);
+                filled -= whole;
+            }
+            if n == 0 {
+                break;
+            }
+        }
+        check_length(path, contents, len)?;
+        let rows = len / record;
         let wanted = pick(rows);
         let wanted = wanted.start.min(rows)..wanted.end.min(rows);
-        let kept = bytes[(wanted.start * record) as usize..(wanted.end * record) as usize].to_vec();
-        (kept, rows, wanted.start)
+        values.truncate(wanted.end as usize * columns);
+        values.drain(..wanted.start as usize * columns);
+        (rows, wanted.start)
     };
+    drop(buf);
 
-    let values: Vec<f64> = bytes
-        .chunks_exact(8)
-        .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
-        .collect();
     if let Some(k) = values.iter().position(|v| !v.is_finite()) {
         let row = first_row as usize + k / columns;
         let location = if columns == 1 {
@@ -86,6 +117,18 @@ pub fn read_table(
         rows,
         complex: false,
     })
+}
+
+/// Bytes read at a time (a whole number of values).
+const CHUNK: usize = 1 << 16;
+
+/// The little-endian `float64` values of `bytes` (whole values) onto `out`.
+fn push_values(bytes: &[u8], out: &mut Vec<f64>) {
+    out.extend(
+        bytes
+            .chunks_exact(8)
+            .map(|b| f64::from_le_bytes([b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7]])),
+    );
 }
 
 /// A length of `len` bytes that is not a whole number of records is an

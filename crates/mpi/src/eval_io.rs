@@ -127,16 +127,17 @@ pub(crate) fn write_out(
 
     let open = || std::fs::OpenOptions::new().write(true).open(&path);
     let written = match format {
-        Format::Npy => {
-            let bytes: Vec<u8> = values.iter().flat_map(|x| x.to_le_bytes()).collect();
-            open()
-                .and_then(|mut f| {
-                    f.seek(SeekFrom::Start(start + 8 * w as u64 * first_row))?;
-                    f.write_all(&bytes)?;
-                    f.flush()
-                })
-                .map_err(failed)
-        }
+        Format::Npy => open()
+            .and_then(|mut f| {
+                f.seek(SeekFrom::Start(start + 8 * w as u64 * first_row))?;
+                // Through a bounded buffer: no byte copy of the values.
+                let mut f = std::io::BufWriter::new(f);
+                for x in values {
+                    f.write_all(&x.to_le_bytes())?;
+                }
+                f.flush()
+            })
+            .map_err(failed),
         Format::Csv | Format::Raw => {
             // Ranks append their rows in turn (a failure is agreed at the end;
             // a rank after a failed one still takes its turn).

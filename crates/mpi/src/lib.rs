@@ -79,7 +79,9 @@ mod tree;
 pub use accuracy::{
     DistChoice, TUNING_SAMPLE, choose_parameters, sampled_errors, sampled_errors_at,
 };
-pub use dfmm::{DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats};
+pub use dfmm::{
+    DistFmmOptions, DistributedFmm, EVAL_PHASES, EvalStats, SetupStats, check_rank_memory,
+};
 pub use error::{DistError, InputProblem, agree_message, agree_options, agree_text};
 pub use ghosts::{Ghost, GhostLayer, SeparateTargets};
 pub use inputs::{CHECK_GEOMETRIES, Geometry};

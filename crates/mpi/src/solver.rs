@@ -426,6 +426,20 @@ impl<C: Communicator + 'static> KernelVisitor for Build<'_, C> {
             request,
             cache,
         } = self;
+        // Refused on every rank before the tree is built when some rank's
+        // points, densities and results are predicted not to fit.
+        let size = ferrofmm_fmm::RunSize {
+            n_sources: points.len() / 3,
+            n_targets: targets.as_ref().map(|t| t.len() / 3),
+            values_per_source: kernel.values_per_source(request.sources),
+            values_per_target: kernel.values_per_target(request.mode),
+            n_vectors: 1,
+        };
+        let what = "the distributed run";
+        match request.precision {
+            Precision::F64 => crate::check_rank_memory::<C, f64>(comm, &size, what)?,
+            Precision::F32 => crate::check_rank_memory::<C, f32>(comm, &size, what)?,
+        }
         let plan = plan(comm, &points, &kernel, &request, cache.dir().is_some())?;
         let options = DistOptions::adaptive(plan.leaf_size);
         let tree = match &targets {

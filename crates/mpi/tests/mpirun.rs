@@ -1017,3 +1017,54 @@ fn eval_quiet_prints_nothing_but_what_is_asked_for() {
     assert!(text.contains("error:"), "{text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A run predicted not to fit a rank's share of the memory limit is
+/// refused on every rank before its tree is built: the same error from
+/// every rank, no hang (each job is killed after a time limit), and
+/// `FERROFMM_MEMORY_LIMIT=unlimited` forces it.
+#[test]
+fn eval_refuses_a_run_that_cannot_fit_on_every_rank() {
+    // 1 MiB on one node of 2 ranks: 512 KiB a rank. Each rank's 15,000
+    // points and charges (469 KiB) are made, but their FMM is predicted
+    // to need at least 48 bytes a point (703 KiB).
+    let args: &[&str] = &["eval", "--generate", "cube", "--n", "30000", "--order", "4"];
+    let t = std::time::Instant::now();
+    let (ok, text) = mpmd(&[(2, args)], &[("FERROFMM_MEMORY_LIMIT", "1M")]);
+    let seconds = t.elapsed().as_secs_f64();
+    assert!(!ok, "{text}");
+    assert!(
+        text.contains("rank 0's part of the distributed run (15000 points")
+            && text.contains("is predicted to need at least")
+            && text.contains("on a node of 2 ranks that share the limit equally"),
+        "{text}"
+    );
+    // Rank 0 prints the error once; no rank was killed by the time limit.
+    assert_eq!(text.matches("error:").count(), 1, "{text}");
+    assert!(seconds < 120.0, "took {seconds} s:\n{text}");
+    // Forced: it runs.
+    let (ok, text) = mpmd(&[(2, args)], &[("FERROFMM_MEMORY_LIMIT", "unlimited")]);
+    assert!(ok, "{text}");
+    // A DistributedFmm built on a tree (`fmm-check` builds one directly):
+    // each rank's points, ghost points and targets, refused on every rank
+    // before its local FMM is allocated.
+    let check: &[&str] = &[
+        "fmm-check",
+        "--n",
+        "30000",
+        "--order",
+        "3",
+        "--method",
+        "laplace-svd",
+        "--layout",
+        "even",
+    ];
+    let t = std::time::Instant::now();
+    let (ok, text) = mpmd(&[(2, check)], &[("FERROFMM_MEMORY_LIMIT", "1M")]);
+    let seconds = t.elapsed().as_secs_f64();
+    assert!(
+        !ok && text.contains("part of the distributed FMM (")
+            && text.contains("is predicted to need at least"),
+        "{text}"
+    );
+    assert!(seconds < 120.0, "took {seconds} s:\n{text}");
+}

@@ -62,6 +62,7 @@
 mod coarse_plan;
 mod ghost_plan;
 mod local_tree;
+mod memory;
 mod route;
 mod sparse_sum;
 mod stats;
@@ -80,6 +81,7 @@ use crate::error::{DistError, InputProblem, agree, agree_message};
 use coarse_plan::CoarsePlan;
 use ghost_plan::GhostPlan;
 use local_tree::Kind;
+pub use memory::check_rank_memory;
 use route::Route;
 pub use stats::{EVAL_PHASES, EvalStats, SetupStats};
 
@@ -203,6 +205,20 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> DistributedFmm<T, K, S> {
         let lists = local_tree::rows(dtree, &kinds, me);
         let own_codes = &dtree.points.codes;
         let (codes, own_pos, ghost_pos) = local_tree::merge(own_codes, &plan.codes);
+        // This rank's FMM (its points and ghost points as sources, its
+        // targets) refused on every rank, before it is allocated, when
+        // some rank's is predicted not to fit.
+        check_rank_memory::<C, T>(
+            comm,
+            &ferrofmm_fmm::RunSize {
+                n_sources: codes.len(),
+                n_targets: Some(targets.len()),
+                values_per_source: nq,
+                values_per_target: kernel.values_per_target(options.mode),
+                n_vectors: 1,
+            },
+            "the distributed FMM",
+        )?;
         let tree = local_tree::octree(dtree, lists, &codes, &targets.codes);
         let tree = agree_message(comm, tree)?;
         let mut sources = vec![0.0; 3 * codes.len()];
