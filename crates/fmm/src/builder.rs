@@ -113,6 +113,9 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) leaf_given: bool,
     /// Whether a direct sum may be chosen ([`FmmBuilder::allow_direct`]).
     pub(crate) allow_direct: bool,
+    /// Whether wider roots are weighed ([`FmmBuilder::root_search`];
+    /// `None`: from [`ROOT_SEARCH_MIN_POINTS`](crate::tuning::ROOT_SEARCH_MIN_POINTS) points on).
+    pub(crate) root_search: Option<bool>,
     pub(crate) mode: EvalMode,
     pub(crate) source_kind: SourceKind,
     pub(crate) radii: SurfaceRadii,
@@ -174,6 +177,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             order_given: false,
             leaf_given: false,
             allow_direct: true,
+            root_search: None,
             mode: EvalMode::Potential,
             source_kind: SourceKind::Charge,
             radii: SurfaceRadii::default(),
@@ -203,6 +207,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             order_given: self.order_given,
             leaf_given: self.leaf_given,
             allow_direct: self.allow_direct,
+            root_search: self.root_search,
             mode: self.mode,
             source_kind: self.source_kind,
             radii: self.radii,
@@ -323,6 +328,18 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// expansions: for benchmarks and tests of the FMM itself.
     pub fn allow_direct(mut self, allowed: bool) -> Self {
         self.allow_direct = allowed;
+        self
+    }
+
+    /// Whether the chooser weighs roots wider than the points' bounding
+    /// cube ([`crate::tuning::choose_root`]): `true` always, `false` never;
+    /// by default from
+    /// [`ROOT_SEARCH_MIN_POINTS`](crate::tuning::ROOT_SEARCH_MIN_POINTS)
+    /// points on. Only where the chooser shapes the tree: a tolerance or
+    /// the default one, no leaf size, no domain, no periodic cell, one
+    /// cluster, a kernel without a length scale.
+    pub fn root_search(mut self, on: bool) -> Self {
+        self.root_search = Some(on);
         self
     }
 

@@ -237,13 +237,17 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 && b.periodic.is_none()
                 && clusters.len() == 1
                 && !b.leaf_given
-                && b.kernel.homogeneity().is_some();
+                && b.kernel.homogeneity().is_some()
+                && b.root_search.unwrap_or(
+                    size.n_sources + size.n_targets.unwrap_or(0) >= tuning::ROOT_SEARCH_MIN_POINTS,
+                );
             let mut c = if widen {
                 // The memory left for the boxes beside the points' buffers.
-                let box_budget = b
-                    .memory_limit
-                    .resolve()?
-                    .map(|limit| limit.saturating_sub(MemoryReport::predict::<T>(&size)));
+                let box_budget = tuning::box_budget::<T>(
+                    b.memory_limit.resolve()?,
+                    &size,
+                    S::COST_SHAPE == tuning::M2lCostShape::Fft,
+                );
                 let (c, root) = tuning::choose_root(
                     &tuner,
                     eps,

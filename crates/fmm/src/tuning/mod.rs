@@ -146,6 +146,9 @@ pub use precompute_cost::{
     DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_SET_SECONDS, SVD_ESTIMATE_SHARE,
     precompute_seconds,
 };
-pub use root::{ROOT_SCALES, ROOT_TIME_SLACK, RootChoice, choose_root};
+pub use root::{
+    ROOT_SCALES, ROOT_SEARCH_MIN_POINTS, ROOT_TIME_SLACK, RootChoice, box_budget, box_bytes,
+    choose_root,
+};
 pub use scene::{SCENE_LEAF_SIZE, Scene};
 pub use work::WorkCounts;

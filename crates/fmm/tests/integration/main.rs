@@ -25,3 +25,4 @@ mod stability_numerics;
 mod svd_truncation;
 mod tolerance;
 mod tree_fmm;
+mod wider_root;
