@@ -144,7 +144,12 @@ where
             .label_font((FAMILY, 13))
             .background_style(WHITE.mix(0.9))
             .border_style(BLACK.mix(0.3))
-            .position(SeriesLabelPosition::LowerRight)
+            // Time rises with N and memory falls: keep the legend clear.
+            .position(if which == 0 {
+                SeriesLabelPosition::LowerRight
+            } else {
+                SeriesLabelPosition::UpperRight
+            })
             .draw()?;
     }
     root.present()?;
