@@ -4,6 +4,7 @@
 //! `cargo run --release -p ferrofmm-fmm --example root_scan -- 100000000 12`.
 use std::sync::Arc;
 
+use ferrofmm_field::n_surface_points;
 use ferrofmm_fmm::tuning::{
     LaplaceModel, M2lCostShape, Occupancy, ROOT_SCALES, Tuner, box_budget, box_bytes, choose_root,
 };
@@ -39,7 +40,8 @@ fn main() {
                 c.leaf_size,
                 c.work.n_boxes,
                 c.work.p2p_pairs,
-                box_bytes(&c.work, c.order, Precision::F64) as f64 / (1u64 << 30) as f64,
+                box_bytes(&c.work, n_surface_points(c.order), Precision::F64) as f64
+                    / (1u64 << 30) as f64,
                 c.predicted.total,
                 c.predicted.p2p,
                 c.predicted.m2l,
@@ -56,7 +58,12 @@ fn main() {
         n_vectors: 1,
     };
     let budget = box_budget::<f64>(limit, &size, true);
-    let (c, root) = choose_root(&tuner, Some(1e-6), &points, None, DEEPEST_LEVEL, budget).unwrap();
+    let fits = |c: &ferrofmm_fmm::tuning::ChosenParameters| {
+        budget.is_none_or(|room| {
+            box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64) <= room
+        })
+    };
+    let (c, root) = choose_root(&tuner, Some(1e-6), &points, None, DEEPEST_LEVEL, fits).unwrap();
     println!(
         "limit {:?} GiB, budget for boxes {:?} GiB: root {:.3}x ({}), order {}, leaf {}, {} boxes, predicted {:.3} s",
         limit.map(|l| l as f64 / (1u64 << 30) as f64),

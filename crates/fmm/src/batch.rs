@@ -47,30 +47,12 @@ pub(crate) fn gather_apply_scatter<T: Real>(
     }
 }
 
-/// `f(input_block, output_block)` over matching column blocks of two
-/// column-major matrices with `n` rows, in parallel.
-pub(crate) fn par_columns<T: Real>(
-    n: usize,
-    input: &[T],
-    output: &mut [T],
-    f: impl Fn(&[T], &mut [T]) + Sync,
-) {
-    debug_assert_eq!(input.len(), output.len());
-    if n == 0 || input.is_empty() {
-        return;
-    }
-    input
-        .par_chunks(n * BLOCK)
-        .zip(output.par_chunks_mut(n * BLOCK))
-        .for_each(|(i, o)| f(i, o));
-}
-
 /// `data[:, j] = Op * data[:, j]` for the columns `j` with `keep(j)` (every
 /// column without `keep`), the others set to zero; `op(input, output)`
 /// computes `output += Op * input` for a column-major block. Each block of
 /// [`BLOCK`] columns is copied aside, zeroed and written back, so the
 /// working memory is one block per thread, not a second copy of `data`
-/// (the downward pass turns a level's check potentials into its local
+/// (the upward and downward passes turn check potentials into
 /// expansions in the same buffer this way).
 pub(crate) fn par_columns_in_place<T: Real>(
     n: usize,
@@ -124,7 +106,7 @@ mod tests {
         let cols = 3 * BLOCK + 5;
         let data: Vec<f64> = (0..n * cols).map(|i| (i % 13) as f64 - 6.0).collect();
         let mut expect = vec![0.0; data.len()];
-        par_columns(n, &data, &mut expect, op);
+        op(&data, &mut expect);
         let mut all = data.clone();
         par_columns_in_place(n, &mut all, None, op);
         assert_eq!(all, expect);

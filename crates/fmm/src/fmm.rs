@@ -248,13 +248,19 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                     &size,
                     S::COST_SHAPE == tuning::M2lCostShape::Fft,
                 );
+                let fits = |c: &tuning::ChosenParameters| {
+                    box_budget.is_none_or(|room| {
+                        let n = ferrofmm_field::expansion_len(&b.kernel, c.order);
+                        tuning::box_bytes(&c.estimated_work, n, T::PRECISION) <= room
+                    })
+                };
                 let (c, root) = tuning::choose_root(
                     &tuner,
                     eps,
                     tune_sources,
                     tune_targets,
                     b.max_level,
-                    box_budget,
+                    fits,
                 )?;
                 b.domain = root;
                 c

@@ -33,8 +33,7 @@ pub struct MemoryReport {
     /// Multipole and local expansions of one evaluation:
     /// `2 n n_boxes size_of::<T>()`.
     pub expansions: usize,
-    /// Other buffers of one evaluation: check potentials (`n n_boxes`),
-    /// densities in tree order, the outputs (made in tree order and put in
+    /// Other buffers of one evaluation: densities in tree order, the outputs (made in tree order and put in
     /// the caller's order in place: one copy) and the M2L scheme's working
     /// memory ([`M2lScheme::apply_scratch_bytes`], the largest level's).
     pub evaluation_scratch: usize,
@@ -118,8 +117,9 @@ impl MemoryReport {
         }
         let expansions = 2 * n * n_boxes * t;
         let nq = fmm.kernel.values_per_source(fmm.source_kind);
-        let evaluation_scratch =
-            n * n_boxes * t + nq * fmm.n_sources * t + w * fmm.n_targets * t + m2l_scratch;
+        // Check potentials are gathered in the expansions' own columns
+        // (`passes::p2m`, `passes::downward`): no buffer of their own.
+        let evaluation_scratch = nq * fmm.n_sources * t + w * fmm.n_targets * t + m2l_scratch;
         let total = expansions
             + evaluation_scratch
             + points

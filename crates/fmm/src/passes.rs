@@ -23,7 +23,7 @@ use ferrofmm_field::{M2lProgress, M2lScheme};
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rayon::prelude::*;
 
-use crate::batch::{gather_apply_scatter, par_columns, par_columns_in_place};
+use crate::batch::{gather_apply_scatter, par_columns_in_place};
 use crate::part::{Body, TreePart, image_points, shift_at};
 use crate::progress::{self, Work};
 use crate::timings::EvalTimings;
@@ -315,7 +315,10 @@ fn source_slices<'a, T: Real, S: M2lScheme<T>, K: Kernel>(
     )
 }
 
-/// Leaves' sources to their upward check surfaces, then check-to-equivalent per level.
+/// Leaves' sources to their upward check surfaces, then check-to-equivalent
+/// per level. The check potentials are gathered in the multipoles' own
+/// columns (still zero: M2M comes after) and turned into multipoles there,
+/// so no buffer of every box's check potentials is held beside them.
 fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
     cx: &Ctx<'_, K>,
     part: &TreePart<T, S>,
@@ -326,40 +329,33 @@ fn p2m<T: Real, K: Kernel, S: M2lScheme<T>>(
     let ops = &part.operators;
     let n = ops.n_surface();
     let radius = ops.radii().upward_check;
-    let mut check = vec![T::ZERO; multipoles.len()];
-    check
+    let has_check =
+        |b: usize| tree.is_leaf(b) && !tree.source_range(b).is_empty() && part.is_active(b);
+    multipoles
         .par_chunks_mut(n)
         .enumerate()
         .for_each_init(Vec::new, |surface, (b, col)| {
-            let r = tree.source_range(b);
-            if !tree.is_leaf(b) || r.is_empty() || !part.is_active(b) {
+            if !has_check(b) {
                 return;
             }
             part.surface_of(cx.unit_surface, b, radius, surface);
-            let (x, qb) = source_slices(cx, part, q, r);
+            let (x, qb) = source_slices(cx, part, q, tree.source_range(b));
             cx.kernel
                 .evaluate_sources(cx.kind, EvalMode::Potential, x, qb, surface, col);
         });
     // Levels above the operators' first hold no multipole anyone reads
-    // (`Operators::from_level`).
-    for level in ops.first_level()..=tree.depth() {
+    // (`Operators::from_level`): their leaves' check potentials are cleared.
+    let first = ops.first_level().min(tree.depth() + 1);
+    multipoles[..n * tree.level_range(first).start].fill(T::ZERO);
+    for level in first..=tree.depth() {
         let r = tree.level_range(level);
-        let check = &check[n * r.start..n * r.end];
-        if part.active.is_some() {
-            // Only the active leaves with sources have a check potential.
-            let pairs: Vec<(usize, usize)> = r
-                .clone()
-                .filter(|&b| {
-                    part.is_active(b) && tree.is_leaf(b) && !tree.source_range(b).is_empty()
-                })
-                .map(|b| (b - r.start, b))
-                .collect();
-            gather_apply_scatter(n, &pairs, check, multipoles, |c, u| ops.uc2e(level, c, u));
-        } else {
-            par_columns(n, check, &mut multipoles[n * r.start..n * r.end], |c, u| {
-                ops.uc2e(level, c, u)
-            });
-        }
+        // Only leaves with sources (and, in a part, active ones) have a
+        // check potential; every other column is zero and stays so.
+        let keep = |j: usize| has_check(r.start + j);
+        let keep: Option<&(dyn Fn(usize) -> bool + Sync)> = part.active.is_some().then_some(&keep);
+        par_columns_in_place(n, &mut multipoles[n * r.start..n * r.end], keep, |c, u| {
+            ops.uc2e(level, c, u)
+        });
     }
 }
 
@@ -489,10 +485,8 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
         let t = Instant::now();
         let level_locals = check;
         let active = |j: usize| part.is_active(r.start + j);
-        let keep: Option<&(dyn Fn(usize) -> bool + Sync)> = match part.active {
-            Some(_) => Some(&active),
-            None => None,
-        };
+        let keep: Option<&(dyn Fn(usize) -> bool + Sync)> =
+            part.active.is_some().then_some(&active);
         par_columns_in_place(n, level_locals, keep, |c, d| ops.dc2e(level, c, d));
         if (level >= 2 || from_root) && level > ops.first_level() {
             for (octant, pairs) in octant_pairs(part, r.clone()).iter().enumerate() {

@@ -11,8 +11,8 @@
 //! per block of targets. Nothing is counted without a callback, and the
 //! callback runs only when the done fraction moves by 1/1000 or more.
 
-use std::sync::Arc;
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
 
 use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::Real;
@@ -45,6 +45,9 @@ pub(crate) struct Work<'a> {
     callback: Option<&'a ProgressFn>,
     done: AtomicU64,
     total: u64,
+    /// The last `done` reported: threads that cross a step at once report
+    /// under this lock, never a smaller value after a larger one.
+    reported: Mutex<u64>,
 }
 
 impl<'a> Work<'a> {
@@ -54,6 +57,7 @@ impl<'a> Work<'a> {
             callback: None,
             done: AtomicU64::new(0),
             total: 0,
+            reported: Mutex::new(0),
         }
     }
 
@@ -66,6 +70,7 @@ impl<'a> Work<'a> {
                     callback: Some(f.as_ref()),
                     done: AtomicU64::new(0),
                     total: total().max(1),
+                    reported: Mutex::new(0),
                 };
                 work.report(0);
                 work
@@ -118,8 +123,14 @@ impl<'a> Work<'a> {
 
     fn report(&self, done: u64) {
         if let Some(f) = self.callback {
+            let done = done.min(self.total);
+            let mut last = self.reported.lock().unwrap_or_else(|e| e.into_inner());
+            if done < *last {
+                return;
+            }
+            *last = done;
             f(EvalProgress {
-                done: done.min(self.total),
+                done,
                 total: self.total,
             });
         }

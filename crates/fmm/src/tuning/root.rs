@@ -59,8 +59,8 @@ pub type RootChoice = (ChosenParameters, Option<Domain>);
 /// each root is [`Tuner::choose_for`]'s; the pre-pass's Morton codes are
 /// made once per root (about one sort of the points each).
 ///
-/// A wider root is weighed only when [`box_bytes`] of its choice is at
-/// most `box_budget` (`None`: no limit).
+/// A wider root is weighed only when its choice `fits` (the builder's
+/// test: [`box_bytes`] within [`box_budget`]).
 ///
 /// # Errors
 /// As [`Tuner::choose_for`] on the bounding cube; a larger root that has
@@ -71,7 +71,7 @@ pub fn choose_root(
     sources: &[f64],
     targets: Option<&[f64]>,
     max_level: u32,
-    box_budget: Option<u64>,
+    fits: impl Fn(&ChosenParameters) -> bool,
 ) -> Result<RootChoice, FmmError> {
     let tight = match targets {
         Some(t) => Domain::from_points(&[sources, t])?,
@@ -86,9 +86,7 @@ pub fn choose_root(
         };
         let occupancy = Occupancy::new(sources, targets, Some(domain), max_level)?;
         if let Ok(mut chosen) = tuner.choose_for(eps, &occupancy)
-            && box_budget.is_none_or(|b| {
-                box_bytes(&chosen.estimated_work, chosen.order, tuner.precision) <= b
-            })
+            && fits(&chosen)
         {
             chosen.root_scale = scale;
             weighed.push((chosen, Some(domain)));
@@ -112,15 +110,16 @@ fn fewest_boxes_near_cheapest(weighed: Vec<RootChoice>) -> RootChoice {
         .expect("the bounding cube is always weighed")
 }
 
-/// Bytes of the buffers that grow with the boxes of a tree of `work` at
-/// expansion order `order`: the multipole and local expansions (`2 n`
-/// values a box, `n = 6 (p - 1)^2 + 2`), the tree's per-box arrays (about
+/// Bytes of the buffers that grow with the boxes of a tree of `work` with
+/// expansions of `expansion_len` values
+/// ([`expansion_len`](ferrofmm_field::expansion_len)): the multipole and
+/// local expansions (`2 expansion_len` values a box), the tree's per-box arrays (about
 /// 200 bytes a box), its U lists (8 bytes an entry) and its V lists with
 /// the M2L interaction groups made from them (16 bytes a pair). Within a
 /// few percent of [`MemoryReport`](crate::MemoryReport)'s tree, expansions
 /// and M2L lists (2e6 uniform points, order 8: 153 MB against 155).
-pub fn box_bytes(work: &super::WorkCounts, order: usize, precision: Precision) -> u64 {
-    let n = 6 * order.saturating_sub(1).pow(2) + 2;
+pub fn box_bytes(work: &super::WorkCounts, expansion_len: usize, precision: Precision) -> u64 {
+    let n = expansion_len;
     let t = match precision {
         Precision::F32 => 4,
         Precision::F64 => 8,
@@ -176,6 +175,7 @@ pub const ROOT_TIME_SLACK: f64 = 0.05;
 mod tests {
     use super::*;
     use crate::Geometry;
+    use ferrofmm_field::n_surface_points;
     use ferrofmm_kernels::{EvalMode, Precision};
     use ferrofmm_tree::DEEPEST_LEVEL;
 
@@ -198,7 +198,7 @@ mod tests {
             let occ = Occupancy::new(&points, None, None, DEEPEST_LEVEL).unwrap();
             let tight = tuner().choose_for(Some(1e-6), &occ).unwrap();
             let (chosen, root) =
-                choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, None).unwrap();
+                choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, |_| true).unwrap();
             assert!(chosen.predicted_seconds <= (1.0 + ROOT_TIME_SLACK) * tight.predicted_seconds);
             assert_eq!(
                 chosen.order, tight.order,
@@ -225,23 +225,22 @@ mod tests {
         // 244.
         let points: Vec<f64> = Geometry::Cube.points(250_000, 5);
         let (chosen, root) =
-            choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, None).unwrap();
+            choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, |_| true).unwrap();
         assert!(root.is_some(), "kept the bounding cube: {chosen:?}");
         // Without room for the boxes of that choice, another is taken:
         // one that fits, or the bounding cube.
-        let room = box_bytes(&chosen.estimated_work, chosen.order, Precision::F64) - 1;
-        let (other, other_root) = choose_root(
-            &tuner(),
-            Some(1e-6),
-            &points,
-            None,
-            DEEPEST_LEVEL,
-            Some(room),
-        )
-        .unwrap();
+        let bytes = |c: &ChosenParameters| {
+            box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64)
+        };
+        let room = bytes(&chosen) - 1;
+        let (other, other_root) =
+            choose_root(&tuner(), Some(1e-6), &points, None, DEEPEST_LEVEL, |c| {
+                bytes(c) <= room
+            })
+            .unwrap();
         assert_ne!(other, chosen);
         if other_root.is_some() {
-            assert!(box_bytes(&other.estimated_work, other.order, Precision::F64) <= room);
+            assert!(bytes(&other) <= room);
         } else {
             assert_eq!(other.root_scale, 1.0);
         }
@@ -259,7 +258,7 @@ mod tests {
         // The FFT scheme's sibling blocks are made by the first evaluation.
         fmm.evaluate(&vec![1.0; 40_000]).unwrap();
         let work = crate::tuning::WorkCounts::of_tree(fmm.tree());
-        let predicted = box_bytes(&work, 6, Precision::F64) as f64;
+        let predicted = box_bytes(&work, n_surface_points(6), Precision::F64) as f64;
         let m: MemoryReport = fmm.memory();
         let held = (m.expansions + m.tree + m.m2l_interactions) as f64;
         assert!(
