@@ -748,6 +748,7 @@ impl NativeFmm {
             "n_vectors": n_vectors,
             "threads": self.threads.count(),
             "depth": s.depth,
+            "root_scale": chosen.map_or(1.0, |c| c.root_scale),
             "boxes": s.n_boxes,
             "leaves": s.n_leaves,
             "clusters": s.clusters,

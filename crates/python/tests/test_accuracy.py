@@ -155,6 +155,8 @@ def test_info_reports_what_ran(rng):
     info = r.info
     for key in ("order", "leaf_size", "scheme", "predicted_error", "measured_error", "timings"):
         assert key in info
+    # Below 2e6 points the chooser keeps the points' bounding cube.
+    assert info["root_scale"] == 1.0
     assert info["eps"] == 1e-5 and info["threads"] == 1
     assert info["predicted_error"] <= 1e-5
     assert info["timings"]["evaluate"]["total"] > 0
