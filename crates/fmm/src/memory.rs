@@ -21,9 +21,15 @@ use crate::part::Body;
 /// Bytes of the big buffers of an [`Fmm`] (see [`Fmm::memory`]).
 ///
 /// The tree's figures count its arrays from their lengths (keys, parents,
-/// children, masks, point ranges, the 27-entry colleague table, the four
-/// CSR lists, sorted coordinates and permutations); small fixed-size parts
-/// are left out.
+/// children, masks, point ranges, the 27-entry colleague table, the CSR
+/// lists, sorted coordinates and permutations); small fixed-size parts
+/// are left out. An [`Fmm`]'s tree has handed its V lists over to the M2L
+/// interactions (counted there), and its sorted points to the FMM.
+///
+/// The figures add up buffers that are not all alive at once: the
+/// evaluation releases the multipoles after M2P and the locals after L2P,
+/// so the outputs (first written by L2P) and both expansions are never
+/// resident together, and [`MemoryReport::total`] is above the peak.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
 pub struct MemoryReport {
     /// Boxes the buffers below are sized by.

@@ -27,7 +27,7 @@ use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, se
 use crate::FmmError;
 use crate::builder::FmmBuilder;
 use crate::coordinates::{coordinate_origin, permute_points, relative_points};
-use crate::precompute::{build_operators, level_interactions};
+use crate::precompute::{OperatorNeeds, build_operators, level_interactions};
 use crate::timings::SetupTimings;
 use crate::validate::check_domain_width;
 
@@ -63,6 +63,9 @@ pub(crate) struct TreePart<T: Real, S> {
     /// multipoles stay zero) and DC2E and L2L skip them (their locals stay
     /// zero); M2L and P2L still compute every box's check potential.
     pub(crate) active: Option<Vec<bool>>,
+    /// The transfer vectors and levels the operators were built for (kept
+    /// for a rebuild at another order: the tree's V lists may be gone).
+    pub(crate) needs: OperatorNeeds,
 }
 
 impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
@@ -79,6 +82,7 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
         targets: Option<&[f64]>,
         permute: bool,
         (has_sources, has_targets): (bool, bool),
+        needs: OperatorNeeds,
     ) -> Result<Self, FmmError> {
         let m2l_interactions = (0..=tree.depth())
             .map(|level| level_interactions(&tree, level))
@@ -115,6 +119,7 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
             has_sources,
             has_targets,
             active: None,
+            needs,
         })
     }
     /// Whether box `b` is [active](TreePart::active).
@@ -409,20 +414,27 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     // The root's local expansion is needed when other clusters or the
     // far images of a periodic cell act on it.
     let coupled = input.ids.is_some() || b.periodic.is_some();
-    let (operators, m2l) =
-        build_operators(&b.kernel, params, config, &tree, coupled, &mut timings)?;
+    // Finding the used transfer vectors counts as operator setup.
+    let t = Instant::now();
+    let needs = OperatorNeeds::of(&tree, coupled);
+    setup.operators += t.elapsed();
+    let (operators, m2l) = build_operators(&b.kernel, params, config, &tree, &needs, &mut timings)?;
     setup.operators += timings.operators;
     setup.m2l_precompute += timings.m2l_precompute;
 
     let t = Instant::now();
-    let part = TreePart::assemble(
+    let mut part = TreePart::assemble(
         tree,
         (operators, m2l),
         tree_src64,
         tree_tgt64.map(|t| &t[..]),
         true,
         (has_sources, has_targets),
+        needs,
     )?;
+    // The M2L interactions hold the V entries from here on: the tree's
+    // own V lists would be a second copy (8 bytes an entry).
+    drop(part.tree.take_v_lists());
     setup.layout += t.elapsed();
     Ok(part)
 }

@@ -61,7 +61,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         .iter()
         .map(|p| p.local_charges(charges, nq))
         .collect();
-    let multipoles: Vec<Vec<T>> = fmm
+    let mut multipoles: Vec<Vec<T>> = fmm
         .parts
         .iter()
         .zip(&local_q)
@@ -72,15 +72,21 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         .collect();
 
     // Values in each part's stored order, and its root's check potentials.
+    // One part (no coupling writes into them) gets its outputs only when
+    // its leaf passes begin: they are not held beside both expansions.
+    let stored_values = |p: &crate::part::Part<T, S>| {
+        let stored = match p.tree_part() {
+            Some(tp) if !tp.has_targets => 0,
+            _ => p.n_targets,
+        };
+        w * stored
+    };
     let mut values: Vec<Vec<T>> = fmm
         .parts
         .iter()
-        .map(|p| {
-            let stored = match p.tree_part() {
-                Some(tp) if !tp.has_targets => 0,
-                _ => p.n_targets,
-            };
-            vec![T::ZERO; w * stored]
+        .map(|p| match fmm.parts.len() {
+            1 => Vec::new(),
+            _ => vec![T::ZERO; stored_values(p)],
         })
         .collect();
     let mut root_checks: Vec<Vec<T>> = fmm.parts.iter().map(|_| Vec::new()).collect();
@@ -116,19 +122,34 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                     &work,
                     |_, _, _| {},
                 );
-                leaf_passes(
-                    &cx,
-                    tp,
-                    &local_q[k],
-                    &multipoles[k],
-                    &locals,
-                    &mut values[k],
-                    &mut timings,
-                    &work,
-                );
+                // The leaf passes one at a time, each buffer released once
+                // read, so that the outputs are never held beside both
+                // expansions: the multipoles M2P reads (those of W-list
+                // boxes) are gathered and the rest released before the
+                // outputs are made; then M2P, L2P and, the locals released,
+                // P2P.
+                let w_multipoles = WMultipoles::gather(tp, &multipoles[k]);
+                multipoles[k] = Vec::new();
+                if values[k].is_empty() {
+                    values[k] = vec![T::ZERO; stored_values(part)];
+                }
+                let mut slices = leaf_output_slices(&tp.tree, w, &mut values[k]);
+                m2p_pass(&cx, tp, |a| w_multipoles.of(a), &mut slices, &mut timings);
+                drop(w_multipoles);
+                l2p_pass(&cx, tp, &locals, &mut slices, &mut timings);
+                drop(locals);
+                leaf_progress(tp, tp.operators.n_surface(), &slices, &work);
+                p2p_pass(&cx, tp, &local_q[k], &mut slices, &mut timings, &work);
             }
-            Body::Tree(_) => {}
+            Body::Tree(_) => {
+                if values[k].is_empty() {
+                    values[k] = vec![T::ZERO; stored_values(part)];
+                }
+            }
             Body::Points(pp) => {
+                if values[k].is_empty() {
+                    values[k] = vec![T::ZERO; stored_values(part)];
+                }
                 let t = Instant::now();
                 if part.n_sources > 0 && part.n_targets > 0 {
                     fmm.kernel.evaluate_sources(
@@ -501,7 +522,9 @@ pub(crate) fn downward<T: Real, K: Kernel, S: M2lScheme<T>>(
     }
 }
 
-/// L2P, M2P and P2P, each parallel over the target leaves.
+/// L2P, M2P and P2P, each parallel over the target leaves (M2P first, so
+/// that a caller may release the multipoles before L2P, and the locals
+/// before P2P, as [`evaluate`] does).
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     cx: &Ctx<'_, K>,
@@ -513,59 +536,158 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     timings: &mut EvalTimings,
     work: &Work<'_>,
 ) {
-    let tree = &part.tree;
-    let ops = &part.operators;
-    let n = ops.n_surface();
     let w = cx.kernel.values_per_target(cx.mode);
-    let mode = cx.mode;
-    let mut slices = leaf_output_slices(tree, w, sorted);
-    let targets_of = |b: usize| {
-        let r = tree.target_range(b);
-        &part.target_points()[3 * r.start..3 * r.end]
-    };
+    let mut slices = leaf_output_slices(&part.tree, w, sorted);
+    let n = part.operators.n_surface();
+    m2p_pass(
+        cx,
+        part,
+        |a| &multipoles[n * a..n * (a + 1)],
+        &mut slices,
+        timings,
+    );
+    l2p_pass(cx, part, locals, &mut slices, timings);
+    leaf_progress(part, part.operators.n_surface(), &slices, work);
+    p2p_pass(cx, part, q, &mut slices, timings, work);
+}
 
+/// Output slices of the target leaves ([`leaf_output_slices`]).
+type LeafSlices<'a, T> = Vec<(usize, &'a mut [T])>;
+
+/// The targets of box `b` (interleaved, in `T`).
+fn targets_of<T: Real, S: M2lScheme<T>>(part: &TreePart<T, S>, b: usize) -> &[T] {
+    let r = part.tree.target_range(b);
+    &part.target_points()[3 * r.start..3 * r.end]
+}
+
+/// L2P: `phi(y) += K(y, x_equiv_B) d_B` at the targets of every leaf `B`.
+fn l2p_pass<T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
+    part: &TreePart<T, S>,
+    locals: &[T],
+    slices: &mut LeafSlices<'_, T>,
+    timings: &mut EvalTimings,
+) {
+    let n = part.operators.n_surface();
     let t = Instant::now();
-    let down_equiv = ops.radii().downward_equivalent;
+    let down_equiv = part.operators.radii().downward_equivalent;
     slices
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
             part.surface_of(cx.unit_surface, *b, down_equiv, surface);
             let d = &locals[n * *b..n * (*b + 1)];
+            let y = targets_of(part, *b);
             cx.kernel
-                .evaluate_sources(SourceKind::Charge, mode, surface, d, targets_of(*b), out);
+                .evaluate_sources(SourceKind::Charge, cx.mode, surface, d, y, out);
         });
     timings.l2p += t.elapsed();
+}
+
+/// M2P: `phi(y) += K(y, x_equiv_A) u_A` for `A` in `W(B)` (nothing for a
+/// part without sources).
+fn m2p_pass<'m, T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
+    part: &TreePart<T, S>,
+    multipole_of: impl Fn(usize) -> &'m [T] + Sync,
+    slices: &mut LeafSlices<'_, T>,
+    timings: &mut EvalTimings,
+) {
     if !part.has_sources {
         return;
     }
-
+    let tree = &part.tree;
     let t = Instant::now();
-    let up_equiv = ops.radii().upward_equivalent;
+    let up_equiv = part.operators.radii().upward_equivalent;
     slices
         .par_iter_mut()
         .for_each_init(Vec::new, |surface, (b, out)| {
             let shifts = tree.w_shifts(*b);
             for (k, &a) in tree.w_list(*b).iter().enumerate() {
                 part.image_surface_of(cx.unit_surface, a, shift_at(shifts, k), up_equiv, surface);
-                let u = &multipoles[n * a..n * (a + 1)];
-                cx.kernel.evaluate_sources(
-                    SourceKind::Charge,
-                    mode,
-                    surface,
-                    u,
-                    targets_of(*b),
-                    out,
-                );
+                let u = multipole_of(a);
+                let y = targets_of(part, *b);
+                cx.kernel
+                    .evaluate_sources(SourceKind::Charge, cx.mode, surface, u, y, out);
             }
         });
     timings.m2p += t.elapsed();
+}
+
+/// The multipoles M2P reads: those of the boxes in some W list, in box
+/// order, so that the level-sized multipole buffer can be released before
+/// the outputs are made. Few in a near-uniform tree (W lists appear only
+/// where leaf levels differ); at most every box's.
+struct WMultipoles<T> {
+    /// Position of each box's multipole in `values` (`u32::MAX`: none).
+    index: Vec<u32>,
+    values: Vec<T>,
+    n: usize,
+}
+
+impl<T: Real> WMultipoles<T> {
+    fn gather<S: M2lScheme<T>>(part: &TreePart<T, S>, multipoles: &[T]) -> Self {
+        let tree = &part.tree;
+        let n = part.operators.n_surface();
+        let mut index = vec![u32::MAX; tree.n_boxes()];
+        if part.has_sources {
+            for &b in tree.leaves() {
+                for &a in tree.w_list(b) {
+                    index[a] = 0;
+                }
+            }
+        }
+        let mut values = Vec::new();
+        let mut count = 0u32;
+        for (a, slot) in index.iter_mut().enumerate() {
+            if *slot == 0 {
+                *slot = count;
+                count += 1;
+                values.extend_from_slice(&multipoles[n * a..n * (a + 1)]);
+            }
+        }
+        WMultipoles { index, values, n }
+    }
+
+    /// The multipole of box `a` (which must be in a W list).
+    fn of(&self, a: usize) -> &[T] {
+        let k = self.index[a] as usize;
+        &self.values[self.n * k..self.n * (k + 1)]
+    }
+}
+
+/// The progress units of L2P and M2P, reported together once both ran.
+fn leaf_progress<T: Real, S: M2lScheme<T>>(
+    part: &TreePart<T, S>,
+    n: usize,
+    slices: &LeafSlices<'_, T>,
+    work: &Work<'_>,
+) {
+    if !part.has_sources {
+        return;
+    }
     work.add_with(|| {
         slices
             .iter()
             .map(|(b, _)| progress::l2p_m2p_units(part, n, *b))
             .sum()
     });
+}
 
+/// P2P: `phi(y) += K(y, x) q` for the sources of `A` in `U(B)` (nothing
+/// for a part without sources).
+fn p2p_pass<T: Real, K: Kernel, S: M2lScheme<T>>(
+    cx: &Ctx<'_, K>,
+    part: &TreePart<T, S>,
+    q: &[T],
+    slices: &mut LeafSlices<'_, T>,
+    timings: &mut EvalTimings,
+    work: &Work<'_>,
+) {
+    if !part.has_sources {
+        return;
+    }
+    let tree = &part.tree;
+    let w = cx.kernel.values_per_target(cx.mode);
     let t = Instant::now();
     // Few leaves for the threads (a shallow tree, a direct sum: one leaf
     // holding every point) are split into blocks of targets, so that
@@ -588,13 +710,13 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
     blocks
         .into_par_iter()
         .for_each_init(Vec::new, |image, (b, first, out)| {
-            let y = targets_of(b);
+            let y = targets_of(part, b);
             let y = &y[3 * first..3 * first + 3 * (out.len() / w)];
             let shifts = tree.u_shifts(b);
             for (k, &a) in tree.u_list(b).iter().enumerate() {
                 let (x, qa) = source_slices(cx, part, q, tree.source_range(a));
                 let x = image_points(x, shift_at(shifts, k), width, image);
-                cx.kernel.evaluate_sources(cx.kind, mode, x, qa, y, out);
+                cx.kernel.evaluate_sources(cx.kind, cx.mode, x, qa, y, out);
             }
             work.add_with(|| progress::p2p_units(part, b, out.len() / w.max(1)));
         });
@@ -610,7 +732,7 @@ fn leaf_output_slices<'a, T: Real>(
     tree: &Octree,
     w: usize,
     sorted: &'a mut [T],
-) -> Vec<(usize, &'a mut [T])> {
+) -> LeafSlices<'a, T> {
     let mut leaves: Vec<usize> = tree
         .leaves()
         .iter()

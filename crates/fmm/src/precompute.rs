@@ -113,38 +113,53 @@ pub(crate) fn human_bytes(bytes: &u64) -> String {
     }
 }
 
+/// What a tree needs operators for: the transfer vectors its V lists use
+/// ([`m2l_usage`]) and the first level that needs operators of its own.
+/// Read from the tree's V lists once, when the tree is built, and kept:
+/// a rebuild at another order (verification) reuses it after the FMM has
+/// handed the V lists over to its M2L interactions
+/// ([`Octree::take_v_lists`]).
+#[derive(Clone, Debug)]
+pub(crate) struct OperatorNeeds {
+    pub(crate) usage: M2lUsage,
+    pub(crate) first_level: u32,
+}
+
+impl OperatorNeeds {
+    /// The needs of `tree`. `coupled`: the tree's root expansions couple
+    /// it to other parts (far clusters, a periodic cell's images), so every
+    /// level needs its operators; otherwise only the levels from the first
+    /// with far-field work down ([`first_far_level`]).
+    pub(crate) fn of(tree: &Octree, coupled: bool) -> Self {
+        OperatorNeeds {
+            usage: m2l_usage(tree),
+            first_level: if coupled { 0 } else { first_far_level(tree) },
+        }
+    }
+}
+
 /// The check-to-equivalent and parent/child operators and the M2L scheme
-/// for `params` on `tree` (their times written into `setup`). `coupled`:
-/// the tree's root expansions couple it to other parts (far clusters), so
-/// every level needs its operators; otherwise only the levels from the
-/// first with far-field work down ([`first_far_level`]).
+/// for `params` on `tree`, for its `needs` (their times written into
+/// `setup`).
 pub(crate) fn build_operators<T: Real, K: Kernel, S: M2lScheme<T>>(
     kernel: &K,
     params: &OperatorParams,
     config: &S::Config,
     tree: &Octree,
-    coupled: bool,
+    needs: &OperatorNeeds,
     setup: &mut SetupTimings,
 ) -> Result<(Operators<T>, S), FmmError> {
     // Only what the tree needs, and only when it fits (issue 18).
-    let t = Instant::now();
-    let usage = m2l_usage(tree);
-    let first_level = if coupled { 0 } else { first_far_level(tree) };
-    let usage_time = t.elapsed();
-    let built = operators_for(
+    operators_for(
         kernel,
         params,
         config,
         tree.domain().width,
         tree.depth(),
-        first_level,
-        &usage,
+        needs.first_level,
+        &needs.usage,
         setup,
-    );
-    // Finding the used transfer vectors counts as operator setup, as it did
-    // before `operators_for` was split out.
-    setup.operators += usage_time;
-    built
+    )
 }
 
 /// [`build_operators`] for a domain `width`, levels `first_level..=depth`

@@ -35,7 +35,7 @@ use ferrofmm_tree::Octree;
 use crate::FmmError;
 use crate::part::TreePart;
 use crate::passes::{self, Ctx};
-use crate::precompute::operators_for;
+use crate::precompute::{OperatorNeeds, operators_for};
 use crate::progress::Work;
 use crate::timings::{EvalTimings, SetupTimings};
 use crate::validate::{check_domain_width, check_order, check_tree_points};
@@ -124,6 +124,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> TreeFmm<T, K, S> {
             local.targets,
             false,
             (true, true),
+            OperatorNeeds {
+                usage: local.usage.clone(),
+                first_level: 0,
+            },
         )?;
         let unit_surface = ferrofmm_field::surface_points::<f64>(params.order, [0.0; 3], 1.0, 1.0);
         setup.layout = t.elapsed();

@@ -533,3 +533,53 @@ fn from_parts_refuses_periodic_lists() {
     let err = Octree::from_parts(*tree.domain(), &boxes, tree.interaction_lists().clone());
     assert!(matches!(err, Err(TreeError::InvalidParts { .. })));
 }
+
+/// `take_v_lists` hands over exactly the V lists (entries and shifts) and
+/// leaves every box an empty V list; the other lists are untouched. Open
+/// and periodic trees.
+#[test]
+fn taken_v_lists_are_the_lists_and_leave_empty_rows() {
+    // Entries with their shifts (zero without shifts: an open tree).
+    fn entries(list: &[usize], shifts: Option<&[[i8; 3]]>) -> Vec<(usize, [i8; 3])> {
+        match shifts {
+            Some(_) => row(list, shifts),
+            None => list.iter().map(|&a| (a, [0; 3])).collect(),
+        }
+    }
+    let p = clustered(11);
+    for axes in [[false; 3], SLAB, XYZ] {
+        let mut tree = build(&p, None, 16, axes);
+        let n = tree.n_boxes();
+        let before: Vec<Vec<(usize, [i8; 3])>> = (0..n)
+            .map(|b| entries(tree.v_list(b), tree.v_shifts(b)))
+            .collect();
+        let others: Vec<(Vec<usize>, Vec<usize>, Vec<usize>)> = (0..n)
+            .map(|b| {
+                (
+                    tree.u_list(b).to_vec(),
+                    tree.w_list(b).to_vec(),
+                    tree.x_list(b).to_vec(),
+                )
+            })
+            .collect();
+        assert!(
+            before.iter().any(|r| !r.is_empty()),
+            "{axes:?}: no V entries"
+        );
+        let taken = tree.take_v_lists();
+        for b in 0..n {
+            assert_eq!(
+                entries(taken.get(b), taken.row_shifts(b)),
+                before[b],
+                "{axes:?} box {b}"
+            );
+            assert!(tree.v_list(b).is_empty(), "{axes:?} box {b}");
+            assert!(tree.v_shifts(b).is_none_or(<[_]>::is_empty));
+            let (u, w, x) = &others[b];
+            assert_eq!(
+                (tree.u_list(b), tree.w_list(b), tree.x_list(b)),
+                (&u[..], &w[..], &x[..])
+            );
+        }
+    }
+}

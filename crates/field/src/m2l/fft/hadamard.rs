@@ -48,7 +48,6 @@
 //! scalar-only scheme), the others with `c` read at run time.
 
 use ferrofmm_kernels::lanes::{Simd, SimdTask};
-use rayon::prelude::*;
 
 use crate::N_TRANSFER_VECTORS;
 use crate::siblings::{N_PARENT_OFFSETS, SiblingBlocks, block_vector};
@@ -117,7 +116,8 @@ pub(super) struct Products<'a, C: Components> {
     pub source_slots: &'a [u32],
     /// The level's pairs.
     pub siblings: &'a SiblingBlocks,
-    /// Slab entries of every block of the level ([`block_tables`]).
+    /// Slab entries of every block of the target groups `first..`
+    /// ([`block_tables`]).
     pub tables: &'a [BlockTable],
     /// First target group.
     pub first: usize,
@@ -154,12 +154,14 @@ impl<C: Components> SimdTask<f64> for Products<'_, C> {
         let group_len = self.blocks * block_len;
         let slab_len = SLAB_VECTORS * c * c * W;
         let n = self.targets.len() / group_len;
+        let base = self.siblings.block_range(self.first).start;
         for b in 0..self.blocks {
             let slab = &self.kernels[b * slab_len..(b + 1) * slab_len];
             for g in 0..n {
                 let group = self.first + g;
                 let blocks = self.siblings.blocks(group);
-                let tables = &self.tables[self.siblings.block_range(group)];
+                let range = self.siblings.block_range(group);
+                let tables = &self.tables[range.start - base..range.end - base];
                 let out = &mut self.targets[g * group_len + b * block_len..][..block_len];
                 let at = Offsets {
                     components: self.components,
@@ -215,28 +217,35 @@ pub(super) struct BlockTable {
     dense: bool,
 }
 
-/// The [`BlockTable`] of every block of `siblings`, in block order (in
-/// parallel over target groups).
-pub(super) fn block_tables(siblings: &SiblingBlocks) -> Vec<BlockTable> {
+/// The [`BlockTable`] of every block of the target groups `groups` of
+/// `siblings`, in block order, into `out` (cleared first).
+///
+/// Made per task rather than for the whole level: a table is 130 bytes
+/// and a uniform level has about 189 blocks per target group, so the
+/// level's tables would take 16 bytes a point at 1e8 points (more than the
+/// expansions of the level), while making them costs a few nanoseconds a
+/// block against the block's `64 x` frequency-block products.
+pub(super) fn block_tables(
+    siblings: &SiblingBlocks,
+    groups: std::ops::Range<usize>,
+    out: &mut Vec<BlockTable>,
+) {
     let full = &*BLOCK_ENTRIES;
-    (0..siblings.n_target_groups())
-        .into_par_iter()
-        .flat_map_iter(|g| siblings.blocks(g))
-        .map(|blk| {
-            let mut t = BlockTable {
-                entries: [[ZERO_VECTOR; 8]; 8],
-                sources: 0,
-                dense: false,
-            };
-            for bit in (0..64).filter(|bit| blk.mask >> bit & 1 == 1) {
-                let (ct, cs) = (bit / 8, bit % 8);
-                t.entries[cs][ct] = full[blk.offset as usize][cs][ct];
-                t.sources |= 1 << cs;
-            }
-            t.dense = 8 * t.sources.count_ones() * 2 <= 3 * blk.mask.count_ones();
-            t
-        })
-        .collect()
+    out.clear();
+    out.extend(groups.flat_map(|g| siblings.blocks(g)).map(|blk| {
+        let mut t = BlockTable {
+            entries: [[ZERO_VECTOR; 8]; 8],
+            sources: 0,
+            dense: false,
+        };
+        for bit in (0..64).filter(|bit| blk.mask >> bit & 1 == 1) {
+            let (ct, cs) = (bit / 8, bit % 8);
+            t.entries[cs][ct] = full[blk.offset as usize][cs][ct];
+            t.sources |= 1 << cs;
+        }
+        t.dense = 8 * t.sources.count_ones() * 2 <= 3 * blk.mask.count_ones();
+        t
+    }));
 }
 
 /// The register-applied blocks of one target group at one frequency

@@ -572,7 +572,6 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let (set, scale) = self.levels.lookup(level, 1.0);
         self.assert_present(set, interactions);
         let siblings = interactions.sibling_blocks();
-        let tables = block_tables(siblings);
         let group_len = self.blocks * 8 * c * W;
         let scratch = || Scratch {
             grid: vec![0.0f64; self.fft.real_len()],
@@ -629,17 +628,18 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             }
             let (sources, slots) = (&sources, &slots);
             tasks.into_par_iter().for_each_init(
-                || (scratch(), Vec::new()),
-                |(scratch, targets), (groups, col0, out)| {
+                || (scratch(), Vec::new(), Vec::new()),
+                |(scratch, targets, tables), (groups, col0, out)| {
                     targets.clear();
                     targets.resize(groups.len() * group_len, 0.0);
+                    block_tables(siblings, groups.clone(), tables);
                     let products = Products {
                         components: One,
                         kernels,
                         sources,
                         source_slots: slots,
                         siblings,
-                        tables: &tables,
+                        tables,
                         first: groups.start,
                         targets,
                         blocks: self.blocks,
@@ -668,7 +668,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
 
     /// The source spectra held at once: those of the largest run
     /// ([`chunks`]), at most the budget (or one target group's sources);
-    /// the blocks' slab tables; and per thread the target spectra of a
+    /// and per thread the target spectra and the blocks' slab tables of a
     /// task and the transforms' grids.
     fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
         let group = self.group_bytes();

@@ -360,6 +360,24 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         self.store.data.len() * std::mem::size_of::<T>()
     }
 
+    /// The compressed multipoles of the level (`k` values per source
+    /// column, `k` the largest rank of the operator sets), and per thread
+    /// a chunk's compressed check potentials and products (at most 256
+    /// target columns each).
+    fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
+        let k = self
+            .store
+            .layout
+            .sets
+            .iter()
+            .map(|s| s.rank)
+            .max()
+            .unwrap_or(0);
+        let per_thread = 2 * k * 256;
+        (k * interactions.n_source_cols() + rayon::current_num_threads() * per_thread)
+            * std::mem::size_of::<T>()
+    }
+
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
         self.apply_flops(interactions)
     }
