@@ -22,7 +22,9 @@ use crate::validate::check_wavenumber;
 
 /// The transfer vectors each level's V lists use (none when the tree has
 /// no V list, e.g. a single leaf level at depth 0 or 1): what the M2L
-/// operators are precomputed for. Pieces of one tree (the processes of a
+/// operators are precomputed for. Read from a tree that still has its V
+/// lists: an [`crate::Fmm`]'s own tree has handed them over to its M2L
+/// interactions ([`Octree::take_v_lists`]). Pieces of one tree (the processes of a
 /// distributed FMM) mark the union of their pieces' usages to get the
 /// operators of the whole tree.
 pub fn m2l_usage(tree: &Octree) -> M2lUsage {
@@ -59,7 +61,7 @@ pub(crate) fn v_entries(tree: &Octree, b: usize) -> impl Iterator<Item = (usize,
 /// multipole). Levels above it need no operators of their own: their
 /// multipoles are never read, their local expansions stay zero (unless
 /// the root is coupled to other parts). `depth + 1` for a tree without
-/// far field.
+/// far field. Like [`m2l_usage`], for a tree that still has its V lists.
 pub fn first_far_level(tree: &Octree) -> u32 {
     let mut first = tree.depth() + 1;
     for level in 0..=tree.depth() {

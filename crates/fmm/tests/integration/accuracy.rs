@@ -208,7 +208,9 @@ fn per_level_operators_from_the_first_far_level() {
     let e = run::<f32, _>(yukawa, Geometry::Cube, 6000, 4, EvalMode::Potential, true);
     assert_within("yukawa f32 dense", &e, 1e-3, 1e-2);
     // The first far level of a uniform tree is 2; its operators are built
-    // for levels 2..=depth only.
+    // for levels 2..=depth only. (Read from a tree of the same points and
+    // leaf size: the FMM's own tree has handed its V lists over to the
+    // M2L interactions.)
     let points: Vec<f64> = Geometry::Cube.points(6000, 7);
     let fmm = FmmBuilder::new(&points)
         .kernel(yukawa)
@@ -216,5 +218,9 @@ fn per_level_operators_from_the_first_far_level() {
         .leaf_size(64)
         .build_svd()
         .unwrap();
-    assert_eq!(ferrofmm_fmm::first_far_level(fmm.tree()), 2);
+    let tree = ferrofmm_tree::Octree::new(&points, None, &ferrofmm_tree::TreeOptions::adaptive(64))
+        .unwrap();
+    assert_eq!(tree.n_boxes(), fmm.tree().n_boxes());
+    assert!(fmm.tree().v_list(tree.level_range(2).start).is_empty());
+    assert_eq!(ferrofmm_fmm::first_far_level(&tree), 2);
 }

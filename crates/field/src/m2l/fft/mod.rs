@@ -678,11 +678,14 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             .map(|c| c.sources.len())
             .max()
             .unwrap_or(0);
-        let per_thread =
-            GROUPS_PER_TASK * group + 2 * (self.fft.real_len() * 8 + self.fft.spectrum_len() * 16);
-        largest * group
-            + siblings.n_blocks() * std::mem::size_of::<hadamard::BlockTable>()
-            + rayon::current_num_threads() * per_thread
+        // A target group has at most one block per parent offset (26).
+        let tables = GROUPS_PER_TASK
+            * (crate::siblings::N_PARENT_OFFSETS - 1)
+            * std::mem::size_of::<hadamard::BlockTable>();
+        let per_thread = GROUPS_PER_TASK * group
+            + tables
+            + 2 * (self.fft.real_len() * 8 + self.fft.spectrum_len() * 16);
+        largest * group + rayon::current_num_threads() * per_thread
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
