@@ -1,52 +1,17 @@
-//! NumPy `.npy` files (via `npyz`).
-//!
-//! Reading accepts `float64` and `float32` arrays in either byte order and
-//! in C or Fortran order: points as an `(N, 3)` array, charges as `(N,)` or
-//! `(N, 1)`. The densities of a complex kernel
-//! ([`Contents::ComplexCharges`], [`Contents::ComplexDipoles`]) may also be
-//! `complex128` or `complex64` arrays (`(N,)` / `(N, 1)` charges, `(N, 3)`
-//! dipoles), real arrays of both parts (`(N, 2)`, `(N, 6)`: `re, im`
-//! interleaved) or real arrays of the real parts alone (`(N,)`, `(N, 3)`:
-//! the imaginary parts are zero). Anything else (integers, complex values
-//! for real contents, other shapes, pickled objects) is rejected with a
-//! message naming the dtype or shape found.
-//!
-//! Reading streams the data into the final array in bounded chunks
-//! ([`read_table`]); writing streams the values through the output's
-//! buffered writer: neither holds a second copy of the array.
-//!
-//! Writing produces C-order arrays of the run's float type: `(N,)` for one
-//! value per target, `(N, 4)` for potential and gradient; complex outputs
-//! ([`write_complex`]) `complex128` or `complex64` arrays with one complex
-//! value per quantity.
+//! The data of a `.npy` array, decoded: its element type and shape checked
+//! against the contents asked for ([`read_from`]), then read in chunks
+//! ([`super::layout`]) into the rows kept.
 
-use std::fs::File;
-use std::io::{BufReader, Read, Seek, SeekFrom, Write};
+use std::io::{Read, Seek};
 use std::ops::Range;
 use std::path::Path;
 
-use npyz::num_complex::Complex;
-use npyz::{DType, Endianness, NpyFile, Order, TypeChar, WriterBuilder};
+use npyz::{DType, Endianness, NpyFile, Order, TypeChar};
 
-use super::{Contents, Table, Values};
 use crate::error::{FileError, Result};
+use crate::{Contents, Table};
 
-/// Read `contents` from the `.npy` file `path` (interleaved values, C
-/// order), without a memory limit.
-pub fn read(path: &Path, contents: Contents) -> Result<Vec<f64>> {
-    read_rows(path, contents, None, |n| 0..n).map(|(v, _)| v)
-}
-
-/// Rows `pick(n)` of the `n`-row array in `path` (interleaved values, C
-/// order) and `n`; see [`read_table`].
-pub fn read_rows(
-    path: &Path,
-    contents: Contents,
-    limit: Option<u64>,
-    pick: impl FnOnce(u64) -> Range<u64>,
-) -> Result<(Vec<f64>, u64)> {
-    read_table(path, contents, limit, pick).map(|t| (t.values, t.rows))
-}
+use super::layout::{Layout, ReadFailure};
 
 /// The element type of an array we read.
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -67,39 +32,10 @@ impl Element {
     }
 }
 
-/// Rows `pick(n)` of the `n`-row array in `path` (interleaved values, C
-/// order; `re, im` pairs for complex contents), `n`, and whether the array
-/// was complex. The header is read (by `npyz`), then the data straight
-/// into the array returned, [`CHUNK`] bytes at a time, converted from the
-/// file's type and byte order as they come (a Fortran-order array column
-/// by column, each value put in its row): the memory taken is that of the
-/// rows kept and one chunk. A regular file is read only where the rows
-/// lie; a stream (a pipe) is read through, the other rows passed over.
-/// More than `limit` bytes of values kept is [`FileError::TooLarge`].
-pub fn read_table(
-    path: &Path,
-    contents: Contents,
-    limit: Option<u64>,
-    pick: impl FnOnce(u64) -> Range<u64>,
-) -> Result<Table> {
-    let file = File::open(path).map_err(|e| FileError::io(path, e))?;
-    let meta = file.metadata().map_err(|e| FileError::io(path, e))?;
-    let length = meta.is_file().then_some(meta.len());
-    read_from(
-        BufReader::new(file),
-        length,
-        path,
-        contents,
-        limit,
-        pick,
-        CHUNK,
-    )
-}
-
-/// [`read_table`] from `reader`, the file `path` of `length` bytes when it
+/// [`read_table`](super::read_table) from `reader`, the file `path` of `length` bytes when it
 /// is a regular file (then read only where the rows lie), else a stream;
 /// the data read `chunk` bytes at a time.
-fn read_from<R: Read + Seek>(
+pub(super) fn read_from<R: Read + Seek>(
     reader: R,
     length: Option<u64>,
     path: &Path,
@@ -255,202 +191,6 @@ fn read_from<R: Read + Seek>(
     })
 }
 
-/// Bytes of data read at a time (a multiple of every element size).
-pub const CHUNK: usize = 1 << 16;
-
-/// Why the data could not be read.
-#[derive(Debug)]
-enum ReadFailure {
-    /// The array asked for cannot be allocated.
-    Memory,
-    /// Reading failed, or the data end early.
-    Io(std::io::Error),
-}
-
-impl From<std::io::Error> for ReadFailure {
-    fn from(e: std::io::Error) -> Self {
-        ReadFailure::Io(e)
-    }
-}
-
-/// How the data of an array lie in the file and where its values go.
-#[derive(Clone, Copy, Debug)]
-struct Layout {
-    /// Bytes of one real number (4 or 8).
-    scalar: usize,
-    big_endian: bool,
-    /// Real numbers per element (2 for a complex one).
-    parts: usize,
-    /// Elements per row in the file.
-    file_columns: usize,
-    /// Values per row read (`file_columns * parts`, or twice that when
-    /// the file holds the real parts alone, widened with zero imaginary
-    /// parts).
-    columns: usize,
-    /// Rows in the file.
-    rows: u64,
-    /// Stored column by column.
-    fortran: bool,
-}
-
-impl Layout {
-    /// Bytes of one element.
-    fn width(&self) -> u64 {
-        (self.scalar * self.parts) as u64
-    }
-
-    /// Whether each stored real is followed by a zero imaginary part.
-    fn widen(&self) -> bool {
-        self.file_columns * self.parts != self.columns
-    }
-
-    /// The values of rows `wanted` from `reader`, placed at the start of
-    /// the data: read straight into the array returned, `chunk` bytes at
-    /// a time (converted from the file's type and byte order). A seekable
-    /// `reader` is read only where the rows lie; a stream is read through
-    /// (the other rows passed over). With `exact`, the whole array is
-    /// allocated first (the header's size was checked against the file or
-    /// the memory limit); without, it grows as the data arrive.
-    fn read<R: Read + Seek>(
-        &self,
-        reader: &mut R,
-        wanted: Range<u64>,
-        seekable: bool,
-        exact: bool,
-        chunk: usize,
-    ) -> Result<Vec<f64>, ReadFailure> {
-        let width = self.width();
-        let chunk = (chunk as u64 / width).max(1) * width;
-        let kept = wanted.end - wanted.start;
-        let total = usize::try_from(kept)
-            .ok()
-            .and_then(|k| k.checked_mul(self.columns))
-            .ok_or(ReadFailure::Memory)?;
-        let mut out: Vec<f64> = Vec::new();
-        let mut buf = vec![0u8; chunk as usize];
-        let start = if seekable {
-            reader.stream_position()?
-        } else {
-            0
-        };
-        // Passed over: `bytes` of a stream that are not wanted.
-        let skip = |reader: &mut R, bytes: u64, buf: &mut [u8]| -> std::io::Result<()> {
-            if seekable {
-                reader.seek(SeekFrom::Current(
-                    i64::try_from(bytes)
-                        .map_err(|_| std::io::Error::other("offset out of range"))?,
-                ))?;
-                return Ok(());
-            }
-            let mut left = bytes;
-            while left > 0 {
-                let n = left.min(buf.len() as u64) as usize;
-                read_full(reader, &mut buf[..n])?;
-                left -= n as u64;
-            }
-            Ok(())
-        };
-        if !self.fortran {
-            // Row after row: the rows wanted are one run of bytes.
-            let row_bytes = width * self.file_columns as u64;
-            if exact {
-                out.try_reserve_exact(total)
-                    .map_err(|_| ReadFailure::Memory)?;
-            }
-            if seekable {
-                reader.seek(SeekFrom::Start(start + wanted.start * row_bytes))?;
-            } else {
-                skip(reader, wanted.start * row_bytes, &mut buf)?;
-            }
-            let mut left = kept * row_bytes;
-            while left > 0 {
-                let n = left.min(chunk) as usize;
-                read_full(reader, &mut buf[..n])?;
-                left -= n as u64;
-                let added = n / self.scalar * if self.widen() { 2 } else { 1 };
-                out.try_reserve(added).map_err(|_| ReadFailure::Memory)?;
-                self.convert(&buf[..n], |v| {
-                    out.push(v);
-                    if self.widen() {
-                        out.push(0.0);
-                    }
-                });
-            }
-            return Ok(out);
-        }
-        // Column after column: each element put in its row.
-        out.try_reserve_exact(total)
-            .map_err(|_| ReadFailure::Memory)?;
-        out.resize(total, 0.0);
-        let column_bytes = width * self.rows;
-        let step = if self.widen() { 2 } else { 1 };
-        for j in 0..self.file_columns {
-            let column = start + j as u64 * column_bytes;
-            if seekable {
-                reader.seek(SeekFrom::Start(column + wanted.start * width))?;
-            } else {
-                skip(reader, wanted.start * width, &mut buf)?;
-            }
-            // The next value's place: row `i`, this column, part `part`.
-            let (mut i, mut part) = (0usize, 0usize);
-            let mut left = kept * width;
-            while left > 0 {
-                let n = left.min(chunk) as usize;
-                read_full(reader, &mut buf[..n])?;
-                left -= n as u64;
-                self.convert(&buf[..n], |v| {
-                    out[i * self.columns + (j * self.parts + part) * step] = v;
-                    part += 1;
-                    if part == self.parts {
-                        part = 0;
-                        i += 1;
-                    }
-                });
-            }
-            if !seekable {
-                skip(reader, (self.rows - wanted.end) * width, &mut buf)?;
-            }
-        }
-        Ok(out)
-    }
-
-    /// Each real number of `bytes` (whole numbers), in order, as `f64`.
-    fn convert(&self, bytes: &[u8], mut put: impl FnMut(f64)) {
-        match (self.scalar, self.big_endian) {
-            (4, false) => bytes
-                .chunks_exact(4)
-                .for_each(|b| put(f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])))),
-            (4, true) => bytes
-                .chunks_exact(4)
-                .for_each(|b| put(f64::from(f32::from_be_bytes([b[0], b[1], b[2], b[3]])))),
-            (_, false) => bytes.chunks_exact(8).for_each(|b| {
-                put(f64::from_le_bytes([
-                    b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7],
-                ]))
-            }),
-            (_, true) => bytes.chunks_exact(8).for_each(|b| {
-                put(f64::from_be_bytes([
-                    b[0], b[1], b[2], b[3], b[4], b[5], b[6], b[7],
-                ]))
-            }),
-        }
-    }
-}
-
-/// Fill `buf` from `reader`; data that end first are an error.
-fn read_full(reader: &mut impl Read, buf: &mut [u8]) -> std::io::Result<()> {
-    reader.read_exact(buf).map_err(|e| {
-        if e.kind() == std::io::ErrorKind::UnexpectedEof {
-            std::io::Error::new(
-                std::io::ErrorKind::UnexpectedEof,
-                "the data ends before the header's shape is filled",
-            )
-        } else {
-            e
-        }
-    })
-}
-
 /// The message for an array whose shape does not hold `contents`.
 fn expected_shape(contents: Contents, element: Element, found: &str) -> String {
     let complex = element.parts() == 2;
@@ -476,100 +216,15 @@ fn expected_shape(contents: Contents, element: Element, found: &str) -> String {
     format!("expected {expected}, found shape {found}")
 }
 
-/// The header of a C-order little-endian `float64` `.npy` array of `rows`
-/// rows of `columns` values (`columns == 1`: shape `(rows,)`), padded so
-/// that the data start at a multiple of 64 bytes: what [`write()`] writes,
-/// for writers that fill the data in parts (each MPI rank its rows, at
-/// `header.len() + 8 * columns * first_row`).
-pub fn header_bytes(rows: u64, columns: u64) -> Vec<u8> {
-    header_of(rows, columns, "<f8")
-}
-
-/// [`header_bytes`] for a `complex128` array of `rows` rows of `columns`
-/// complex values: the data are `re, im` pairs of little-endian `float64`
-/// (16 bytes a value), as a run's complex output holds them.
-pub fn complex_header_bytes(rows: u64, columns: u64) -> Vec<u8> {
-    header_of(rows, columns, "<c16")
-}
-
-fn header_of(rows: u64, columns: u64, descr: &str) -> Vec<u8> {
-    let shape = if columns == 1 {
-        format!("({rows},)")
-    } else {
-        format!("({rows}, {columns})")
-    };
-    let mut dict = format!("{{'descr': '{descr}', 'fortran_order': False, 'shape': {shape}, }}");
-    let total = 10 + dict.len() + 1;
-    dict.push_str(&" ".repeat(total.next_multiple_of(64) - total));
-    dict.push('\n');
-    let mut out = b"\x93NUMPY\x01\x00".to_vec();
-    out.extend((dict.len() as u16).to_le_bytes());
-    out.extend(dict.as_bytes());
-    out
-}
-
-/// Write `values` as a C-order `.npy` array with `columns` columns
-/// (`(n,)` when `columns == 1`).
-pub fn write(path: &Path, values: Values<'_>, columns: usize) -> Result<()> {
-    let rows = (values.len() / columns) as u64;
-    let shape: Vec<u64> = if columns == 1 {
-        vec![rows]
-    } else {
-        vec![rows, columns as u64]
-    };
-    super::output::write_atomically(path, |out| match values {
-        Values::F64(v) => write_typed(out, v.iter().copied(), &shape),
-        Values::F32(v) => write_typed(out, v.iter().copied(), &shape),
-    })
-}
-
-/// Write `values` (`re, im` pairs) as a C-order complex `.npy` array with
-/// `columns` complex columns (`(n,)` when `columns == 1`): `complex128`
-/// for `f64` values, `complex64` for `f32`.
-pub fn write_complex(path: &Path, values: Values<'_>, columns: usize) -> Result<()> {
-    let rows = (values.len() / (2 * columns)) as u64;
-    let shape: Vec<u64> = if columns == 1 {
-        vec![rows]
-    } else {
-        vec![rows, columns as u64]
-    };
-    // The pairs are made as they are written: no copy of the values.
-    fn pairs<T: Copy>(v: &[T]) -> impl Iterator<Item = Complex<T>> + '_ {
-        v.chunks_exact(2).map(|p| Complex::new(p[0], p[1]))
-    }
-    super::output::write_atomically(path, |out| match values {
-        Values::F64(v) => write_typed(out, pairs(v), &shape),
-        Values::F32(v) => write_typed(out, pairs(v), &shape),
-    })
-}
-
-/// `values` as an array of `shape` in `out`, one element at a time
-/// (through the caller's buffered writer).
-fn write_typed<T, W>(
-    out: W,
-    values: impl IntoIterator<Item = T>,
-    shape: &[u64],
-) -> std::io::Result<()>
-where
-    T: npyz::AutoSerialize,
-    W: Write,
-{
-    let mut writer = npyz::WriteOptions::new()
-        .default_dtype()
-        .shape(shape)
-        .writer(out)
-        .begin_nd()?;
-    writer.extend(values)?;
-    writer.finish()
-}
-
 #[cfg(test)]
 mod tests {
     use std::io::Cursor;
 
+    use npyz::WriterBuilder;
     use npyz::num_complex::Complex;
 
     use super::*;
+    use crate::npy::CHUNK;
 
     /// The bytes of a `.npy` file of `stored` (in storage order) with
     /// dtype `descr`, `shape` and `order`.
