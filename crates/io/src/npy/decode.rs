@@ -8,7 +8,7 @@ use std::path::Path;
 
 use npyz::{DType, Endianness, NpyFile, Order, TypeChar};
 
-use crate::error::{FileError, Result};
+use crate::error::{FileError, Result, check_finite};
 use crate::{Contents, Table};
 
 use super::layout::{Layout, ReadFailure};
@@ -168,22 +168,17 @@ pub(super) fn read_from<R: Read + Seek>(
             ReadFailure::Io(e) => bad(format!("cannot read the data ({e})")),
         })?;
 
-    if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+    check_finite(path, &values, |k| {
         let row = wanted.start as usize + k / columns;
-        let location = if shape.len() == 1 {
+        if shape.len() == 1 {
             format!("element [{row}]")
         } else {
             // The file's column (a widened value and its zero imaginary
             // part come from one column).
             let per = if widen { 2 } else { element.parts() };
             format!("element [{row}, {}]", (k % columns) / per)
-        };
-        return Err(FileError::NonFinite {
-            path: path.to_path_buf(),
-            location,
-            value: values[k],
-        });
-    }
+        }
+    })?;
     Ok(Table {
         values,
         rows,
@@ -247,6 +242,29 @@ mod tests {
         bytes
     }
 
+    /// [`read_from`] on `bytes` as `t.npy` (a regular file of `length`
+    /// bytes, or a stream when `None`): the rows `rows` (all when `None`)
+    /// within `limit` bytes, `chunk` bytes at a time.
+    fn read_bytes(
+        bytes: &[u8],
+        length: Option<u64>,
+        contents: Contents,
+        rows: Option<Range<u64>>,
+        limit: Option<u64>,
+        chunk: usize,
+    ) -> Result<Table> {
+        let pick = |n| rows.unwrap_or(0..n);
+        read_from(
+            Cursor::new(bytes),
+            length,
+            Path::new("t.npy"),
+            contents,
+            limit,
+            pick,
+            chunk,
+        )
+    }
+
     /// `rows x cols` values `f(i, j)` in C order, or column by column for
     /// Fortran order.
     fn stored<T>(rows: usize, cols: usize, order: Order, f: impl Fn(usize, usize) -> T) -> Vec<T> {
@@ -267,20 +285,14 @@ mod tests {
     fn check_all(bytes: &[u8], contents: Contents, expected: &[f64], complex: bool) {
         let columns = contents.columns();
         let rows = (expected.len() / columns) as u64;
-        let path = Path::new("t.npy");
         for chunk in [1, 8, 16, 24, 40, 48, 1000, CHUNK] {
             for length in [Some(bytes.len() as u64), None] {
                 for range in [0..rows, 0..1, 1..rows, 5..23, 17..rows, rows..rows, 3..3] {
-                    let table = read_from(
-                        Cursor::new(bytes),
-                        length,
-                        path,
-                        contents,
-                        None,
-                        |_| range.clone(),
-                        chunk,
-                    )
-                    .unwrap_or_else(|e| panic!("chunk {chunk}, {length:?}, {range:?}: {e}"));
+                    let table =
+                        read_bytes(bytes, length, contents, Some(range.clone()), None, chunk)
+                            .unwrap_or_else(|e| {
+                                panic!("chunk {chunk}, {length:?}, {range:?}: {e}")
+                            });
                     let want =
                         &expected[range.start as usize * columns..range.end as usize * columns];
                     assert_eq!(
@@ -380,46 +392,22 @@ mod tests {
             let bytes = npy_bytes(">f8", &stored(n, 3, order, at), &[n as u64, 3], order);
             for chunk in [8, 24, 56, CHUNK] {
                 for length in [Some(bytes.len() as u64), None] {
-                    let e = read_from(
-                        Cursor::new(&bytes),
-                        length,
-                        Path::new("t.npy"),
-                        Contents::Points,
-                        None,
-                        |n| 0..n,
-                        chunk,
-                    )
-                    .unwrap_err()
-                    .to_string();
+                    let e = read_bytes(&bytes, length, Contents::Points, None, None, chunk)
+                        .unwrap_err()
+                        .to_string();
                     assert!(e.contains("element [20, 2] is not finite"), "{e}");
                     // A range without it reads.
                     assert!(
-                        read_from(
-                            Cursor::new(&bytes),
-                            length,
-                            Path::new("t.npy"),
-                            Contents::Points,
-                            None,
-                            |_| 0..20,
-                            chunk
-                        )
-                        .is_ok()
+                        read_bytes(&bytes, length, Contents::Points, Some(0..20), None, chunk)
+                            .is_ok()
                     );
                 }
             }
             // Real parts alone of complex dipoles: the file's column.
             let bytes = npy_bytes("<f8", &stored(n, 3, order, at), &[n as u64, 3], order);
-            let e = read_from(
-                Cursor::new(&bytes),
-                None,
-                Path::new("t.npy"),
-                Contents::ComplexDipoles,
-                None,
-                |n| 0..n,
-                16,
-            )
-            .unwrap_err()
-            .to_string();
+            let e = read_bytes(&bytes, None, Contents::ComplexDipoles, None, None, 16)
+                .unwrap_err()
+                .to_string();
             assert!(e.contains("element [20, 2] is not finite"), "{e}");
         }
     }
@@ -435,40 +423,30 @@ mod tests {
         );
         let short = &bytes[..bytes.len() - 8];
         for chunk in [8, 48, CHUNK] {
-            let e = read_from(
-                Cursor::new(short),
-                None,
-                Path::new("t.npy"),
-                Contents::Points,
-                None,
-                |n| 0..n,
-                chunk,
-            )
-            .unwrap_err()
-            .to_string();
+            let e = read_bytes(short, None, Contents::Points, None, None, chunk)
+                .unwrap_err()
+                .to_string();
             assert!(
                 e.contains("cannot read the data (the data ends before"),
                 "{e}"
             );
             // Held: the rows kept, not the file.
-            let t = read_from(
-                Cursor::new(&bytes),
+            let t = read_bytes(
+                &bytes,
                 None,
-                Path::new("t.npy"),
                 Contents::Points,
+                Some(10..20),
                 Some(240),
-                |_| 10..20,
                 chunk,
             )
             .unwrap();
             assert_eq!(t.values.len(), 30);
-            let e = read_from(
-                Cursor::new(&bytes),
+            let e = read_bytes(
+                &bytes,
                 None,
-                Path::new("t.npy"),
                 Contents::Points,
+                Some(10..20),
                 Some(239),
-                |_| 10..20,
                 chunk,
             )
             .unwrap_err();
