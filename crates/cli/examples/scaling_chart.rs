@@ -12,20 +12,14 @@
 //! per run; rows of one series form its line, in file order), as the JSON
 //! of `ferrofmm demo --json` gives them (`evaluation.best_s`,
 //! `memory.peak_bytes_per_point`).
+mod chart_common;
+
+use chart_common::{COLORS, FAMILY, legend, line_with_points, read_rows, series, two_panels};
 use plotters::coord::Shift;
 use plotters::prelude::*;
-use plotters::style::FontStyle;
 use std::error::Error;
 
-static FONT: &[u8] = include_bytes!("../assets/DejaVuSans.ttf");
-const FAMILY: &str = "sans-serif";
 const SIZE: (u32, u32) = (1100, 460);
-const COLORS: [RGBColor; 4] = [
-    RGBColor(31, 119, 180),
-    RGBColor(214, 39, 40),
-    RGBColor(44, 160, 44),
-    RGBColor(255, 127, 14),
-];
 
 /// One run.
 struct Row {
@@ -36,51 +30,20 @@ struct Row {
 }
 
 fn read(path: &str) -> Result<Vec<Row>, Box<dyn Error>> {
-    let text = std::fs::read_to_string(path).map_err(|e| format!("{path}: {e}"))?;
-    let mut rows = Vec::new();
-    for (k, line) in text.lines().enumerate().skip(1) {
-        let f: Vec<&str> = line.split(',').collect();
-        if f.len() != 4 {
-            return Err(format!("{path}:{}: expected 4 columns", k + 1).into());
-        }
-        let num = |s: &str| {
-            s.trim()
-                .parse::<f64>()
-                .map_err(|e| format!("{path}:{}: {e}", k + 1))
-        };
+    read_rows(path, 4, |f, num| {
         let n = num(f[1])?;
         if !(n.is_finite() && n > 0.0) {
-            return Err(format!("{path}:{}: N must be positive", k + 1).into());
+            return Err("N must be positive".to_string());
         }
-        rows.push(Row {
+        Ok(Row {
             series: f[0].trim().to_string(),
             n,
             values: [num(f[2])? / n * 1e6, num(f[3])?],
-        });
-    }
-    if rows.is_empty() {
-        return Err(format!("{path}: no rows").into());
-    }
-    Ok(rows)
+        })
+    })
 }
 
-fn main() -> Result<(), Box<dyn Error>> {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let [out, title, csv] = args.as_slice() else {
-        return Err("usage: scaling_chart OUT.svg|OUT.png TITLE FILE.csv".into());
-    };
-    let _ = plotters::style::register_font(FAMILY, FontStyle::Normal, FONT);
-    let rows = read(csv)?;
-    if out.ends_with(".png") {
-        draw(
-            BitMapBackend::new(out, SIZE).into_drawing_area(),
-            title,
-            &rows,
-        )
-    } else {
-        draw(SVGBackend::new(out, SIZE).into_drawing_area(), title, &rows)
-    }
-}
+chart_common::chart_main!("scaling_chart", SIZE, read, draw);
 
 /// Both panels on `root` (any plotters backend).
 fn draw<DB>(root: DrawingArea<DB, Shift>, title: &str, rows: &[Row]) -> Result<(), Box<dyn Error>>
@@ -88,15 +51,8 @@ where
     DB: DrawingBackend,
     DB::ErrorType: 'static,
 {
-    root.fill(&WHITE)?;
-    let root = root.titled(title, (FAMILY, 17))?;
-    let panels = root.split_evenly((1, 2));
-    let mut names: Vec<&str> = Vec::new();
-    for r in rows {
-        if !names.contains(&r.series.as_str()) {
-            names.push(&r.series);
-        }
-    }
+    let panels = two_panels(&root, title)?;
+    let names = series(rows.iter().map(|r| r.series.as_str()));
     let (n_lo, n_hi) = rows.iter().fold((f64::INFINITY, 0.0f64), |(a, b), r| {
         (a.min(r.n), b.max(r.n))
     });
@@ -131,26 +87,15 @@ where
                 .filter(|r| r.series == *name && r.values[which].is_finite())
                 .map(|r| (r.n, r.values[which]))
                 .collect();
-            chart
-                .draw_series(LineSeries::new(pts.clone(), color.stroke_width(2)))?
-                .label(*name)
-                .legend(move |(x, y)| {
-                    PathElement::new([(x, y), (x + 18, y)], color.stroke_width(2))
-                });
-            chart.draw_series(pts.iter().map(|&p| Circle::new(p, 4, color.filled())))?;
+            line_with_points(&mut chart, pts, name, color)?;
         }
-        chart
-            .configure_series_labels()
-            .label_font((FAMILY, 13))
-            .background_style(WHITE.mix(0.9))
-            .border_style(BLACK.mix(0.3))
-            // Time rises with N and memory falls: keep the legend clear.
-            .position(if which == 0 {
-                SeriesLabelPosition::LowerRight
-            } else {
-                SeriesLabelPosition::UpperRight
-            })
-            .draw()?;
+        // Time rises with N and memory falls: keep the legend clear.
+        let position = if which == 0 {
+            SeriesLabelPosition::LowerRight
+        } else {
+            SeriesLabelPosition::UpperRight
+        };
+        legend(&mut chart, position)?;
     }
     root.present()?;
     Ok(())

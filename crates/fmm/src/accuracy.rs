@@ -218,7 +218,7 @@ pub fn relative_errors_periodic<T: Real>(
         .at(sample)?;
     let truth = |_: &[usize]| -> Vec<f64> { exact.clone() };
     let laplace = ferrofmm_kernels::Laplace3d;
-    let mut problem = Comparison::new(
+    let problem = Comparison::new(
         &laplace,
         SourceKind::Charge,
         mode,
@@ -226,8 +226,8 @@ pub fn relative_errors_periodic<T: Real>(
         charges,
         targets.unwrap_or(sources),
         values,
-    );
-    problem.truth = Some(&truth);
+    )
+    .with_truth(Some(&truth));
     let mut sums = ErrorSums::default();
     problem.add(&mut sums, sample);
     Ok(sums.report(mode))
@@ -256,34 +256,21 @@ pub fn estimate_errors<P: Real, T: Real, K: Kernel>(
     min_sample: usize,
     max_sample: usize,
 ) -> ErrorReport {
-    sample_sums(
-        kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample, None,
-    )
-    .0
-    .report(mode)
+    let problem = Comparison::new(kernel, kind, mode, sources, charges, targets, values);
+    sample_sums(&problem, budget, min_sample, max_sample).report(mode)
 }
 
-/// The error sums of [`estimate_errors`]'s sample, and the charge scale.
-#[allow(clippy::too_many_arguments)]
+/// The error sums of [`estimate_errors`]'s sample of `problem`.
 fn sample_sums<P: Real, T: Real, K: Kernel>(
-    kernel: &K,
-    kind: SourceKind,
-    mode: EvalMode,
-    sources: &[P],
-    charges: &[T],
-    targets: &[P],
-    values: &[T],
+    problem: &Comparison<'_, P, T, K>,
     budget: Duration,
     min_sample: usize,
     max_sample: usize,
-    truth: Option<&Truth<'_>>,
-) -> (ErrorSums, f64) {
+) -> ErrorSums {
     const PROBE: usize = 16;
-    let n_targets = targets.len() / 3;
+    let n_targets = problem.targets.len() / 3;
     let max_sample = max_sample.max(min_sample).max(1);
     let sample = random_sample(n_targets, max_sample);
-    let mut problem = Comparison::new(kernel, kind, mode, sources, charges, targets, values);
-    problem.truth = truth;
     let mut sums = ErrorSums::default();
     let first = PROBE.min(sample.len());
     let t = Instant::now();
@@ -298,7 +285,7 @@ fn sample_sums<P: Real, T: Real, K: Kernel>(
     };
     let end = (first + affordable).max(min_sample).min(sample.len());
     problem.add(&mut sums, &sample[first..end.max(first)]);
-    (sums, problem.scale)
+    sums
 }
 
 /// [`estimate_errors`] with the denominators of the relative errors taken
@@ -317,24 +304,21 @@ fn sample_sums<P: Real, T: Real, K: Kernel>(
 /// errors of the FMM, made in the far field, are spread far more evenly.
 /// `values` approximate the references to the error being estimated, so
 /// their sum is the population's to that relative accuracy.
-#[allow(clippy::too_many_arguments)]
 pub(crate) fn estimate_errors_population<P: Real, T: Real, K: Kernel>(
-    kernel: &K,
-    kind: SourceKind,
-    mode: EvalMode,
-    sources: &[P],
-    charges: &[T],
-    targets: &[P],
-    values: &[T],
+    problem: &Comparison<'_, P, T, K>,
     budget: Duration,
     min_sample: usize,
     max_sample: usize,
-    truth: Option<&Truth<'_>>,
 ) -> ErrorReport {
-    let (mut sums, scale) = sample_sums(
-        kernel, kind, mode, sources, charges, targets, values, budget, min_sample, max_sample,
-        truth,
-    );
+    let mut sums = sample_sums(problem, budget, min_sample, max_sample);
+    let Comparison {
+        kernel,
+        mode,
+        targets,
+        values,
+        scale,
+        ..
+    } = *problem;
     let n_targets = targets.len() / 3;
     let comps = kernel.components();
     let w = kernel.values_per_target(mode);
@@ -388,7 +372,7 @@ struct ErrorSums {
 
 /// What is compared: an FMM result and the problem it solved, with the
 /// charge scale of the error sums.
-struct Comparison<'a, P, T, K> {
+pub(crate) struct Comparison<'a, P, T, K> {
     kernel: &'a K,
     kind: SourceKind,
     mode: EvalMode,
@@ -408,7 +392,9 @@ struct Comparison<'a, P, T, K> {
 pub(crate) type Truth<'a> = dyn Fn(&[usize]) -> Vec<f64> + Sync + 'a;
 
 impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
-    fn new(
+    /// `values` of the problem of `kernel` (in `mode`) on `sources` with
+    /// `charges` (`kind`) at `targets`, against direct sums.
+    pub(crate) fn new(
         kernel: &'a K,
         kind: SourceKind,
         mode: EvalMode,
@@ -428,6 +414,12 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             scale: charge_scale(charges),
             truth: None,
         }
+    }
+
+    /// The same comparison against `truth` (when given) instead of the
+    /// direct sums.
+    pub(crate) fn with_truth(self, truth: Option<&'a Truth<'a>>) -> Self {
+        Comparison { truth, ..self }
     }
 
     /// Add the targets `sample` to `sums`.

@@ -51,7 +51,7 @@ use std::time::{Duration, Instant};
 use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
 
-use crate::accuracy::{ErrorReport, PeriodicTruth, Truth, estimate_errors_population};
+use crate::accuracy::{Comparison, ErrorReport, PeriodicTruth, Truth, estimate_errors_population};
 use crate::tuning::{ChosenParameters, ErrorModel, Occupancy, Scene};
 use crate::{EvalTimings, Fmm, FmmError};
 
@@ -405,7 +405,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         min_sample: usize,
         truth: Option<&Truth<'_>>,
     ) -> ErrorReport {
-        estimate_errors_population(
+        let problem = Comparison::new(
             &self.kernel,
             self.source_kind,
             self.mode,
@@ -413,10 +413,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             charges,
             points.targets(),
             values,
+        )
+        .with_truth(truth);
+        estimate_errors_population(
+            &problem,
             eval_time.mul_f64(VERIFY_BUDGET),
             min_sample,
             MAX_VERIFY_SAMPLE,
-            truth,
         )
     }
 

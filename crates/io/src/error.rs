@@ -136,6 +136,23 @@ impl FileError {
     }
 }
 
+/// [`FileError::NonFinite`] for the first value of `values` (read from
+/// `path`) that is not finite, its place named by `location(index)`.
+pub(crate) fn check_finite(
+    path: &Path,
+    values: &[f64],
+    location: impl FnOnce(usize) -> String,
+) -> Result<()> {
+    match values.iter().position(|v| !v.is_finite()) {
+        Some(k) => Err(FileError::NonFinite {
+            path: path.to_path_buf(),
+            location: location(k),
+            value: values[k],
+        }),
+        None => Ok(()),
+    }
+}
+
 /// Shorthand for results of this crate.
 pub type Result<T, E = FileError> = std::result::Result<T, E>;
 

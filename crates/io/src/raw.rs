@@ -9,7 +9,7 @@ use std::ops::Range;
 use std::path::Path;
 
 use super::{Contents, Table};
-use crate::error::{FileError, Result};
+use crate::error::{FileError, Result, check_finite};
 
 /// Rows `pick(n)` of the `n` records in the raw file `path`, and `n`. A
 /// regular file is read only where the rows lie; a stream (a pipe) is
@@ -99,19 +99,14 @@ pub fn read_table(
     };
     drop(buf);
 
-    if let Some(k) = values.iter().position(|v| !v.is_finite()) {
+    check_finite(path, &values, |k| {
         let row = first_row as usize + k / columns;
-        let location = if columns == 1 {
+        if columns == 1 {
             format!("record {row}")
         } else {
             format!("record {row}, value {}", k % columns)
-        };
-        return Err(FileError::NonFinite {
-            path: path.to_path_buf(),
-            location,
-            value: values[k],
-        });
-    }
+        }
+    })?;
     Ok(Table {
         values,
         rows,

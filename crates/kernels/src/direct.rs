@@ -83,18 +83,7 @@ pub fn direct_sum_sources<K: Kernel, T: Real>(
     out: &mut [T],
 ) {
     let slices = [sources, densities, targets, &*out];
-    if let Err(e) = check_lengths(kernel.components(), kind, mode, slices) {
-        panic!("direct_sum: {e}");
-    }
-    assert!(
-        kernel.supports(kind, mode),
-        "direct_sum: {}",
-        KernelError::Unsupported {
-            kernel: kernel.name(),
-            kind: kind.name(),
-            mode: mode.name(),
-        }
-    );
+    assert_evaluation(|| "direct_sum".into(), kernel, kind, mode, slices);
     let w = kernel.values_per_target(mode);
     targets
         .par_chunks(3 * DIRECT_SUM_BLOCK)
@@ -241,6 +230,30 @@ fn check_values<T: Real>(
         }
     }
     Ok(())
+}
+
+/// Panic, `context()` first, when `slices` (`[sources, densities,
+/// targets, out]`) do not have the lengths of an evaluation of `kernel` in
+/// `mode`, or the kernel does not [support](Kernel::supports) `(kind,
+/// mode)`: what the unchecked evaluations refuse ([`direct_sum_sources`],
+/// [`lanes::evaluate_sources_with`](crate::lanes::evaluate_sources_with)).
+pub(crate) fn assert_evaluation<K: Kernel, T: Real>(
+    context: impl Fn() -> String,
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    slices: [&[T]; 4],
+) {
+    if let Err(e) = check_lengths(kernel.components(), kind, mode, slices) {
+        panic!("{}: {e}", context());
+    }
+    assert!(
+        kernel.supports(kind, mode),
+        "{}: {} sources with {} outputs are not supported (Kernel::supports)",
+        context(),
+        kind.name(),
+        mode.name()
+    );
 }
 
 /// Lengths of an evaluation with `components` values per quantity:

@@ -4,8 +4,8 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use super::{
-    FIRST_M2L_LEVEL, M2lProgress, M2lScheme, Plan, check_lengths, for_each_chunk_with_progress,
-    for_each_vector_group, m2l_matrix,
+    FIRST_M2L_LEVEL, M2lProgress, M2lScheme, Plan, for_each_chunk_with_progress,
+    for_each_vector_group, level_set, m2l_matrix,
 };
 use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout};
 use crate::levels::LevelMap;
@@ -201,11 +201,10 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         progress: M2lProgress<'_>,
     ) {
         let n = self.n;
-        check_lengths(n, interactions, multipoles, check);
-        if interactions.is_empty() {
+        let Some((set, scale)) = level_set(&self.levels, level, n, interactions, multipoles, check)
+        else {
             return;
-        }
-        let (set, scale) = self.levels.lookup(level, 1.0);
+        };
         for_each_chunk_with_progress(interactions, n, check, progress, |chunk, out| {
             for_each_vector_group(&chunk, multipoles, n, out, n, |v, src, dst| {
                 let len = src.len() / n;

@@ -326,6 +326,25 @@ pub fn check_lengths<T>(n: usize, inter: &M2lInteractions, multipoles: &[T], che
     );
 }
 
+/// The start of an `apply` of a scheme whose operator sets follow
+/// `levels`: the slice lengths checked ([`check_lengths`], `n` values per
+/// expansion), then the set serving `level` and its scale
+/// ([`LevelMap::lookup`]); `None` when there are no interactions.
+pub(crate) fn level_set<T>(
+    levels: &LevelMap,
+    level: u32,
+    n: usize,
+    interactions: &M2lInteractions,
+    multipoles: &[T],
+    check: &[T],
+) -> Option<(usize, f64)> {
+    check_lengths(n, interactions, multipoles, check);
+    if interactions.is_empty() {
+        return None;
+    }
+    Some(levels.lookup(level, 1.0))
+}
+
 /// Run `f(chunk, check_columns_of_chunk)` in parallel (rayon) over the
 /// chunks of `inter`: each call gets the chunk and its own disjoint block
 /// of `check` (the chunk's target columns, `rows` values each, column

@@ -525,14 +525,9 @@ pub fn evaluate_sources_with<K: LaneSources, T: Real>(
     targets: &[T],
     out: &mut [T],
 ) {
-    check(kernel, kind, mode, [sources, densities, targets, out]);
-    assert!(
-        kernel.supports(kind, mode),
-        "{} P2P: {} sources with {} outputs are not supported (Kernel::supports)",
-        kernel.name(),
-        kind.name(),
-        mode.name()
-    );
+    let slices = [sources, densities, targets, &*out];
+    let context = || format!("{} P2P", kernel.name());
+    crate::direct::assert_evaluation(context, kernel, kind, mode, slices);
     kernel.run_sources(level, kind, mode, sources, densities, targets, out);
 }
 

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 
 use super::SvdM2l;
 use super::store::VectorOp;
-use crate::m2l::{M2lProgress, check_lengths, for_each_chunk_with_progress, for_each_vector_group};
+use crate::m2l::{M2lProgress, for_each_chunk_with_progress, for_each_vector_group, level_set};
 use crate::{M2lInteractions, Update, gemm, gemm_scaled};
 
 impl<T: Real> SvdM2l<T> {
@@ -35,11 +35,10 @@ impl<T: Real> SvdM2l<T> {
         progress: M2lProgress<'_>,
     ) {
         let n = self.n;
-        check_lengths(n, interactions, multipoles, check);
-        if interactions.is_empty() {
+        let Some((set, scale)) = level_set(&self.levels, level, n, interactions, multipoles, check)
+        else {
             return;
-        }
-        let (set, scale) = self.levels.lookup(level, 1.0);
+        };
         let k = self.store.layout.sets[set].rank;
         let (start, ops) = &self.layout[set];
         let data = &self.store.data[*start..];
