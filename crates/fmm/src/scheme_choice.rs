@@ -50,7 +50,7 @@ pub enum SchemeChoice {
     /// Convolution on the surface lattice with FFTs: the dense operator (no
     /// compression), precomputed in milliseconds.
     Fft,
-    /// Resolved by [`SchemeChoice::resolve`] (see the [module docs](self)).
+    /// Resolved by [`SchemeChoice::resolve`] (see the module docs of `scheme_choice`).
     #[default]
     Auto,
 }
@@ -107,7 +107,7 @@ impl SchemeChoice {
     }
 
     /// The scheme to run: itself unless `auto`, which resolves by the rule
-    /// of the [module docs](self) for `kernel`, the tolerance `eps` (the
+    /// of the module docs of `scheme_choice` for `kernel`, the tolerance `eps` (the
     /// front end's [`effective_tolerance`](crate::effective_tolerance)),
     /// a fixed `order` and the points (`(sources, targets)`; the targets
     /// `None` when they are the sources) in float type `precision`;
@@ -145,7 +145,7 @@ impl SchemeChoice {
     }
 
     /// Whether `auto` is FFT for `kernel` whatever the points (rule 1 of the
-    /// [module docs](self)): what its registry description says, and for a
+    /// module docs of `scheme_choice`): what its registry description says, and for a
     /// kernel outside the registry, whether it has several components or no
     /// homogeneity (operators per level), the two reasons the built-in
     /// kernels have.

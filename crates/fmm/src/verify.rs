@@ -5,7 +5,7 @@
 //! what the evaluation achieved. It estimates the relative L2 errors of
 //! every output asked for (the potential, and the gradient when evaluated)
 //! on a random sample of targets against direct summation in `f64`
-//! ([`estimate_errors`]), with the sample sized so that the direct sums
+//! ([`estimate_errors`](crate::estimate_errors)), with the sample sized so that the direct sums
 //! take about [`VERIFY_BUDGET`] of the evaluation time (at least
 //! [`MIN_VERIFY_SAMPLE`], at most [`MAX_VERIFY_SAMPLE`] targets). For N
 //! sources a sampled target costs `N` kernel evaluations against roughly

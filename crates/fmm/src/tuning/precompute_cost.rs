@@ -48,7 +48,7 @@ pub const SVD_ESTIMATE_SHARE: f64 = 0.25;
 
 /// Predicted seconds of precomputing, from nothing, the operators and the
 /// M2L scheme (of cost shape `shape`) that `chosen`'s tree needs with
-/// `kernel` (see the [module docs](self)).
+/// `kernel` (see the docs of the module `tuning::precompute_cost`).
 pub fn precompute_seconds<K: Kernel>(
     kernel: &K,
     shape: M2lCostShape,

@@ -553,8 +553,8 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
 
     /// Reports each source group transformed and each task of target
     /// groups done, weighted by their rough cost (a target group's
-    /// products and inverse transforms count [`TARGET_GROUP_WEIGHT`], a
-    /// source group's forward transform [`SOURCE_GROUP_WEIGHT`]).
+    /// products and inverse transforms count `TARGET_GROUP_WEIGHT`, a
+    /// source group's forward transform `SOURCE_GROUP_WEIGHT`).
     fn apply_with_progress(
         &self,
         level: u32,
@@ -667,7 +667,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
     }
 
     /// The source spectra held at once: those of the largest run
-    /// ([`chunks`]), at most the budget (or one target group's sources);
+    /// (the `chunks` module), at most the budget (or one target group's sources);
     /// and per thread the target spectra and the blocks' slab tables of a
     /// task and the transforms' grids.
     fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
