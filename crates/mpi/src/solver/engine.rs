@@ -105,20 +105,15 @@ pub(super) fn engine_for<C: Communicator + 'static, K: Kernel>(
         let fmm = DistributedFmm::<T, K, S>::build(comm, tree, kernel, &config, &options)?;
         Ok(Box::new(fmm))
     }
-    match (request.precision, plan.scheme) {
-        (Precision::F64, "svd") => {
-            make::<C, f64, K, SvdM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (Precision::F64, "dense") => {
-            make::<C, f64, K, DenseM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (Precision::F64, _) => {
-            make::<C, f64, K, FftM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (_, "svd") => make::<C, f32, K, SvdM2l<f32>>(comm, tree, kernel, plan, request, cache),
-        (_, "dense") => make::<C, f32, K, DenseM2l<f32>>(comm, tree, kernel, plan, request, cache),
-        (_, _) => make::<C, f32, K, FftM2l<f32>>(comm, tree, kernel, plan, request, cache),
-    }
+    let make = match (request.precision, plan.scheme) {
+        (Precision::F64, "svd") => make::<C, f64, K, SvdM2l<f64>>,
+        (Precision::F64, "dense") => make::<C, f64, K, DenseM2l<f64>>,
+        (Precision::F64, _) => make::<C, f64, K, FftM2l<f64>>,
+        (_, "svd") => make::<C, f32, K, SvdM2l<f32>>,
+        (_, "dense") => make::<C, f32, K, DenseM2l<f32>>,
+        (_, _) => make::<C, f32, K, FftM2l<f32>>,
+    };
+    make(comm, tree, kernel, plan, request, cache)
 }
 
 impl<C, T, K, S> Engine<C> for DistributedFmm<T, K, S>
