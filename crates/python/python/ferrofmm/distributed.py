@@ -92,13 +92,8 @@ from ._checks import (  # noqa: E402  (after the MPI checks above)
     _real,
 )
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE  # noqa: E402
-from ._fmm import (  # noqa: E402
-    DEFAULT_EPS,
-    AccuracyWarning,
-    FmmResult,
-    _pack_densities,
-    _shape_values,
-)
+from ._fmm import DEFAULT_EPS, AccuracyWarning, FmmResult  # noqa: E402
+from ._layout import _pack_densities, _shape_values  # noqa: E402
 
 __all__ = ["Octree", "Fmm", "laplace", "yukawa", "helmholtz", "stokes"]
 
