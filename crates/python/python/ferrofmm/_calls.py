@@ -137,77 +137,59 @@ def laplace(
     >>> round(float(-r.potential[0] * 4 * np.pi * 0.5), 7)
     1.7475646
     """
-    return _one_call(
-        "laplace", None, sources, charges, dipoles, targets=targets, eps=eps, order=order,
-        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
-        leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
-        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
-        progress=progress,
-    )
+    return _one_call("laplace", None, **locals())  # locals(): the parameters
 
 
-def yukawa(
-    sources: Any,
-    charges: Any = None,
-    *,
-    k: float,
-    dipoles: Any = None,
-    targets: Any = None,
-    eps: Optional[float] = None,
-    order: Optional[int] = None,
-    gradient: bool = False,
-    hessian: bool = False,
-    dtype: Any = None,
-    threads: Optional[int] = None,
-    leaf_size: Optional[int] = None,
-    scheme: str = "auto",
-    verify: bool = True,
-    at_sources: bool = False,
-    box: Any = None,
-    box_origin: Any = None,
-    periodic: Optional[str] = None,
-    surface: Optional[str] = None,
-    progress: Optional[Callable[[int, int], Any]] = None,
-) -> FmmResult:
+def _with_wavenumber(kernel: str, doc: str) -> Callable[..., FmmResult]:
+    """The one-call function of ``kernel``, a kernel with a wavenumber ``k`` (keyword
+    only, required); its parameters are otherwise those of :func:`laplace`, ``doc`` its
+    docstring."""
+
+    def call(
+        sources: Any,
+        charges: Any = None,
+        *,
+        k: float,
+        dipoles: Any = None,
+        targets: Any = None,
+        eps: Optional[float] = None,
+        order: Optional[int] = None,
+        gradient: bool = False,
+        hessian: bool = False,
+        dtype: Any = None,
+        threads: Optional[int] = None,
+        leaf_size: Optional[int] = None,
+        scheme: str = "auto",
+        verify: bool = True,
+        at_sources: bool = False,
+        box: Any = None,
+        box_origin: Any = None,
+        periodic: Optional[str] = None,
+        surface: Optional[str] = None,
+        progress: Optional[Callable[[int, int], Any]] = None,
+    ) -> FmmResult:
+        arguments = dict(locals())  # the parameters, and ``kernel`` (a free variable)
+        del arguments["kernel"]
+        return _one_call(kernel, **arguments)
+
+    call.__name__ = call.__qualname__ = kernel
+    call.__doc__ = doc
+    return call
+
+
+yukawa = _with_wavenumber(
+    "yukawa",
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
 
     ``r = |y - x_i|`` and ``k >= 0`` is the screening wavenumber (inverse
     length). The other parameters and the result are as for :func:`laplace`;
     periodic boundaries (``box``) run the Laplace kernel only in this
     release (``ValueError``).
-    """
-    return _one_call(
-        "yukawa", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
-        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads,
-        leaf_size=leaf_size, scheme=scheme, verify=verify, at_sources=at_sources,
-        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
-        progress=progress,
-    )
+    """,
+)
 
-
-def helmholtz(
-    sources: Any,
-    charges: Any = None,
-    *,
-    k: float,
-    dipoles: Any = None,
-    targets: Any = None,
-    eps: Optional[float] = None,
-    order: Optional[int] = None,
-    gradient: bool = False,
-    hessian: bool = False,
-    dtype: Any = None,
-    threads: Optional[int] = None,
-    leaf_size: Optional[int] = None,
-    scheme: str = "auto",
-    verify: bool = True,
-    at_sources: bool = False,
-    box: Any = None,
-    box_origin: Any = None,
-    periodic: Optional[str] = None,
-    surface: Optional[str] = None,
-    progress: Optional[Callable[[int, int], Any]] = None,
-) -> FmmResult:
+helmholtz = _with_wavenumber(
+    "helmholtz",
     """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
 
     ``r = |y - x_i|``, ``k >= 0`` the wavenumber. ``charges`` is complex
@@ -228,14 +210,8 @@ def helmholtz(
     >>> r = ferrofmm.helmholtz(x, np.ones(2000) + 0.5j, k=10.0, eps=1e-6)
     >>> r.potential.dtype
     dtype('complex128')
-    """
-    return _one_call(
-        "helmholtz", k, sources, charges, dipoles, targets=targets, eps=eps, order=order,
-        gradient=gradient, hessian=hessian, dtype=dtype, threads=threads, leaf_size=leaf_size,
-        scheme=scheme, verify=verify, at_sources=at_sources,
-        box=box, box_origin=box_origin, periodic=periodic, surface=surface,
-        progress=progress,
-    )
+    """,
+)
 
 
 def stokes(
