@@ -51,17 +51,9 @@ from __future__ import annotations
 
 from . import _ferrofmm
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE, MAX_ORDER, MIN_ORDER
-from ._fmm import (
-    DEFAULT_EPS,
-    AccuracyWarning,
-    Fmm,
-    FmmResult,
-    ewald,
-    helmholtz,
-    laplace,
-    stokes,
-    yukawa,
-)
+from ._calls import helmholtz, laplace, stokes, yukawa
+from ._ewald import ewald
+from ._fmm import DEFAULT_EPS, AccuracyWarning, Fmm, FmmResult
 from ._files import load, save
 from ._octree import Octree
 

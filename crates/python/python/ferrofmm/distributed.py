@@ -92,13 +92,8 @@ from ._checks import (  # noqa: E402  (after the MPI checks above)
     _real,
 )
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE  # noqa: E402
-from ._fmm import (  # noqa: E402
-    DEFAULT_EPS,
-    AccuracyWarning,
-    FmmResult,
-    _pack_densities,
-    _shape_values,
-)
+from ._fmm import DEFAULT_EPS, AccuracyWarning, FmmResult  # noqa: E402
+from ._layout import _pack_densities, _shape_values  # noqa: E402
 
 __all__ = ["Octree", "Fmm", "laplace", "yukawa", "helmholtz", "stokes"]
 
@@ -152,6 +147,11 @@ def _agreed(comm: Any, check: Callable[[], _T]) -> _T:
     return value  # type: ignore[return-value]
 
 
+def _native_property(name: str, doc: str) -> property:
+    """A read-only property that returns the native object's attribute ``name``."""
+    return property(lambda self: getattr(self._native, name), doc=doc)
+
+
 class Octree:
     """This rank's piece of the adaptive, 2:1-balanced octree of all ranks' points.
 
@@ -193,48 +193,32 @@ class Octree:
         flat, ls, ml = _agreed(comm, check)
         self._native = _ferrofmm.NativeDistOctree(comm.py2f(), flat, ls, ml)
 
-    rank = property(lambda self: self._native.rank, doc="This rank.")
-    size = property(lambda self: self._native.size, doc="Ranks in the communicator.")
+    rank = _native_property("rank", "This rank.")
+    size = _native_property("size", "Ranks in the communicator.")
     domain_origin = property(
         lambda self: np.array(self._native.domain[0]), doc="Lower corner of the root cube."
     )
     domain_width = property(lambda self: self._native.domain[1], doc="Side of the root cube.")
-    keys = property(lambda self: self._native.keys, doc="Keys of this rank's boxes, sorted.")
-    is_leaf = property(lambda self: self._native.is_leaf, doc="Whether each box is a leaf.")
-    counts = property(lambda self: self._native.counts, doc="Points in each of this rank's boxes.")
-    coarse_keys = property(
-        lambda self: self._native.coarse_keys, doc="Keys of the boxes straddling a cut."
+    keys = _native_property("keys", "Keys of this rank's boxes, sorted.")
+    is_leaf = _native_property("is_leaf", "Whether each box is a leaf.")
+    counts = _native_property("counts", "Points in each of this rank's boxes.")
+    coarse_keys = _native_property("coarse_keys", "Keys of the boxes straddling a cut.")
+    cuts = _native_property(
+        "cuts", "``cuts[r]:cuts[r + 1]``: the deepest-level Morton codes of rank ``r``."
     )
-    cuts = property(
-        lambda self: self._native.cuts,
-        doc="``cuts[r]:cuts[r + 1]``: the deepest-level Morton codes of rank ``r``.",
+    points = _native_property("points", "This rank's points, in Morton order, ``(n, 3)``.")
+    point_ids = _native_property("point_ids", "Global input id of each of ``points``.")
+    input_counts = _native_property("input_counts", "Points each rank passed, in rank order.")
+    points_per_rank = _native_property(
+        "points_per_rank", "Points each rank holds after the partition, in rank order."
     )
-    points = property(
-        lambda self: self._native.points, doc="This rank's points, in Morton order, ``(n, 3)``."
-    )
-    point_ids = property(
-        lambda self: self._native.point_ids, doc="Global input id of each of ``points``."
-    )
-    input_counts = property(
-        lambda self: self._native.input_counts, doc="Points each rank passed, in rank order."
-    )
-    points_per_rank = property(
-        lambda self: self._native.points_per_rank,
-        doc="Points each rank holds after the partition, in rank order.",
-    )
-    ghost_keys = property(
-        lambda self: self._native.ghost_keys, doc="Keys of the ghost boxes this rank's lists use."
-    )
-    ghost_is_leaf = property(
-        lambda self: self._native.ghost_is_leaf, doc="Whether each ghost is a global leaf."
-    )
-    ghost_counts = property(
-        lambda self: self._native.ghost_counts, doc="Points in each ghost (0 for a coarse box)."
-    )
-    partners = property(lambda self: self._native.partners, doc="Ranks asked for ghost boxes.")
-    list_keys = property(
-        lambda self: self._native.list_keys,
-        doc="The boxes :meth:`lists` rows and indices refer to (this rank's, coarse, ghosts, "
+    ghost_keys = _native_property("ghost_keys", "Keys of the ghost boxes this rank's lists use.")
+    ghost_is_leaf = _native_property("ghost_is_leaf", "Whether each ghost is a global leaf.")
+    ghost_counts = _native_property("ghost_counts", "Points in each ghost (0 for a coarse box).")
+    partners = _native_property("partners", "Ranks asked for ghost boxes.")
+    list_keys = _native_property(
+        "list_keys",
+        "The boxes :meth:`lists` rows and indices refer to (this rank's, coarse, ghosts, "
         "their ancestors), in the tree's order.",
     )
 

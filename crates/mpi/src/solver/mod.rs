@@ -9,11 +9,11 @@
 //!    used as they are; otherwise the order, the leaf size, the SVD
 //!    tolerance and the scheme are chosen for the requested relative L2
 //!    error `eps` (or the default one) from a sample of the points
-//!    ([`choose_parameters`]); an order alone gets its leaf size and scheme
+//!    ([`choose_parameters`](crate::choose_parameters)); an order alone gets its leaf size and scheme
 //!    from the same cost model. This is the single-machine rule
 //!    ([`ferrofmm_fmm::effective_tolerance`]).
 //! 2. **Build**: the distributed tree ([`DistributedTree::build`]) and the
-//!    distributed FMM ([`DistributedFmm::build`]) for the kernel, float
+//!    distributed FMM ([`DistributedFmm::build`](crate::DistributedFmm::build)) for the kernel, float
 //!    type and scheme of the plan, behind one object-safe trait so that the
 //!    caller holds one type whatever the combination.
 //! 3. **Evaluate** ([`DistSolver::evaluate`]), as often as wanted, for
@@ -31,22 +31,20 @@
 //! Every failure is the same [`DistError`] on every rank: no rank goes on
 //! alone into a collective the others never reach.
 
-use ferrofmm_field::{
-    CacheLocation, CacheSetting, CacheStatus, DenseM2l, FftM2l, M2lScheme, SvdConfig, SvdM2l,
-};
+use ferrofmm_field::{CacheLocation, CacheSetting};
+use ferrofmm_fmm::SchemeChoice;
 use ferrofmm_fmm::verify::MAX_VERIFY_RETRIES;
-use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, FmmError, SchemeChoice, effective_tolerance};
-use ferrofmm_kernels::{
-    EvalMode, Kernel, KernelChoice, KernelVisitor, Precision, Real, SourceKind,
-};
-use mpi::collective::SystemOperation;
+use ferrofmm_kernels::{EvalMode, KernelChoice, Precision, SourceKind};
 use mpi::traits::*;
 
 use crate::error::agree_message;
-use crate::{
-    DistChoice, DistError, DistFmmOptions, DistOptions, DistributedFmm, DistributedTree, EvalStats,
-    SetupStats, choose_parameters, sampled_errors_at,
-};
+use crate::{DistChoice, DistError, DistributedTree, EvalStats, SetupStats};
+
+mod build;
+mod engine;
+
+use build::{Build, Supports};
+use engine::Engine;
 
 /// Targets a verification samples when the request does not say.
 pub const VERIFY_SAMPLE: usize = 200;
@@ -151,7 +149,7 @@ pub struct Attempt {
 /// The values of one evaluation and how they were obtained.
 #[derive(Clone, Debug)]
 pub struct DistSolution {
-    /// [`Kernel::values_per_target`] values per input point of this rank,
+    /// [`Kernel::values_per_target`](ferrofmm_kernels::Kernel::values_per_target) values per input point of this rank,
     /// in its input order, as `f64`.
     pub values: Vec<f64>,
     /// Times and bytes of this rank's evaluation (the last one, after a
@@ -385,361 +383,15 @@ impl<C: Communicator + 'static> DistSolver<C> {
         self.engine.cache_summary()
     }
 
-    /// Density values per point ([`Kernel::values_per_source`]).
+    /// Density values per point ([`Kernel::values_per_source`](ferrofmm_kernels::Kernel::values_per_source)).
     pub fn values_per_source(&self) -> usize {
         self.engine.values_per_source()
     }
 
-    /// Result values per point ([`Kernel::values_per_target`]).
+    /// Result values per point ([`Kernel::values_per_target`](ferrofmm_kernels::Kernel::values_per_target)).
     pub fn values_per_target(&self) -> usize {
         self.engine.values_per_target()
     }
-}
-
-/// Whether a kernel takes a source kind in a mode.
-struct Supports(SourceKind, EvalMode);
-
-impl KernelVisitor for Supports {
-    type Output = bool;
-    fn visit<K: Kernel>(self, kernel: K) -> bool {
-        kernel.supports(self.0, self.1)
-    }
-}
-
-/// Plan and build for the kernel the request names.
-struct Build<'a, C> {
-    comm: &'a C,
-    points: Vec<f64>,
-    targets: Option<Vec<f64>>,
-    request: DistRequest,
-    cache: CacheLocation,
-}
-
-impl<C: Communicator + 'static> KernelVisitor for Build<'_, C> {
-    type Output = Result<DistSolver<C>, DistError>;
-
-    fn visit<K: Kernel>(self, kernel: K) -> Self::Output {
-        let Build {
-            comm,
-            points,
-            targets,
-            request,
-            cache,
-        } = self;
-        // Refused on every rank before the tree is built when some rank's
-        // points, densities and results are predicted not to fit.
-        let size = ferrofmm_fmm::RunSize {
-            n_sources: points.len() / 3,
-            n_targets: targets.as_ref().map(|t| t.len() / 3),
-            values_per_source: kernel.values_per_source(request.sources),
-            values_per_target: kernel.values_per_target(request.mode),
-            n_vectors: 1,
-        };
-        let what = "the distributed run";
-        match request.precision {
-            Precision::F64 => crate::check_rank_memory::<C, f64>(comm, &size, what)?,
-            Precision::F32 => crate::check_rank_memory::<C, f32>(comm, &size, what)?,
-        }
-        let plan = plan(comm, &points, &kernel, &request, cache.dir().is_some())?;
-        let options = DistOptions::adaptive(plan.leaf_size);
-        let tree = match &targets {
-            None => DistributedTree::build(comm, &points, &options)?,
-            Some(t) => DistributedTree::build_with_targets(comm, &points, t, &options)?,
-        };
-        let engine = engine_for(comm, &tree, kernel, &plan, &request, &cache)?;
-        Ok(DistSolver {
-            request,
-            plan,
-            tree,
-            points,
-            targets,
-            engine,
-            cache,
-            attempts: Vec::new(),
-            verified: false,
-        })
-    }
-}
-
-/// The one default rule: no order and no tolerance means the default
-/// tolerance; an order alone gets its leaf size and scheme from the cost
-/// model; an order and a leaf size are used as given.
-fn plan<C: Communicator, K: Kernel>(
-    comm: &C,
-    points: &[f64],
-    kernel: &K,
-    request: &DistRequest,
-    cached: bool,
-) -> Result<DistPlan, DistError> {
-    let eps = effective_tolerance(
-        request.tolerance,
-        request.order.or(request.leaf_size.map(|_| DEFAULT_ORDER)),
-        request.precision,
-    );
-    Ok(match (eps, request.order, request.leaf_size) {
-        (None, Some(_), Some(_)) | (None, None, _) => DistPlan {
-            order: request.order.unwrap_or(DEFAULT_ORDER),
-            leaf_size: request.leaf_size.unwrap_or(DEFAULT_LEAF_SIZE),
-            scheme: match request.scheme {
-                SchemeChoice::Auto if SchemeChoice::auto_is_fft(kernel) => "fft",
-                SchemeChoice::Auto => "svd",
-                s => s.name(),
-            },
-            svd_tolerance: None,
-            choice: None,
-            tolerance: None,
-        },
-        (eps, order, _) => {
-            let choice = choose_parameters(
-                comm,
-                points,
-                kernel,
-                eps,
-                order,
-                request.precision,
-                request.mode,
-                request.scheme.shape(),
-                cached,
-            )?;
-            DistPlan {
-                order: choice.order,
-                leaf_size: choice.leaf_size,
-                scheme: SchemeChoice::of_shape(choice.shape).name(),
-                svd_tolerance: Some(choice.svd_tolerance),
-                choice: Some(choice),
-                tolerance: eps,
-            }
-        }
-    })
-}
-
-/// A [`DistributedFmm`] with its float type, kernel and scheme erased.
-trait Engine<C> {
-    fn evaluate(
-        &self,
-        comm: &C,
-        tree: &DistributedTree,
-        densities: &[f64],
-    ) -> Result<(Vec<f64>, EvalStats), DistError>;
-    #[allow(clippy::too_many_arguments)]
-    fn sampled_errors(
-        &self,
-        comm: &C,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[f64],
-        densities: &[f64],
-        targets: &[f64],
-        values: &[f64],
-        samples: usize,
-    ) -> [f64; 2];
-    /// The same kernel, float type and scheme for another plan.
-    fn with_plan(
-        &self,
-        comm: &C,
-        tree: &DistributedTree,
-        plan: &DistPlan,
-        request: &DistRequest,
-        cache: &CacheLocation,
-    ) -> Result<Box<dyn Engine<C> + Send + Sync>, DistError>;
-    fn setup_stats(&self) -> &SetupStats;
-    fn cache_summary(&self) -> Option<String>;
-    fn values_per_source(&self) -> usize;
-    fn values_per_target(&self) -> usize;
-}
-
-/// The configuration of a scheme for an SVD tolerance (`None`: the
-/// scheme's default; only the SVD scheme has one).
-trait SchemeConfig<T: Real>: M2lScheme<T> {
-    fn config(svd_tolerance: Option<f64>) -> Self::Config;
-}
-
-impl<T: Real> SchemeConfig<T> for SvdM2l<T> {
-    fn config(svd_tolerance: Option<f64>) -> SvdConfig {
-        SvdConfig {
-            rank: None,
-            tolerance: svd_tolerance.unwrap_or(0.0),
-        }
-    }
-}
-
-impl<T: Real> SchemeConfig<T> for DenseM2l<T> {
-    fn config(_: Option<f64>) -> Self::Config {
-        Default::default()
-    }
-}
-
-impl<T: Real> SchemeConfig<T> for FftM2l<T> {
-    fn config(_: Option<f64>) -> Self::Config {
-        Default::default()
-    }
-}
-
-/// The engine for the plan's float type and scheme.
-fn engine_for<C: Communicator + 'static, K: Kernel>(
-    comm: &C,
-    tree: &DistributedTree,
-    kernel: K,
-    plan: &DistPlan,
-    request: &DistRequest,
-    cache: &CacheLocation,
-) -> Result<Box<dyn Engine<C> + Send + Sync>, DistError> {
-    fn make<C: Communicator + 'static, T: Real, K: Kernel, S: SchemeConfig<T> + 'static>(
-        comm: &C,
-        tree: &DistributedTree,
-        kernel: K,
-        plan: &DistPlan,
-        request: &DistRequest,
-        cache: &CacheLocation,
-    ) -> Result<Box<dyn Engine<C> + Send + Sync>, DistError> {
-        let options = DistFmmOptions {
-            sources: request.sources,
-            cache_dir: cache.dir().map(std::path::PathBuf::from),
-            cache_size_limit: cache.size_limit(),
-            ..DistFmmOptions::new(plan.order, request.mode)
-        };
-        let config = S::config(plan.svd_tolerance);
-        let fmm = DistributedFmm::<T, K, S>::build(comm, tree, kernel, &config, &options)?;
-        Ok(Box::new(fmm))
-    }
-    match (request.precision, plan.scheme) {
-        (Precision::F64, "svd") => {
-            make::<C, f64, K, SvdM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (Precision::F64, "dense") => {
-            make::<C, f64, K, DenseM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (Precision::F64, _) => {
-            make::<C, f64, K, FftM2l<f64>>(comm, tree, kernel, plan, request, cache)
-        }
-        (_, "svd") => make::<C, f32, K, SvdM2l<f32>>(comm, tree, kernel, plan, request, cache),
-        (_, "dense") => make::<C, f32, K, DenseM2l<f32>>(comm, tree, kernel, plan, request, cache),
-        (_, _) => make::<C, f32, K, FftM2l<f32>>(comm, tree, kernel, plan, request, cache),
-    }
-}
-
-impl<C, T, K, S> Engine<C> for DistributedFmm<T, K, S>
-where
-    C: Communicator + 'static,
-    T: Real,
-    K: Kernel,
-    S: SchemeConfig<T> + 'static,
-{
-    fn evaluate(
-        &self,
-        comm: &C,
-        tree: &DistributedTree,
-        densities: &[f64],
-    ) -> Result<(Vec<f64>, EvalStats), DistError> {
-        let q: Vec<T> = densities.iter().map(|&x| T::from_f64(x)).collect();
-        let (values, stats) = DistributedFmm::evaluate(self, comm, &q)?;
-        // Finite inputs can still overflow (densities near the float
-        // type's largest value): an error on every rank, naming the first
-        // bad value in the global input order.
-        finite_output(comm, tree, &values, self.values_per_target(), &q)?;
-        Ok((values.iter().map(|v| v.to_f64()).collect(), stats))
-    }
-
-    fn sampled_errors(
-        &self,
-        comm: &C,
-        kind: SourceKind,
-        mode: EvalMode,
-        sources: &[f64],
-        densities: &[f64],
-        targets: &[f64],
-        values: &[f64],
-        samples: usize,
-    ) -> [f64; 2] {
-        sampled_errors_at(
-            comm,
-            self.local().kernel(),
-            kind,
-            mode,
-            sources,
-            densities,
-            targets,
-            values,
-            samples,
-        )
-    }
-
-    fn with_plan(
-        &self,
-        comm: &C,
-        tree: &DistributedTree,
-        plan: &DistPlan,
-        request: &DistRequest,
-        cache: &CacheLocation,
-    ) -> Result<Box<dyn Engine<C> + Send + Sync>, DistError> {
-        engine_for(
-            comm,
-            tree,
-            self.local().kernel().clone(),
-            plan,
-            request,
-            cache,
-        )
-    }
-
-    fn setup_stats(&self) -> &SetupStats {
-        DistributedFmm::setup_stats(self)
-    }
-
-    fn cache_summary(&self) -> Option<String> {
-        CacheStatus::summary(
-            self.local().operators().cache_status(),
-            &self.local().m2l_scheme().cache_status(),
-        )
-    }
-
-    fn values_per_source(&self) -> usize {
-        DistributedFmm::values_per_source(self)
-    }
-
-    fn values_per_target(&self) -> usize {
-        DistributedFmm::values_per_target(self)
-    }
-}
-
-/// [`ferrofmm_fmm::check_finite_output`] on this rank's values (the
-/// target index made global: input rows before this rank added; the
-/// largest density over all ranks), agreed by every rank (a collective).
-fn finite_output<C: Communicator, T: Real>(
-    comm: &C,
-    tree: &DistributedTree,
-    values: &[T],
-    per_target: usize,
-    densities: &[T],
-) -> Result<(), DistError> {
-    let local_max = densities
-        .iter()
-        .map(|q| q.to_f64().abs())
-        .fold(0.0, f64::max);
-    let mut largest = 0.0f64;
-    comm.all_reduce_into(&local_max, &mut largest, SystemOperation::max());
-    let me = comm.rank() as usize;
-    let first: u64 = target_counts(tree)[..me].iter().sum();
-    let local = ferrofmm_fmm::check_finite_output(values, per_target, densities).map_err(|e| {
-        match e {
-            FmmError::NonFiniteResult {
-                target,
-                component,
-                value,
-                precision,
-                ..
-            } => FmmError::NonFiniteResult {
-                target: target + first as usize,
-                component,
-                value,
-                largest_density: largest,
-                precision,
-            },
-            other => other,
-        }
-        .to_string()
-    });
-    agree_message(comm, local)
 }
 
 /// The number of targets every rank passed (rank order): its separate
