@@ -46,7 +46,7 @@ pub(crate) fn leaf_passes<T: Real, K: Kernel, S: M2lScheme<T>>(
         timings,
     );
     l2p_pass(cx, part, locals, &mut slices, timings);
-    leaf_progress(part, part.operators.n_surface(), &slices, work);
+    leaf_progress(part, &slices, work);
     p2p_pass(cx, part, q, &mut slices, timings, work);
 }
 
@@ -157,13 +157,13 @@ impl<T: Real> WMultipoles<T> {
 /// The progress units of L2P and M2P, reported together once both ran.
 pub(super) fn leaf_progress<T: Real, S: M2lScheme<T>>(
     part: &TreePart<T, S>,
-    n: usize,
     slices: &LeafSlices<'_, T>,
     work: &Work<'_>,
 ) {
     if !part.has_sources {
         return;
     }
+    let n = part.operators.n_surface();
     work.add_with(|| {
         slices
             .iter()

@@ -141,14 +141,11 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
                 drop(w_multipoles);
                 l2p_pass(&cx, tp, &locals, &mut slices, &mut timings);
                 drop(locals);
-                leaf_progress(tp, tp.operators.n_surface(), &slices, &work);
+                leaf_progress(tp, &slices, &work);
                 p2p_pass(&cx, tp, &local_q[k], &mut slices, &mut timings, &work);
             }
-            Body::Tree(_) => {
-                if values[k].is_empty() {
-                    values[k] = vec![T::ZERO; stored_values(part)];
-                }
-            }
+            // A part without targets stores no values.
+            Body::Tree(_) => {}
             Body::Points(pp) => {
                 if values[k].is_empty() {
                     values[k] = vec![T::ZERO; stored_values(part)];
