@@ -121,7 +121,8 @@
 
 use crate::MortonKey;
 use crate::csr::{Csr, Entry, Shifted};
-use crate::list_rules::{colleague_indices, index_offset, touching_children, v_children};
+use crate::list_rules::near_field::{NearEntry, NearLists, NeighbourhoodView, walk_near_field};
+use crate::list_rules::{colleague_indices, index_offset, v_children};
 use crate::neighbours::level_coords;
 use crate::octree::Octree;
 
@@ -219,17 +220,6 @@ pub fn lists_of_boxes(boxes: &[(MortonKey, bool)]) -> (Vec<MortonKey>, Interacti
     (tree.keys().to_vec(), lists)
 }
 
-/// What covers the region of the same-level neighbour of `b` at table index
-/// `i`, with the image shift of that region (`[0; 3]` in free space).
-enum Cover {
-    /// The neighbour exists.
-    Same(usize, [i8; 3]),
-    /// It does not, and lies in this coarser leaf.
-    CoarseLeaf(usize, [i8; 3]),
-    /// It holds no point (or lies outside the domain).
-    Empty,
-}
-
 /// The image shift of the box at level coordinates `c` (unwrapped) of
 /// `level`: `floor(c / 2^level)` per axis (0 inside the domain).
 #[inline]
@@ -272,12 +262,30 @@ fn coords<E: Entry>(tree: &Octree, b: usize) -> [i64; 3] {
     }
 }
 
-/// `own`: [`coords`] of `b`.
-fn cover<E: Entry>(tree: &Octree, b: usize, own: [i64; 3], i: usize) -> Cover {
+/// The colleague of `b` at table index `i` with its shift; `own`:
+/// [`coords`] of `b`.
+#[inline]
+fn colleague_of<E: Entry>(
+    tree: &Octree,
+    b: usize,
+    own: [i64; 3],
+    i: usize,
+) -> Option<(usize, [i8; 3])> {
+    let n = tree.colleague_at(b, i)?;
+    Some((n, colleague_shift::<E>(own, tree.level(b), i)))
+}
+
+/// Where the colleague of `b` at table index `i` does not exist: the
+/// coarser leaf covering its region, with the region's shift, if any (the
+/// region may hold no point or lie outside the domain). `own`: [`coords`]
+/// of `b`.
+fn coarse_leaf<E: Entry>(
+    tree: &Octree,
+    b: usize,
+    own: [i64; 3],
+    i: usize,
+) -> Option<(usize, [i8; 3])> {
     let level = tree.level(b);
-    if let Some(n) = tree.colleague_at(b, i) {
-        return Cover::Same(n, colleague_shift::<E>(own, level, i));
-    }
     let o = index_offset(i);
     let own = if E::PERIODIC {
         own
@@ -289,7 +297,7 @@ fn cover<E: Entry>(tree: &Octree, b: usize, own: [i64; 3], i: usize) -> Cover {
     let size = 1i64 << level;
     let periodic = tree.periodic_axes();
     if (0..3).any(|a| (!E::PERIODIC || !periodic[a]) && (c[a] < 0 || c[a] >= size)) {
-        return Cover::Empty;
+        return None;
     }
     // Coarser boxes at the region, found from the colleague tables of
     // `b`'s ancestors; along periodic axes `c` is unwrapped, the tables
@@ -300,49 +308,80 @@ fn cover<E: Entry>(tree: &Octree, b: usize, own: [i64; 3], i: usize) -> Cover {
         let off: [i32; 3] = std::array::from_fn(|a| ((c[a] >> up) - (own[a] >> up)) as i32);
         if off == [0; 3] {
             // Inside an ancestor of `b`: an internal box with no child there.
-            return Cover::Empty;
+            return None;
         }
         if let Some(m) = tree.colleague(ancestor, off) {
-            return if tree.is_leaf(m) {
-                Cover::CoarseLeaf(m, s)
-            } else {
-                Cover::Empty
-            };
+            return tree.is_leaf(m).then_some((m, s));
         }
     }
-    Cover::Empty
+    None
 }
 
-/// Appends every existing leaf adjacent to `b` (`b` excluded, unpruned; a
-/// coarse leaf may appear more than once), with its shift.
-pub(crate) fn adjacent_leaves<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
-    let key = tree.key(b);
-    let own = coords::<E>(tree, b);
-    let mut stack = Vec::new();
-    for i in colleague_indices() {
-        let s = match cover::<E>(tree, b, own, i) {
-            Cover::Same(n, s) => {
-                stack.push(n);
-                s
-            }
-            Cover::CoarseLeaf(m, s) => {
-                out.push(E::new(m, s));
-                continue;
-            }
-            Cover::Empty => continue,
-        };
-        // Descendants of one neighbour share its shift.
-        while let Some(x) = stack.pop() {
-            if tree.is_leaf(x) {
-                out.push(E::new(x, s));
-            } else {
-                stack.extend(
-                    tree.children(x)
-                        .filter(|&c| adjacent::<E>(tree.key(c), s, key)),
-                );
-            }
+/// The tree as the near-field walk ([`walk_near_field`]) reads it for
+/// the rows of one box: boxes with the image shift of the region they were
+/// reached through (`[0; 3]` in free space).
+struct TreeView<'a, E> {
+    tree: &'a Octree,
+    /// [`coords`] of the walked box.
+    own: [i64; 3],
+    entry: std::marker::PhantomData<E>,
+}
+
+impl<'a, E: Entry> TreeView<'a, E> {
+    fn of(tree: &'a Octree, b: usize) -> Self {
+        TreeView {
+            tree,
+            own: coords::<E>(tree, b),
+            entry: std::marker::PhantomData,
         }
     }
+}
+
+impl<E: Entry> NeighbourhoodView for TreeView<'_, E> {
+    type Box = (usize, [i8; 3]);
+
+    fn colleague(&self, leaf: Self::Box, i: usize) -> Option<Self::Box> {
+        colleague_of::<E>(self.tree, leaf.0, self.own, i)
+    }
+
+    fn coarse_leaf(&self, leaf: Self::Box, i: usize) -> Option<Self::Box> {
+        coarse_leaf::<E>(self.tree, leaf.0, self.own, i)
+    }
+
+    fn is_leaf(&self, b: Self::Box) -> bool {
+        self.tree.is_leaf(b.0)
+    }
+
+    fn child_mask(&self, b: Self::Box) -> u8 {
+        self.tree.child_mask(b.0)
+    }
+
+    /// Descendants of one neighbour share its shift.
+    fn child(&self, b: Self::Box, octant: usize) -> Option<Self::Box> {
+        Some((child_index(self.tree, b.0, octant), b.1))
+    }
+
+    fn is_adjacent(&self, a: Self::Box, leaf: Self::Box) -> bool {
+        adjacent::<E>(self.tree.key(a.0), a.1, self.tree.key(leaf.0))
+    }
+}
+
+/// The index of the existing child of octant `octant` of `c`.
+#[inline]
+fn child_index(tree: &Octree, c: usize, octant: usize) -> usize {
+    let below = tree.child_mask(c) & ((1u8 << octant) - 1);
+    tree.children(c).start + below.count_ones() as usize
+}
+
+/// Appends every existing leaf adjacent to `b` (`b` excluded, unpruned),
+/// with its shift.
+pub(crate) fn adjacent_leaves<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
+    let view = TreeView::<E>::of(tree, b);
+    walk_near_field(&view, (b, [0; 3]), NearLists::U, &mut Vec::new(), |entry| {
+        if let NearEntry::Adjacent((a, s)) = entry {
+            out.push(E::new(a, s));
+        }
+    });
 }
 
 /// Sorts and deduplicates `out[start..]`.
@@ -455,12 +494,10 @@ fn v_fill<E: Entry>(
         if bits == 0 {
             continue;
         }
-        let first = tree.children(c).start;
-        let existing = tree.child_mask(c);
         while bits != 0 {
-            let octant = bits.trailing_zeros();
+            let octant = bits.trailing_zeros() as usize;
             bits &= bits - 1;
-            row[k] = first + (existing & ((1u8 << octant) - 1)).count_ones() as usize;
+            row[k] = child_index(tree, c, octant);
             if E::PERIODIC {
                 // The children of an image of `c` are images with its shift.
                 shifts[k] = scratch.shifts[j];
@@ -488,32 +525,19 @@ fn w_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
         return;
     }
     let start = out.len();
-    let key = tree.key(b);
-    let (own, level) = (coords::<E>(tree, b), tree.level(b));
-    let mut stack = Vec::new();
-    for i in colleague_indices() {
-        let Some(c) = tree.colleague_at(b, i) else {
-            continue;
-        };
-        let s = colleague_shift::<E>(own, level, i);
-        // The children that touch `b` are walked further, the others
-        // are W entries.
-        let touching = touching_children(i);
-        for a in tree.children(c) {
-            if touching & (1 << tree.key(a).octant()) != 0 {
-                stack.push(a);
-            } else if tree.has_sources(a) {
+    let view = TreeView::<E>::of(tree, b);
+    walk_near_field(&view, (b, [0; 3]), NearLists::W, &mut Vec::new(), |entry| {
+        if let NearEntry::Separated {
+            parent: (c, s),
+            octant,
+        } = entry
+        {
+            let a = child_index(tree, c, octant);
+            if tree.has_sources(a) {
                 out.push(E::new(a, s));
             }
         }
-        while let Some(a) = stack.pop() {
-            if adjacent::<E>(tree.key(a), s, key) {
-                stack.extend(tree.children(a));
-            } else if tree.has_sources(a) {
-                out.push(E::new(a, s));
-            }
-        }
-    }
+    });
     out[start..].sort_unstable();
 }
 
@@ -528,10 +552,13 @@ fn x_row<E: Entry>(tree: &Octree, b: usize, out: &mut Vec<E>) {
     let key: MortonKey = tree.key(b);
     let own = coords::<E>(tree, parent);
     for i in colleague_indices() {
-        let (a, s) = match cover::<E>(tree, parent, own, i) {
-            Cover::Same(n, s) if tree.is_leaf(n) => (n, s),
-            Cover::CoarseLeaf(m, s) => (m, s),
-            _ => continue,
+        let (a, s) = match colleague_of::<E>(tree, parent, own, i) {
+            Some((n, s)) if tree.is_leaf(n) => (n, s),
+            Some(_) => continue,
+            None => match coarse_leaf::<E>(tree, parent, own, i) {
+                Some(m) => m,
+                None => continue,
+            },
         };
         if tree.has_sources(a) && !adjacent::<E>(tree.key(a), s, key) {
             out.push(E::new(a, s));

@@ -5,7 +5,10 @@
 //! neighbourhood's offsets, the V-list candidates among a neighbour's
 //! children, the children that touch a box).
 
-use ferrofmm_tree::list_rules::{offsets, touching_children, v_children};
+use ferrofmm_tree::list_rules::near_field::{
+    NearEntry, NearLists, NeighbourhoodView, walk_near_field,
+};
+use ferrofmm_tree::list_rules::{index_offset, offsets, v_children};
 use ferrofmm_tree::{DEEPEST_LEVEL, Domain, MortonCodes, MortonKey, ShapeBox, TreeShape};
 use rayon::prelude::*;
 
@@ -261,14 +264,52 @@ pub(super) fn center_ratio(key: MortonKey, domain: &Domain) -> f64 {
     (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt() / key.half_width(domain)
 }
 
+/// The simulated tree as the tree crate's near-field walk reads it
+/// ([`walk_near_field`]): a box is `(level, index)`.
+struct LevelsView<'a>(&'a [CountLevel]);
+
+impl NeighbourhoodView for LevelsView<'_> {
+    type Box = (usize, usize);
+
+    fn colleague(&self, (l, i): Self::Box, o: usize) -> Option<Self::Box> {
+        let nk = self.0[l].keys[i].neighbour(index_offset(o))?;
+        self.0[l].find(nk).map(|j| (l, j))
+    }
+
+    /// The first existing ancestor of the region: a leaf covers it, an
+    /// internal box has no child there (no point).
+    fn coarse_leaf(&self, (l, i): Self::Box, o: usize) -> Option<Self::Box> {
+        let levels = self.0;
+        let nk = levels[l].keys[i].neighbour(index_offset(o))?;
+        (0..l).rev().find_map(|up| {
+            let (m, a) = count_find(levels, nk.ancestor(up as u32))?;
+            Some((levels[m].masks[a] == 0).then_some((m, a)))
+        })?
+    }
+
+    fn is_leaf(&self, (l, i): Self::Box) -> bool {
+        self.0[l].masks[i] == 0
+    }
+
+    fn child_mask(&self, (l, i): Self::Box) -> u8 {
+        self.0[l].masks[i]
+    }
+
+    fn child(&self, (l, i): Self::Box, octant: usize) -> Option<Self::Box> {
+        let key = self.0[l].keys[i].children()[octant];
+        self.0.get(l + 1)?.find(key).map(|j| (l + 1, j))
+    }
+
+    fn is_adjacent(&self, (l, i): Self::Box, (m, j): Self::Box) -> bool {
+        self.0[l].keys[i].is_adjacent(self.0[m].keys[j])
+    }
+}
+
 /// `(P2P pairs, far points, U-list entries)` of leaf `(l, i)`: its
 /// targets times the sources of its U list, for every W-list box `a` its
 /// targets (M2P) plus, for the matching X-list entry of `a`, its sources
-/// (P2L), and the length of its U list.
-///
-/// The children of an internal colleague that touch the leaf
-/// ([`touching_children`]) are U-list leaves (2:1 balance: a box one level deeper touching a leaf is a leaf;
-/// deeper ones are still walked), the others are its W list.
+/// (P2L), and the length of its U list; the lists walked by the tree's own
+/// walk ([`walk_near_field`]), unpruned.
 pub(super) fn leaf_work(
     levels: &[CountLevel],
     l: usize,
@@ -276,80 +317,22 @@ pub(super) fn leaf_work(
     stack: &mut Vec<(usize, usize)>,
 ) -> (f64, f64, f64) {
     let lv = &levels[l];
-    let key = lv.keys[i];
     let nt = lv.n_targets(i) as f64;
     let ns_self = lv.n_sources(i) as f64;
-    let mut u_sources = 0.0;
-    let mut u_entries = 0u32;
-    let mut w_boxes = 0u32;
-    let mut coarse: [(usize, usize); 8] = [(usize::MAX, 0); 8];
-    let mut n_coarse = 0;
-    for (oi, o) in offsets().enumerate() {
-        let Some(nk) = key.neighbour(o) else {
-            continue;
-        };
-        if let Some(j) = lv.find(nk) {
-            let mask = lv.masks[j];
-            if mask == 0 {
-                u_sources += lv.n_sources(j) as f64;
-                u_entries += 1;
-                continue;
-            }
-            w_boxes += (mask & !touching_children(oi)).count_ones();
-            let touching = mask & touching_children(oi);
-            for (c, ck) in nk.children().into_iter().enumerate() {
-                if touching & (1 << c) == 0 {
-                    continue;
-                }
-                let Some(b) = levels[l + 1].find(ck) else {
-                    continue;
-                };
-                if levels[l + 1].masks[b] == 0 {
-                    u_sources += levels[l + 1].n_sources(b) as f64;
-                    u_entries += 1;
-                    continue;
-                }
-                // Not balanced here (never after `balance`): walk deeper.
-                stack.clear();
-                stack.push((l + 1, b));
-                while let Some((m, a)) = stack.pop() {
-                    let mask = levels[m].masks[a];
-                    for (c, ck) in levels[m].keys[a].children().into_iter().enumerate() {
-                        if mask & (1 << c) == 0 {
-                            continue;
-                        }
-                        let Some(b) = levels[m + 1].find(ck) else {
-                            continue;
-                        };
-                        if !ck.is_adjacent(key) {
-                            w_boxes += 1;
-                        } else if levels[m + 1].masks[b] == 0 {
-                            u_sources += levels[m + 1].n_sources(b) as f64;
-                            u_entries += 1;
-                        } else {
-                            stack.push((m + 1, b));
-                        }
-                    }
-                }
-            }
-            continue;
-        }
-        // Covered by a coarser leaf (U), or empty.
-        for up in (0..l).rev() {
-            let Some((m, a)) = count_find(levels, nk.ancestor(up as u32)) else {
-                continue;
-            };
-            if levels[m].masks[a] == 0 && !coarse[..n_coarse].contains(&(m, a)) {
-                if n_coarse < coarse.len() {
-                    coarse[n_coarse] = (m, a);
-                    n_coarse += 1;
-                }
+    let (mut u_sources, mut u_entries, mut w_boxes) = (ns_self, 1u32, 0u32);
+    walk_near_field(
+        &LevelsView(levels),
+        (l, i),
+        NearLists::Both,
+        stack,
+        |entry| match entry {
+            NearEntry::Adjacent((m, a)) => {
                 u_sources += levels[m].n_sources(a) as f64;
                 u_entries += 1;
             }
-            break;
-        }
-    }
+            NearEntry::Separated { .. } => w_boxes += 1,
+        },
+    );
     (
         nt * u_sources,
         w_boxes as f64 * (nt + ns_self),

@@ -34,6 +34,15 @@
 //!   `o` that touch `B`. Of an internal colleague of a leaf `B`, those
 //!   children are walked further for `U(B)` (with 2:1 balance they are
 //!   leaves), the others are `W(B)` entries.
+//!
+//! # The walk
+//!
+//! [`near_field::walk_near_field`] applies these rules to a leaf's whole
+//! neighbourhood (its U and W lists) over any tree that answers a few
+//! questions ([`near_field::NeighbourhoodView`]): the tree's own lists and
+//! a simulation of them walk the same code.
+
+pub mod near_field;
 
 /// Boxes in a neighbourhood: `3^3`.
 pub const NEIGHBOURHOOD: usize = 27;
