@@ -185,8 +185,9 @@ pub enum FmmError {
     /// promise: ask for a larger one, or use `f64` (see
     /// [`crate::tuning::f32_reaches`]).
     #[error(
-        "tolerance {tolerance:e} is beyond what {precision} can promise (smallest: {limit:.1e}); \
+        "tolerance {tolerance:e} is beyond what {precision} can promise (smallest: {:.1e}); \
          use a larger tolerance{}",
+        up_to_two_digits(*limit),
         if *precision == "f32" { " or f64" } else { "" }
     )]
     ToleranceBeyondPrecision {
@@ -268,5 +269,39 @@ impl FmmError {
     /// [`ferrofmm_field::PrecomputeMonitor`].
     pub fn is_cancelled(&self) -> bool {
         matches!(self, FmmError::Field(FieldError::Cancelled))
+    }
+}
+
+/// `x > 0` rounded up to two significant digits, so that the limit a
+/// message prints can be asked for (`1.04e-5` reads `1.1e-5`, not
+/// `1.0e-5`, which is still beyond the limit).
+fn up_to_two_digits(x: f64) -> f64 {
+    if !(x.is_finite() && x > 0.0) {
+        return x;
+    }
+    let unit = 10f64.powi(x.log10().floor() as i32 - 1);
+    (x / unit * (1.0 - 1e-12)).ceil() * unit
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The printed limit is never below the real one, so asking for it
+    /// is not refused again.
+    #[test]
+    fn printed_limit_can_be_asked_for() {
+        for (x, printed) in [(1.04e-5, "1.1e-5"), (1.0e-5, "1.0e-5"), (9.99e-8, "1.0e-7")] {
+            let e = FmmError::ToleranceBeyondPrecision {
+                tolerance: x / 2.0,
+                precision: "f32",
+                limit: x,
+            };
+            let text = e.to_string();
+            assert!(text.contains(&format!("(smallest: {printed})")), "{text}");
+            assert!(text.ends_with("or f64"), "{text}");
+            let asked: f64 = printed.parse().unwrap();
+            assert!(asked >= x, "{printed} < {x}");
+        }
     }
 }

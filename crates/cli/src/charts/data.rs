@@ -1,4 +1,5 @@
-//! The sweep's runs grouped by series (scheme and precision), and the
+//! The sweep's runs grouped by series (scheme and precision), the runs
+//! whose parameters were chosen (defaults, `--tolerance`) apart, and the
 //! helpers of the charts' axes: log ranges and ticks, labels, the errors
 //! of a run, the Pareto front.
 
@@ -19,7 +20,11 @@ pub(super) struct SeriesKey {
 
 /// The sweep's runs grouped the way the charts need them.
 pub(super) struct SweepData<'a> {
-    pub(super) runs: &'a [RunReport],
+    /// The runs of the grid (order, scheme, precision and leaf size given).
+    pub(super) runs: Vec<&'a RunReport>,
+    /// The runs whose parameters the library chose (the defaults, or a
+    /// `--tolerance`): marked on the time charts, outside the series.
+    pub(super) chosen: Vec<&'a RunReport>,
     /// Per series, per order: the fastest run over leaf sizes.
     pub(super) series: BTreeMap<SeriesKey, BTreeMap<usize, &'a RunReport>>,
     /// More than one leaf size in the sweep.
@@ -28,17 +33,19 @@ pub(super) struct SweepData<'a> {
 }
 
 impl<'a> SweepData<'a> {
-    /// Groups `runs` (not empty).
-    pub(super) fn new(runs: &'a [RunReport]) -> Self {
+    /// Groups `all` (not empty).
+    pub(super) fn new(all: &'a [RunReport]) -> Self {
+        let (chosen, runs): (Vec<&RunReport>, Vec<&RunReport>) =
+            all.iter().partition(|r| is_chosen(r));
         let mut series: BTreeMap<SeriesKey, BTreeMap<usize, &RunReport>> = BTreeMap::new();
-        for run in runs {
+        for &run in &runs {
             let by_order = series.entry(key(run)).or_default();
             let slot = by_order.entry(run.order).or_insert(run);
             if run.evaluation.best_s < slot.evaluation.best_s {
                 *slot = run;
             }
         }
-        let first = &runs[0];
+        let first = runs.first().copied().unwrap_or(&all[0]);
         let several_leaf_sizes = runs.iter().any(|r| r.leaf_size != first.leaf_size);
         let what = match (first.gradients, first.hessians) {
             (_, true) => "potential + gradient + Hessian",
@@ -54,6 +61,7 @@ impl<'a> SweepData<'a> {
         );
         SweepData {
             runs,
+            chosen,
             series,
             several_leaf_sizes,
             title,
@@ -70,6 +78,7 @@ impl<'a> SweepData<'a> {
     pub(super) fn sampled(&self) -> usize {
         self.runs
             .iter()
+            .chain(&self.chosen)
             .filter_map(|r| r.errors.as_ref().map(|e| e.n_sampled))
             .max()
             .unwrap_or(0)
@@ -80,6 +89,30 @@ impl<'a> SweepData<'a> {
         let min = self.runs.iter().map(|r| r.order).min().unwrap_or(0);
         let max = self.runs.iter().map(|r| r.order).max().unwrap_or(0);
         (min, max)
+    }
+}
+
+/// Whether the library chose the run's parameters: the defaults (no
+/// setting given) or a `--tolerance`.
+pub(super) fn is_chosen(run: &RunReport) -> bool {
+    run.tolerance.is_some() || run.default_tolerance
+}
+
+/// How a chosen run is named on a chart: `defaults` or `eps 1e-6`, and
+/// what was chosen (`p 7, fft, leaf 384`, or `direct sum`).
+pub(super) fn chosen_label(run: &RunReport) -> String {
+    let what = if run.default_tolerance {
+        "defaults".to_string()
+    } else {
+        format!("eps {}", sci(&run.tolerance.unwrap_or(f64::NAN)))
+    };
+    if run.method == "direct" {
+        format!("{what}: direct sum")
+    } else {
+        format!(
+            "{what}: p {}, {}, leaf {}",
+            run.order, run.scheme, run.leaf_size
+        )
     }
 }
 
@@ -158,17 +191,20 @@ pub(super) fn sci(x: &f64) -> String {
     format!("{x:.0e}")
 }
 
-/// Runs not beaten in both time and error by another, fastest first.
-pub(super) fn pareto_front<'a>(runs: &[&'a RunReport]) -> Vec<&'a RunReport> {
+/// Runs not beaten in both time (`time` of a run) and error by another,
+/// fastest first.
+pub(super) fn pareto_front<'a>(
+    runs: &[&'a RunReport],
+    time: impl Fn(&RunReport) -> f64,
+) -> Vec<&'a RunReport> {
     let mut sorted: Vec<&RunReport> = runs
         .iter()
         .copied()
         .filter(|r| r.errors.is_some())
         .collect();
     sorted.sort_by(|a, b| {
-        a.evaluation
-            .best_s
-            .total_cmp(&b.evaluation.best_s)
+        time(a)
+            .total_cmp(&time(b))
             .then(potential(a).total_cmp(&potential(b)))
     });
     let mut front = Vec::new();
@@ -208,9 +244,17 @@ mod tests {
         let a = fake_run(Svd, F64, 3, 150); // fast, inaccurate
         let b = fake_run(Svd, F64, 6, 150); // slower, accurate
         let c = fake_run(Dense, F64, 3, 150); // slower than a, same error: dominated
-        let front = pareto_front(&[&a, &b, &c]);
+        let eval = |r: &RunReport| r.evaluation.best_s;
+        let front = pareto_front(&[&a, &b, &c], eval);
         assert_eq!(front.len(), 2);
         assert_eq!((front[0].order, front[0].scheme), (3, Svd));
         assert_eq!(front[1].order, 6);
+        // By another time (here, a long setup of `a`), another front.
+        let mut slow_setup = a.clone();
+        slow_setup.setup.total_s = 100.0;
+        let total = |r: &RunReport| r.setup.total_s + r.evaluation.best_s;
+        let front = pareto_front(&[&slow_setup, &b, &c], total);
+        assert_eq!(front.len(), 2);
+        assert_eq!((front[0].order, front[0].scheme), (3, Dense));
     }
 }

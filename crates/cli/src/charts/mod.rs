@@ -34,7 +34,7 @@ use crate::report::RunReport;
 use data::{SeriesKey, SweepData, label};
 use error_vs_order::ErrorVsOrder;
 use operators::Operators;
-use time_vs_error::TimeVsError;
+use time_vs_error::{Time, TimeVsError};
 
 /// The font every chart uses, registered once as `sans-serif`.
 static FONT: &[u8] = include_bytes!("../../assets/DejaVuSans.ttf");
@@ -80,7 +80,7 @@ pub(super) trait Chart {
         DB::ErrorType: 'static;
 }
 
-/// Write the three charts for `runs` into `dir`; returns the files written.
+/// Write the four charts for `runs` into `dir`; returns the files written.
 pub fn write_all(dir: &Path, runs: &[RunReport]) -> Result<Vec<PathBuf>> {
     if runs.is_empty() {
         return Ok(Vec::new());
@@ -88,7 +88,16 @@ pub fn write_all(dir: &Path, runs: &[RunReport]) -> Result<Vec<PathBuf>> {
     register_font();
     let data = SweepData::new(runs);
     let mut files = Vec::new();
-    files.extend(render(dir, "time_vs_error", &TimeVsError(&data))?);
+    files.extend(render(
+        dir,
+        "time_vs_error",
+        &TimeVsError(&data, Time::Evaluation),
+    )?);
+    files.extend(render(
+        dir,
+        "total_time_vs_error",
+        &TimeVsError(&data, Time::SetupAndEvaluation),
+    )?);
     files.extend(render(dir, "operators", &Operators(&data))?);
     files.extend(render(dir, "error_vs_order", &ErrorVsOrder(&data))?);
     Ok(files)
@@ -288,10 +297,16 @@ pub(crate) mod tests {
                 }
             }
         }
+        // Runs whose parameters were chosen: starred, not in the series.
+        let mut asked = fake_run(SchemeArg::Fft, PrecisionArg::F64, 7, 384);
+        asked.tolerance = Some(1e-5);
+        let mut defaults = fake_run(SchemeArg::Fft, PrecisionArg::F64, 8, 384);
+        (defaults.tolerance, defaults.default_tolerance) = (Some(1e-6), true);
+        runs.extend([asked, defaults]);
         let dir = std::env::temp_dir().join(format!("ferrofmm-charts-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let files = write_all(&dir, &runs).unwrap();
-        assert_eq!(files.len(), 6);
+        assert_eq!(files.len(), 8);
         for f in &files {
             let bytes = std::fs::read(f).unwrap();
             assert!(bytes.len() > 1000, "{} is nearly empty", f.display());
@@ -299,10 +314,19 @@ pub(crate) mod tests {
                 assert_eq!(&bytes[1..4], b"PNG");
             } else {
                 let text = String::from_utf8(bytes).unwrap();
-                assert!(
-                    text.contains("<svg")
-                        && text.contains("Pareto") == f.ends_with("time_vs_error.svg")
-                );
+                let name = f.file_name().unwrap().to_string_lossy();
+                let time_chart = name.ends_with("time_vs_error.svg");
+                assert!(text.contains("<svg"), "{}", f.display());
+                assert_eq!(text.contains("Pareto"), time_chart, "{}", f.display());
+                // The chosen runs are labelled on both time charts only,
+                // and the series hold no fft line (all fft runs were chosen).
+                for label in [
+                    "eps 1e-5: p 7, fft, leaf 384",
+                    "defaults: p 8, fft, leaf 384",
+                ] {
+                    assert_eq!(text.contains(label), time_chart, "{}", f.display());
+                }
+                assert!(!text.contains("fft f64"), "{}", f.display());
             }
         }
         // A single run still draws.

@@ -5,7 +5,12 @@
 //! its peak memory (`VmHWM`, which only grows within a process) is its own
 //! and no configuration warms caches or the allocator for the next. The
 //! child's JSON report becomes one row of `results.csv`; the charts of
-//! [`crate::charts`] are drawn from all rows.
+//! [`crate::charts`] are drawn from all rows. Beside the grid, the runs a
+//! user gets without choosing (`--with-defaults`: `ferrofmm demo` with no
+//! setting) and with `--tolerance EPS` (`--tolerances`), whose order, leaf
+//! size and scheme the library chooses and verifies, run once per
+//! precision, so that the charts show where they land against every
+//! hand-picked setting.
 //!
 //! `results.csv` columns (times in seconds, memory in MiB):
 //!
@@ -13,8 +18,11 @@
 //! geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,
 //! depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,
 //! eval_best_s,eval_median_s,p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,far_s,
-//! potential_error,gradient_error,peak_rss_mib,m2l_mib
+//! potential_error,gradient_error,peak_rss_mib,m2l_mib,run,tolerance
 //! ```
+//!
+//! `run` is `grid`, `defaults` or `tolerance`; `tolerance` the accuracy
+//! asked for (the default one for `defaults`, empty for the grid).
 //!
 //! `eval_best_s` / `eval_median_s` are the fastest and the median of
 //! `--repeats` evaluations; the per-operator times are those of the fastest.
@@ -36,7 +44,8 @@ use crate::report::{RunReport, seconds};
 /// The header of `results.csv`.
 pub const CSV_HEADER: &str = "geometry,charges,n,order,scheme,precision,leaf_size,gradients,threads,repeats,\
 depth,n_leaves,n_boxes,setup_s,tree_s,operators_s,m2l_precompute_s,eval_best_s,eval_median_s,\
-p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,far_s,potential_error,gradient_error,peak_rss_mib,m2l_mib";
+p2m_s,m2m_s,m2l_s,p2l_s,l2l_s,l2p_s,m2p_s,p2p_s,far_s,potential_error,gradient_error,peak_rss_mib,m2l_mib,\
+run,tolerance";
 
 /// Arguments of `ferrofmm sweep`.
 #[derive(Args, Clone, Debug)]
@@ -75,6 +84,15 @@ pub struct SweepArgs {
     pub hessians: bool,
     #[arg(long, default_value = "laplace", value_name = "NAME[:K]", help = super::kernel_help())]
     pub kernel: String,
+    /// Also run with these requested accuracies, comma-separated
+    /// (`ferrofmm demo --tolerance EPS`: order, leaf size and scheme chosen
+    /// and verified), once per precision; starred on the time charts.
+    #[arg(long, value_delimiter = ',', value_name = "EPS,...", value_parser = parse_tolerance)]
+    pub tolerances: Vec<f64>,
+    /// Also run the defaults (`ferrofmm demo` with no order, leaf size,
+    /// scheme or tolerance), once per precision; starred on the time charts.
+    #[arg(long)]
+    pub with_defaults: bool,
     /// Random seed of the points and charges.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
@@ -109,6 +127,50 @@ pub fn parse_orders(text: &str) -> std::result::Result<Orders, String> {
         return Err("no orders given".into());
     }
     Ok(Orders(orders))
+}
+
+/// A requested accuracy: a number in (0, 1).
+fn parse_tolerance(text: &str) -> std::result::Result<f64, String> {
+    let eps: f64 = text.trim().parse().map_err(|_| {
+        format!(
+            "'{}' is not a tolerance (a number such as 1e-6)",
+            text.trim()
+        )
+    })?;
+    if eps > 0.0 && eps < 1.0 {
+        Ok(eps)
+    } else {
+        Err(format!("tolerance {eps} is not between 0 and 1"))
+    }
+}
+
+/// One run of the sweep.
+#[derive(Clone, Copy, Debug)]
+enum Job {
+    /// A configuration of the grid, every setting given.
+    Grid(Config),
+    /// The library's choice for a requested accuracy (`None`: the defaults,
+    /// nothing given) in `precision`.
+    Chosen {
+        tolerance: Option<f64>,
+        precision: PrecisionArg,
+    },
+}
+
+impl Job {
+    fn describe(&self) -> String {
+        match self {
+            Job::Grid(c) => c.describe(),
+            Job::Chosen {
+                tolerance: Some(eps),
+                precision,
+            } => format!("eps={eps:.0e} {} (chosen)", precision.name()),
+            Job::Chosen {
+                tolerance: None,
+                precision,
+            } => format!("defaults {}", precision.name()),
+        }
+    }
 }
 
 /// One configuration of the grid.
@@ -159,18 +221,31 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out_dir).map_err(|e| CliError::io(&args.out_dir, e))?;
 
-    let configs = grid(args);
+    let configs = jobs(args);
     let exe =
         std::env::current_exe().map_err(|e| CliError::io(Path::new("current executable"), e))?;
     let csv_path = args.out_dir.join("results.csv");
     let bar = crate::progress::bar(configs.len() as u64);
     let mut runs: Vec<RunReport> = Vec::with_capacity(configs.len());
-    for config in &configs {
-        bar.set_message(config.describe());
-        let report = run_child(&exe, args, config, threads)?;
+    // A chosen run the library declines (a tolerance beyond what f32 can
+    // promise on these points) is skipped, with its reason, not fatal.
+    let mut skipped = Vec::new();
+    for job in &configs {
+        bar.set_message(job.describe());
+        let report = match run_child(&exe, args, job, threads) {
+            Ok(report) => report,
+            Err(e) if matches!(job, Job::Chosen { .. }) => {
+                let line = format!("skipped {e}");
+                bar.println(&line);
+                skipped.push(line);
+                bar.inc(1);
+                continue;
+            }
+            Err(e) => return Err(e),
+        };
         bar.println(format!(
             "{:<28} eval {:>10}  setup {:>10}  error {}",
-            config.describe(),
+            job.describe(),
             seconds(report.evaluation.best_s),
             seconds(report.setup.total_s),
             report
@@ -188,52 +263,85 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     let charts =
         crate::progress::with_stage("drawing charts", || charts::write_all(&args.out_dir, &runs))?;
     let mut text = summary_table(&runs);
+    for line in &skipped {
+        text.push_str(line);
+        text.push('\n');
+    }
     for f in std::iter::once(&csv_path).chain(&charts) {
         text.push_str(&format!("wrote {}\n", f.display()));
     }
     crate::stdout::report(&text)
 }
 
-/// All configurations, precision-major, then scheme, leaf size and order.
-fn grid(args: &SweepArgs) -> Vec<Config> {
+/// All configurations, precision-major, then scheme, leaf size and order;
+/// then the chosen runs (defaults first, then the tolerances) per
+/// precision, but for tolerances f32 cannot promise on any points.
+fn jobs(args: &SweepArgs) -> Vec<Job> {
     let mut configs = Vec::new();
     for &precision in &args.precision {
         for &scheme in &args.schemes {
             for &leaf_size in &args.leaf_sizes {
                 for &order in &args.orders.0 {
-                    configs.push(Config {
+                    configs.push(Job::Grid(Config {
                         order,
                         scheme,
                         precision,
                         leaf_size,
-                    });
+                    }));
                 }
             }
+        }
+    }
+    let defaults = args.with_defaults.then_some(None);
+    for &precision in &args.precision {
+        for tolerance in defaults
+            .into_iter()
+            .chain(args.tolerances.iter().map(|&e| Some(e)))
+        {
+            // f32 cannot promise these on any points: not run (the report
+            // of such a run would only be the refusal).
+            if precision == PrecisionArg::F32
+                && tolerance.is_some_and(|eps| !ferrofmm_fmm::tuning::f32_reaches(eps))
+            {
+                continue;
+            }
+            configs.push(Job::Chosen {
+                tolerance,
+                precision,
+            });
         }
     }
     configs
 }
 
 /// Run one configuration as `ferrofmm demo --json` and parse its report.
-fn run_child(
-    exe: &Path,
-    args: &SweepArgs,
-    config: &Config,
-    threads: Option<usize>,
-) -> Result<RunReport> {
+fn run_child(exe: &Path, args: &SweepArgs, job: &Job, threads: Option<usize>) -> Result<RunReport> {
     let mut cmd = Command::new(exe);
     cmd.arg("demo")
         .arg("--json")
         .args(["--n", &args.n.to_string()])
         .args(["--geometry", args.geometry.name()])
         .args(["--charges", ChargesArg::parse(&args.charges)?.name()])
-        .args(["--order", &config.order.to_string()])
-        .args(["--scheme", config.scheme.name()])
-        .args(["--precision", config.precision.name()])
-        .args(["--leaf-size", &config.leaf_size.to_string()])
         .args(["--repeats", &args.repeats.to_string()])
         .args(["--check", &args.check.to_string()])
         .args(["--seed", &args.seed.to_string()]);
+    match job {
+        Job::Grid(config) => {
+            cmd.args(["--order", &config.order.to_string()])
+                .args(["--scheme", config.scheme.name()])
+                .args(["--precision", config.precision.name()])
+                .args(["--leaf-size", &config.leaf_size.to_string()]);
+        }
+        Job::Chosen {
+            tolerance,
+            precision,
+        } => {
+            cmd.args(["--precision", precision.name()]);
+            if let Some(eps) = tolerance {
+                cmd.args(["--tolerance", &eps.to_string()]);
+            }
+        }
+    }
     cmd.args(["--kernel", &args.kernel]);
     if args.hessians {
         cmd.arg("--hessians");
@@ -244,7 +352,7 @@ fn run_child(
         cmd.args(["--threads", &t.to_string()]);
     }
     let fail = |message: String| CliError::SweepRun {
-        config: config.describe(),
+        config: job.describe(),
         message,
     };
     let out = cmd
@@ -317,10 +425,23 @@ pub fn csv_row(r: &RunReport) -> String {
         .unwrap_or_default();
     let _ = write!(
         row,
-        ",{pot},{grad},{peak},{:.3}",
-        mib(r.tree.m2l_bytes as f64)
+        ",{pot},{grad},{peak},{:.3},{},{}",
+        mib(r.tree.m2l_bytes as f64),
+        run_kind(r),
+        r.tolerance.map(|e| format!("{e:e}")).unwrap_or_default()
     );
     row
+}
+
+/// `grid`, `defaults` or `tolerance`: how the run's parameters were set.
+fn run_kind(r: &RunReport) -> &'static str {
+    if r.default_tolerance {
+        "defaults"
+    } else if r.tolerance.is_some() {
+        "tolerance"
+    } else {
+        "grid"
+    }
 }
 
 fn write_csv(path: &Path, runs: &[RunReport]) -> Result<()> {
@@ -341,8 +462,17 @@ fn summary_table(runs: &[RunReport]) -> String {
     let mut o = String::new();
     let _ = writeln!(
         o,
-        "{:>5} {:>6} {:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}",
-        "order", "scheme", "prec", "leaf", "setup", "eval", "pot err", "grad err", "peak MiB"
+        "{:<9} {:>5} {:>6} {:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}",
+        "run",
+        "order",
+        "scheme",
+        "prec",
+        "leaf",
+        "setup",
+        "eval",
+        "pot err",
+        "grad err",
+        "peak MiB"
     );
     for r in runs {
         let (pot, grad) = match &r.errors {
@@ -355,9 +485,14 @@ fn summary_table(runs: &[RunReport]) -> String {
         let peak = r.peak_rss_bytes.map_or("-".to_string(), |b| {
             format!("{:.0}", b as f64 / (1024.0 * 1024.0))
         });
+        let run = match (run_kind(r), r.tolerance) {
+            ("tolerance", Some(eps)) => format!("eps {eps:.0e}"),
+            (kind, _) => kind.to_string(),
+        };
         let _ = writeln!(
             o,
-            "{:>5} {:>6} {:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}",
+            "{:<9} {:>5} {:>6} {:>5} {:>6} {:>10} {:>10} {:>10} {:>10} {:>9}",
+            run,
             r.order,
             r.scheme,
             r.precision,
@@ -388,6 +523,62 @@ mod tests {
     }
 
     #[test]
+    fn tolerances_parse() {
+        assert_eq!(parse_tolerance(" 1e-6").unwrap(), 1e-6);
+        for bad in ["0", "1", "-1e-3", "abc", "NaN", "inf"] {
+            assert!(parse_tolerance(bad).is_err(), "{bad}");
+        }
+    }
+
+    /// The chosen runs come after the grid, defaults first, once per
+    /// precision, with nothing but the precision (and the tolerance) set;
+    /// f32 skips a tolerance it cannot promise (1e-7).
+    #[test]
+    fn chosen_runs_follow_the_grid_once_per_precision() {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Wrap {
+            #[command(flatten)]
+            sweep: SweepArgs,
+        }
+        let args = Wrap::try_parse_from([
+            "sweep",
+            "--out-dir",
+            "x",
+            "--orders",
+            "4,6",
+            "--schemes",
+            "fft",
+            "--precision",
+            "f64,f32",
+            "--tolerances",
+            "1e-3,1e-7",
+            "--with-defaults",
+        ])
+        .unwrap()
+        .sweep;
+        let all = jobs(&args);
+        let names: Vec<String> = all.iter().map(Job::describe).collect();
+        assert_eq!(all.len(), 4 + 5, "{names:?}");
+        assert!(all[..4].iter().all(|j| matches!(j, Job::Grid(_))));
+        assert_eq!(
+            names[4..],
+            [
+                "defaults f64",
+                "eps=1e-3 f64 (chosen)",
+                "eps=1e-7 f64 (chosen)",
+                "defaults f32",
+                "eps=1e-3 f32 (chosen)",
+            ]
+        );
+        let none = Wrap::try_parse_from(["sweep", "--out-dir", "x", "--orders", "5"])
+            .unwrap()
+            .sweep;
+        assert!(jobs(&none).iter().all(|j| matches!(j, Job::Grid(_))));
+        assert!(Wrap::try_parse_from(["sweep", "--out-dir", "x", "--tolerances", "2"]).is_err());
+    }
+
+    #[test]
     fn csv_rows_match_the_header() {
         let header_fields = CSV_HEADER.split(',').count();
         let run = crate::charts::tests::fake_run(SchemeArg::Svd, PrecisionArg::F64, 5, 64);
@@ -396,5 +587,12 @@ mod tests {
         no_check.errors = None;
         no_check.peak_rss_bytes = None;
         assert_eq!(csv_row(&no_check).split(',').count(), header_fields);
+        assert!(csv_row(&run).ends_with(",grid,"));
+        let mut chosen = run.clone();
+        chosen.tolerance = Some(1e-5);
+        assert!(csv_row(&chosen).ends_with(",tolerance,1e-5"));
+        assert_eq!(csv_row(&chosen).split(',').count(), header_fields);
+        chosen.default_tolerance = true;
+        assert!(csv_row(&chosen).ends_with(",defaults,1e-5"));
     }
 }
