@@ -99,7 +99,8 @@ pub(super) fn is_chosen(run: &RunReport) -> bool {
 }
 
 /// How a chosen run is named on a chart: `defaults` or `eps 1e-6`, and
-/// what was chosen (`p 7, fft, leaf 384`, or `direct sum`).
+/// what was chosen (order, scheme and leaf size: `p 7 fft 384`, or
+/// `direct sum`).
 pub(super) fn chosen_label(run: &RunReport) -> String {
     let what = if run.default_tolerance {
         "defaults".to_string()
@@ -109,10 +110,7 @@ pub(super) fn chosen_label(run: &RunReport) -> String {
     if run.method == "direct" {
         format!("{what}: direct sum")
     } else {
-        format!(
-            "{what}: p {}, {}, leaf {}",
-            run.order, run.scheme, run.leaf_size
-        )
+        format!("{what}: p {} {} {}", run.order, run.scheme, run.leaf_size)
     }
 }
 

@@ -320,10 +320,7 @@ pub(crate) mod tests {
                 assert_eq!(text.contains("Pareto"), time_chart, "{}", f.display());
                 // The chosen runs are labelled on both time charts only,
                 // and the series hold no fft line (all fft runs were chosen).
-                for label in [
-                    "eps 1e-5: p 7, fft, leaf 384",
-                    "defaults: p 8, fft, leaf 384",
-                ] {
+                for label in ["eps 1e-5: p 7 fft 384", "defaults: p 8 fft 384"] {
                     assert_eq!(text.contains(label), time_chart, "{}", f.display());
                 }
                 assert!(!text.contains("fft f64"), "{}", f.display());

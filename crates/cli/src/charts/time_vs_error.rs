@@ -182,10 +182,13 @@ impl Chart for TimeVsError<'_> {
         }
         if !chosen.is_empty() {
             chart
-                .draw_series(chosen.iter().map(|r| {
+                .draw_series(chosen.iter().enumerate().map(|(i, r)| {
+                    // Labels alternately below and above their star, so
+                    // that neighbours' labels do not run into each other.
+                    let dy = if i % 2 == 0 { 4 } else { -16 };
                     EmptyElement::at((potential(r), time.of(r)))
                         + Polygon::new(star(9), BLACK.filled())
-                        + Text::new(chosen_label(r), (10, 4), (FAMILY, 12).into_font())
+                        + Text::new(chosen_label(r), (10, dy), (FAMILY, 12).into_font())
                 }))?
                 .label("parameters chosen (defaults, eps)")
                 .legend(|(x, y)| {

@@ -161,7 +161,10 @@ fn chosen_runs_are_marked_and_refusals_skipped() {
     );
     for chart in ["time_vs_error", "total_time_vs_error"] {
         let svg = std::fs::read_to_string(out_dir.join(format!("{chart}.svg"))).unwrap();
-        assert!(svg.contains("eps 1e-4: ") && svg.contains("defaults: "), "{chart}.svg");
+        assert!(
+            svg.contains("eps 1e-4: ") && svg.contains("defaults: "),
+            "{chart}.svg"
+        );
     }
     let operators = std::fs::read_to_string(out_dir.join("operators.svg")).unwrap();
     assert!(!operators.contains("defaults: "));
