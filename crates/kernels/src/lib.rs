@@ -86,16 +86,16 @@
 
 mod direct;
 mod error;
-mod helmholtz;
+pub mod helmholtz;
 mod kernel;
 pub mod lanes;
-mod laplace;
-mod modified_helmholtz;
+pub mod laplace;
+pub mod modified_helmholtz;
 mod real;
 pub mod reference;
-mod registry;
+pub mod registry;
 mod simd;
-mod stokes;
+pub mod stokes;
 
 pub use direct::{
     DIRECT_SUM_BLOCK, check_inputs, check_kernel_inputs, check_source_inputs, direct_sum,

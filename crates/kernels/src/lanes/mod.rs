@@ -60,7 +60,7 @@
 //! has been found to support it (it cannot be built outside this crate), so
 //! its methods, safe to call, may use the set's intrinsics. The loop is
 //! compiled once per token inside a `#[target_feature]` function and picked
-//! at run time from [`SimdLevel`](crate::SimdLevel); the micro-kernel, generic
+//! at run time from [`SimdLevel`]; the micro-kernel, generic
 //! over the token, is inlined into it.
 //!
 //! # Coincident points
@@ -68,7 +68,7 @@
 //! or `r < ~1.5e-154` in `f64`, `~1.1e-19` in `f32`) must contribute
 //! exactly zero: [`Simd::rsqrt_or_zero`] returns 0 there, so a micro-kernel
 //! that multiplies by it is safe; one that does not uses
-//! [`Simd::zero_unless_ge`] with [`LaneFloat::MIN_POSITIVE`].
+//! [`Simd::zero_unless_ge`] with [`Real::MIN_POSITIVE`].
 //!
 //! # Writing a kernel
 //! ```
@@ -124,8 +124,8 @@
 
 mod backends;
 mod engine;
-mod exp;
-mod radial;
+pub mod exp;
+pub mod radial;
 
 pub use backends::{Avx2, Avx512, Portable};
 pub use engine::{PairKernel, run};

@@ -10,7 +10,7 @@
 //! ```
 //!
 //! and the radial derivatives behind dipoles and Hessians
-//! ([`lanes::RadialLaneKernel`](crate::lanes::RadialLaneKernel)) are
+//! ([`crate::lanes::RadialLaneKernel`]) are
 //! `f_0 = 1/r`, `f_1 = -1/r^3`, `f_2 = 3/r^5`, `f_3 = -15/r^7`.
 //!
 //! # P2P
@@ -124,7 +124,7 @@ impl Kernel for Laplace3d {
 /// Accumulate the Laplace potential (and gradient) of `sources` with
 /// `charges` at `targets` into `out`, using [`SimdLevel::active`].
 ///
-/// This is what [`Laplace3d`](crate::Laplace3d)'s `evaluate` calls; see
+/// This is what [`Laplace3d`]'s `evaluate` calls; see
 /// [`laplace_p2p_with`] for the maths, layout and panics.
 #[inline]
 pub fn laplace_p2p<T: Real>(

@@ -10,7 +10,7 @@ use crate::lists::InteractionLists;
 impl Octree {
     /// Whether the interaction lists were built: `true` for every 2:1
     /// balanced tree (the default, and uniform trees), `false` for an
-    /// adaptive tree built with [`TreeOptions::balance`] off, whose lists
+    /// adaptive tree built with [`TreeOptions::balance`](crate::TreeOptions::balance) off, whose lists
     /// are all empty.
     pub fn has_lists(&self) -> bool {
         self.balanced
