@@ -28,12 +28,15 @@
 //! core. [`estimate_errors`] picks the sample size from a time budget (the
 //! after-the-fact verification of [`crate::Fmm::evaluate_verified`]).
 
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
+
+use crate::progress::{ProgressFn, Work};
 
 /// Relative L2 errors of an FMM result on sampled targets.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -139,6 +142,50 @@ pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
     sample: &[usize],
 ) -> ErrorReport {
     let problem = Comparison::new(kernel, kind, mode, sources, densities, targets, values);
+    let mut sums = ErrorSums::default();
+    problem.add(&mut sums, sample);
+    sums.report(mode)
+}
+
+/// [`relative_errors_sources`] reporting its progress to `progress`: the
+/// direct sums (a source at a sampled target is one unit of
+/// [`EvalProgress`](crate::EvalProgress)) are counted per block of
+/// sources, so that a front end can show the time left of a long check
+/// (1000 targets against 1e8 sources is 1e11 pairs, a minute or more).
+/// The result is that of [`relative_errors_sources`], bit for bit.
+///
+/// ```
+/// use std::sync::{Arc, Mutex};
+/// use ferrofmm_fmm::{EvalProgress, ProgressFn, relative_errors_sources_with_progress};
+/// use ferrofmm_kernels::{EvalMode, Laplace3d, SourceKind};
+/// let points: Vec<f64> = (0..3000).map(|i| (i as f64 * 0.618_034).fract()).collect();
+/// let charges = vec![1.0; 1000];
+/// let values = vec![0.0; 1000];
+/// let seen = Arc::new(Mutex::new(Vec::new()));
+/// let log = seen.clone();
+/// let progress: Arc<ProgressFn> = Arc::new(move |p: EvalProgress| log.lock().unwrap().push(p));
+/// let e = relative_errors_sources_with_progress(
+///     &Laplace3d, SourceKind::Charge, EvalMode::Potential,
+///     &points, &charges, &points, &values, &[0, 1, 2], &progress,
+/// );
+/// assert!(e.potential > 0.99); // all-zero values: the whole reference is the error
+/// let seen = seen.lock().unwrap();
+/// assert_eq!(seen.last().unwrap().done, seen.last().unwrap().total);
+/// ```
+#[allow(clippy::too_many_arguments)]
+pub fn relative_errors_sources_with_progress<P: Real, T: Real, K: Kernel>(
+    kernel: &K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &[P],
+    densities: &[T],
+    targets: &[P],
+    values: &[T],
+    sample: &[usize],
+    progress: &Arc<ProgressFn>,
+) -> ErrorReport {
+    let problem = Comparison::new(kernel, kind, mode, sources, densities, targets, values)
+        .with_progress(Some(progress));
     let mut sums = ErrorSums::default();
     problem.add(&mut sums, sample);
     sums.report(mode)
@@ -385,6 +432,8 @@ pub(crate) struct Comparison<'a, P, T, K> {
     /// The exact values at given targets, when they are not the direct
     /// sum (a periodic cell's Ewald sums).
     truth: Option<&'a Truth<'a>>,
+    /// Where the direct sums report their progress.
+    progress: Option<&'a Arc<ProgressFn>>,
 }
 
 /// The exact values (`values_per_target` each, unscaled) at the targets of
@@ -413,11 +462,18 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             values,
             scale: charge_scale(charges),
             truth: None,
+            progress: None,
         }
     }
 
     /// The same comparison against `truth` (when given) instead of the
     /// direct sums.
+    /// The direct sums report to `progress` (see
+    /// [`relative_errors_sources_with_progress`]).
+    pub(crate) fn with_progress(self, progress: Option<&'a Arc<ProgressFn>>) -> Self {
+        Comparison { progress, ..self }
+    }
+
     pub(crate) fn with_truth(self, truth: Option<&'a Truth<'a>>) -> Self {
         Comparison { truth, ..self }
     }
@@ -437,15 +493,22 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
             .collect();
         let reference = match self.truth {
             Some(truth) => truth(sample).iter().map(|v| v / self.scale).collect(),
-            None => scaled_reference(
-                self.kernel,
-                self.kind,
-                self.mode,
-                self.sources,
-                self.charges,
-                self.scale,
-                &at,
-            ),
+            None => {
+                let pairs = (self.sources.len() / 3) as u64 * sample.len() as u64;
+                let work = Work::new(self.progress, || pairs);
+                let r = scaled_reference(
+                    self.kernel,
+                    self.kind,
+                    self.mode,
+                    self.sources,
+                    self.charges,
+                    self.scale,
+                    &at,
+                    &work,
+                );
+                work.finish();
+                r
+            }
         };
         for (k, &j) in sample.iter().enumerate() {
             for c in 0..w {
@@ -491,7 +554,9 @@ const REFERENCE_BLOCK: usize = 4096;
 
 /// Direct sums in `f64` at the points `at` (interleaved) for the densities
 /// divided by `scale`: every block of sources adds its share to all
-/// targets, blocks in parallel.
+/// targets, blocks in parallel, each counted done in `work` (its sources
+/// times the targets).
+#[allow(clippy::too_many_arguments)]
 fn scaled_reference<P: Real, T: Real, K: Kernel>(
     kernel: &K,
     kind: SourceKind,
@@ -500,6 +565,7 @@ fn scaled_reference<P: Real, T: Real, K: Kernel>(
     charges: &[T],
     scale: f64,
     at: &[f64],
+    work: &Work<'_>,
 ) -> Vec<f64> {
     let len = kernel.values_per_target(mode) * (at.len() / 3);
     let nq = kernel.values_per_source(kind);
@@ -514,6 +580,7 @@ fn scaled_reference<P: Real, T: Real, K: Kernel>(
                 let mut part = vec![0.0f64; len];
                 kernel.evaluate_sources(kind, mode, &s, &q, at, &mut part);
                 acc.iter_mut().zip(&part).for_each(|(a, p)| *a += p);
+                work.add((s.len() / 3) as u64 * (at.len() / 3) as u64);
                 acc
             },
         )
@@ -529,6 +596,39 @@ fn scaled_reference<P: Real, T: Real, K: Kernel>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The check with progress gives the same errors, bit for bit, and
+    /// reports its direct sums block by block, never going back, ending
+    /// at its total (sources times sampled targets).
+    #[test]
+    fn progress_reports_the_direct_sums_and_changes_nothing() {
+        use std::sync::Mutex;
+        let pts: Vec<f64> = crate::Geometry::Cube.points(10_000, 3);
+        let q: Vec<f64> = (0..10_000)
+            .map(|i| ((i * 37) % 101) as f64 / 50.0 - 1.0)
+            .collect();
+        let values: Vec<f64> = (0..40_000).map(|i| (i % 7) as f64).collect();
+        let sample: Vec<usize> = (0..10_000).step_by(97).collect();
+        let (k, kind, mode) = (
+            &ferrofmm_kernels::Laplace3d,
+            SourceKind::Charge,
+            EvalMode::PotentialGradient,
+        );
+        let plain = relative_errors_sources(k, kind, mode, &pts, &q, &pts, &values, &sample);
+        let seen = Arc::new(Mutex::new(Vec::new()));
+        let log = seen.clone();
+        let progress: Arc<ProgressFn> = Arc::new(move |p| log.lock().unwrap().push(p));
+        let with = relative_errors_sources_with_progress(
+            k, kind, mode, &pts, &q, &pts, &values, &sample, &progress,
+        );
+        assert_eq!(plain, with);
+        let seen = seen.lock().unwrap();
+        let total = 10_000 * sample.len() as u64;
+        assert!(seen.len() >= 3, "{seen:?}");
+        assert!(seen.windows(2).all(|w| w[0].done <= w[1].done));
+        assert!(seen.iter().all(|p| p.total == total));
+        assert_eq!(seen.last().unwrap().done, total);
+    }
     use ferrofmm_kernels::{Laplace3d, direct_sum};
 
     fn problem(n: usize) -> (Vec<f64>, Vec<f64>) {

@@ -50,7 +50,7 @@ pub mod verify;
 
 pub use accuracy::{
     ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_periodic,
-    relative_errors_sources, sample_indices,
+    relative_errors_sources, relative_errors_sources_with_progress, sample_indices,
 };
 pub use builder::{
     DEFAULT_F32_TOLERANCE, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, DEFAULT_TOLERANCE, FmmBuilder,

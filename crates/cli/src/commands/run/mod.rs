@@ -10,8 +10,8 @@ use std::time::Instant;
 use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
-    EvalTimings, Fmm, FmmBuilder, FmmError, effective_tolerance, relative_errors_sources,
-    sample_indices,
+    EvalTimings, Fmm, FmmBuilder, FmmError, effective_tolerance,
+    relative_errors_sources_with_progress, sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, MemoryReport, PrecomputeMonitor, Verification};
 use ferrofmm_kernels::{EvalMode, Kernel, KernelVisitor, Precision, Real, SourceKind};
@@ -446,14 +446,16 @@ where
                     )
                 },
             )?,
-            None => with_stage(
-                format!("direct summation on {} sampled targets", sample.len()),
-                || {
-                    relative_errors_sources(
-                        &kernel, kind, mode, &sources, &q, tgt, &values, &sample,
-                    )
-                },
-            ),
+            None => {
+                // A bar with the time left: at 1e8 sources a check of 1000
+                // targets is 1e11 pairs.
+                let what = format!("direct summation on {} sampled targets", sample.len());
+                let stage = crate::progress::stage(what.clone());
+                let progress = stage.eval_progress(what);
+                relative_errors_sources_with_progress(
+                    &kernel, kind, mode, &sources, &q, tgt, &values, &sample, &progress,
+                )
+            }
         };
         let figures = ErrorFigures {
             n_sampled: e.n_sampled,
