@@ -266,3 +266,34 @@ fn estimates_follow_the_usage() {
     );
     assert!(svd.peak_bytes > 0 && svd.seconds > 0.0);
 }
+
+/// The FFT scheme holds nothing for a tree without V pairs (one leaf, or
+/// a shallow adaptive tree), and per level only for the levels used (a
+/// non-homogeneous kernel); the used levels apply as the full operators do.
+#[test]
+fn fft_holds_no_slab_for_unused_levels() {
+    use ferrofmm_field::{FftConfig, FftM2l};
+    let params = OperatorParams::new(ORDER);
+    let empty =
+        FftM2l::<f64>::precompute_for(&Laplace3d, &params, &FftConfig, 1.0, 0, &M2lUsage::none())
+            .unwrap();
+    assert_eq!(empty.memory_bytes(), 0);
+    let kernel = ModifiedHelmholtz3d::new(2.0).unwrap();
+    let one_level =
+        FftM2l::<f64>::precompute_for(&kernel, &params, &FftConfig, 1.0, 5, &usage(4, &USED))
+            .unwrap();
+    let mut u = usage(4, &USED);
+    u.mark(2, 0);
+    let two_levels =
+        FftM2l::<f64>::precompute_for(&kernel, &params, &FftConfig, 1.0, 5, &u).unwrap();
+    assert!(one_level.memory_bytes() > 0);
+    assert_eq!(two_levels.memory_bytes(), 2 * one_level.memory_bytes());
+    let full = FftM2l::<f64>::precompute(&kernel, &params, &FftConfig, 1.0, 5).unwrap();
+    let vectors = transfer_vectors();
+    for &v in &USED {
+        assert_eq!(
+            apply_one(&one_level, 4, vectors[v]),
+            apply_one(&full, 4, vectors[v])
+        );
+    }
+}

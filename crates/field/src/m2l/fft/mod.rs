@@ -448,6 +448,10 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let cc = c * c;
         let slab_len = blocks * SLAB_VECTORS * cc * W;
         let compute_set = |set: usize, wanted: &[usize]| -> Result<Vec<f64>, FieldError> {
+            if wanted.is_empty() {
+                // A level (or a tree) without V pairs holds no slab.
+                return Ok(Vec::new());
+            }
             let h = levels.set_half_width(set);
             let computed: Vec<(usize, Vec<Vec<Complex<f64>>>)> = wanted
                 .par_iter()
