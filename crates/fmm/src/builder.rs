@@ -642,9 +642,13 @@ fn check_periodic_problem<K: Kernel>(
         .downcast_ref::<Laplace3d>()
         .is_none()
     {
+        // The name every front end takes (`yukawa`), with the library's.
+        let name = match ferrofmm_kernels::KernelChoice::of(kernel) {
+            Some(c) => format!("{} ({})", c.description().name, kernel.name()),
+            None => kernel.name(),
+        };
         return Err(FmmError::InvalidParameter(format!(
-            "periodic boundaries run the Laplace kernel only in this release, not {}",
-            kernel.name()
+            "periodic boundaries run the Laplace kernel only in this release, not {name}"
         )));
     }
     if kind != SourceKind::Charge {

@@ -129,6 +129,14 @@ pub struct EvalArgs {
     /// `ferrofmm --quiet`.
     #[arg(short = 'q', long)]
     pub(crate) quiet: bool,
+    /// A periodic cell, as `ferrofmm eval --box L`: not in the distributed
+    /// FMM yet, refused with where periodic systems run (`ferrofmm eval
+    /// --box`, Python's `box=`, on one machine).
+    #[arg(long = "box", value_name = "L")]
+    pub(crate) periodic_box: Option<String>,
+    /// Periodic axes, as `ferrofmm eval --periodic`: refused as `--box`.
+    #[arg(long, value_name = "AXES")]
+    pub(crate) periodic: Option<String>,
 }
 
 /// This rank's points and densities (`kind`, `kernel.values_per_source`
@@ -259,6 +267,8 @@ fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
         ("--no-cache", a.no_cache.to_string()),
         ("--json", a.json.to_string()),
         ("--quiet", a.quiet.to_string()),
+        ("--box", given(a.periodic_box.as_ref())),
+        ("--periodic", given(a.periodic.as_ref())),
     ]
 }
 
@@ -308,6 +318,15 @@ pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
     // them has the same outcome everywhere.
     if let Err(e) = agree_options(world, &shared_options(a)) {
         return fail(e);
+    }
+    if let Some(flag) = [("--box", &a.periodic_box), ("--periodic", &a.periodic)]
+        .iter()
+        .find_map(|(flag, v)| v.is_some().then_some(flag))
+    {
+        return fail(format!(
+            "{flag}: periodic boundaries are not in the distributed FMM yet; run them on one \
+             machine with `ferrofmm eval --box L` or Python's `ferrofmm.laplace(..., box=L)`"
+        ));
     }
     let kernel = match KernelChoice::parse(&a.kernel) {
         Ok(k) => k,

@@ -49,6 +49,17 @@ fn eval_refuses_hostile_input_on_every_rank() {
         );
     };
     let outdir = path("outdir");
+    // A periodic cell: refused with where it runs, not as an unknown
+    // argument (round 3, issue 32).
+    for (ranks, extra) in [(1, ["--box", "1"]), (2, ["--periodic", "xyz"])] {
+        let args = base(&extra);
+        let label = extra[0];
+        expect_error(
+            label,
+            mpirun(ranks, &refs(&args)),
+            "not in the distributed FMM yet",
+        );
+    }
     // Row 2: --out names a directory (1 and 2 ranks).
     for ranks in [1, 2] {
         let args = base(&[]);
