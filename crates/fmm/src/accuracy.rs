@@ -141,10 +141,7 @@ pub fn relative_errors_sources<P: Real, T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> ErrorReport {
-    let problem = Comparison::new(kernel, kind, mode, sources, densities, targets, values);
-    let mut sums = ErrorSums::default();
-    problem.add(&mut sums, sample);
-    sums.report(mode)
+    Comparison::new(kernel, kind, mode, sources, densities, targets, values).errors_at(sample)
 }
 
 /// [`relative_errors_sources`] reporting its progress to `progress`: the
@@ -184,11 +181,9 @@ pub fn relative_errors_sources_with_progress<P: Real, T: Real, K: Kernel>(
     sample: &[usize],
     progress: &Arc<ProgressFn>,
 ) -> ErrorReport {
-    let problem = Comparison::new(kernel, kind, mode, sources, densities, targets, values)
-        .with_progress(Some(progress));
-    let mut sums = ErrorSums::default();
-    problem.add(&mut sums, sample);
-    sums.report(mode)
+    Comparison::new(kernel, kind, mode, sources, densities, targets, values)
+        .with_progress(Some(progress))
+        .errors_at(sample)
 }
 
 /// The Ewald truth of a periodic Laplace problem: the charges at the
@@ -275,9 +270,7 @@ pub fn relative_errors_periodic<T: Real>(
         values,
     )
     .with_truth(Some(&truth));
-    let mut sums = ErrorSums::default();
-    problem.add(&mut sums, sample);
-    Ok(sums.report(mode))
+    Ok(problem.errors_at(sample))
 }
 
 /// Estimate the relative L2 errors of `values` on a random sample of
@@ -466,16 +459,23 @@ impl<'a, P: Real, T: Real, K: Kernel> Comparison<'a, P, T, K> {
         }
     }
 
-    /// The same comparison against `truth` (when given) instead of the
-    /// direct sums.
     /// The direct sums report to `progress` (see
     /// [`relative_errors_sources_with_progress`]).
     pub(crate) fn with_progress(self, progress: Option<&'a Arc<ProgressFn>>) -> Self {
         Comparison { progress, ..self }
     }
 
+    /// The same comparison against `truth` (when given) instead of the
+    /// direct sums.
     pub(crate) fn with_truth(self, truth: Option<&'a Truth<'a>>) -> Self {
         Comparison { truth, ..self }
+    }
+
+    /// The errors at the targets of `sample`.
+    fn errors_at(&self, sample: &[usize]) -> ErrorReport {
+        let mut sums = ErrorSums::default();
+        self.add(&mut sums, sample);
+        sums.report(self.mode)
     }
 
     /// Add the targets `sample` to `sums`.
