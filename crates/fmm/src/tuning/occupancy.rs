@@ -281,10 +281,10 @@ impl NeighbourhoodView for LevelsView<'_> {
     fn coarse_leaf(&self, (l, i): Self::Box, o: usize) -> Option<Self::Box> {
         let levels = self.0;
         let nk = levels[l].keys[i].neighbour(index_offset(o))?;
-        (0..l).rev().find_map(|up| {
-            let (m, a) = count_find(levels, nk.ancestor(up as u32))?;
-            Some((levels[m].masks[a] == 0).then_some((m, a)))
-        })?
+        let (m, a) = (0..l)
+            .rev()
+            .find_map(|up| count_find(levels, nk.ancestor(up as u32)))?;
+        (levels[m].masks[a] == 0).then_some((m, a))
     }
 
     fn is_leaf(&self, (l, i): Self::Box) -> bool {
