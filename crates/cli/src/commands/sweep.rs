@@ -129,7 +129,8 @@ pub fn parse_orders(text: &str) -> std::result::Result<Orders, String> {
     Ok(Orders(orders))
 }
 
-/// A requested accuracy: a number in (0, 1).
+/// A requested accuracy: a number in (0, 1), checked by the library's own
+/// rule (`ferrofmm_fmm::tuning::validate_tolerance`, with its message).
 fn parse_tolerance(text: &str) -> std::result::Result<f64, String> {
     let eps: f64 = text.trim().parse().map_err(|_| {
         format!(
@@ -137,11 +138,9 @@ fn parse_tolerance(text: &str) -> std::result::Result<f64, String> {
             text.trim()
         )
     })?;
-    if eps > 0.0 && eps < 1.0 {
-        Ok(eps)
-    } else {
-        Err(format!("tolerance {eps} is not between 0 and 1"))
-    }
+    ferrofmm_fmm::tuning::validate_tolerance(eps, ferrofmm_kernels::Precision::F64)
+        .map(|()| eps)
+        .map_err(|e| e.to_string())
 }
 
 /// One run of the sweep.
@@ -221,16 +220,17 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
     }
     std::fs::create_dir_all(&args.out_dir).map_err(|e| CliError::io(&args.out_dir, e))?;
 
-    let configs = jobs(args);
+    let all = jobs(args);
     let exe =
         std::env::current_exe().map_err(|e| CliError::io(Path::new("current executable"), e))?;
     let csv_path = args.out_dir.join("results.csv");
-    let bar = crate::progress::bar(configs.len() as u64);
-    let mut runs: Vec<RunReport> = Vec::with_capacity(configs.len());
-    // A chosen run the library declines (a tolerance beyond what f32 can
-    // promise on these points) is skipped, with its reason, not fatal.
+    let bar = crate::progress::bar(all.len() as u64);
+    let mut runs: Vec<RunReport> = Vec::with_capacity(all.len());
+    // A chosen run that fails is skipped with its reason, not fatal: the
+    // library may decline a tolerance (beyond what f32 can promise on
+    // these points), which is an answer, not a broken sweep.
     let mut skipped = Vec::new();
-    for job in &configs {
+    for job in &all {
         bar.set_message(job.describe());
         let report = match run_child(&exe, args, job, threads) {
             Ok(report) => report,
@@ -277,12 +277,12 @@ pub fn sweep(args: &SweepArgs, threads: Option<usize>) -> Result<()> {
 /// then the chosen runs (defaults first, then the tolerances) per
 /// precision, but for tolerances f32 cannot promise on any points.
 fn jobs(args: &SweepArgs) -> Vec<Job> {
-    let mut configs = Vec::new();
+    let mut jobs = Vec::new();
     for &precision in &args.precision {
         for &scheme in &args.schemes {
             for &leaf_size in &args.leaf_sizes {
                 for &order in &args.orders.0 {
-                    configs.push(Job::Grid(Config {
+                    jobs.push(Job::Grid(Config {
                         order,
                         scheme,
                         precision,
@@ -305,13 +305,13 @@ fn jobs(args: &SweepArgs) -> Vec<Job> {
             {
                 continue;
             }
-            configs.push(Job::Chosen {
+            jobs.push(Job::Chosen {
                 tolerance,
                 precision,
             });
         }
     }
-    configs
+    jobs
 }
 
 /// Run one configuration as `ferrofmm demo --json` and parse its report.
