@@ -10,6 +10,15 @@ const SIMD_BLOCK: usize = 2;
 /// Lanes per target block of the portable backend (one lane per register),
 /// unless the kernel asks for [`PairKernel::PORTABLE_LANES`] = 16.
 const PORTABLE_BLOCK: usize = 64;
+/// Outputs per target up to which a SIMD block's accumulators go to the
+/// micro-kernel in place (by register, then output); beyond, and on the
+/// portable backend, they are laid out by output, then register, and
+/// copied in and out around each call. Measured on AVX2 and AVX-512: in
+/// place keeps Helmholtz's eight gradient accumulators in registers
+/// (copied, they lived on the stack: 9% slower), while the copies let the
+/// register allocator spill the ten or twenty accumulators of a Hessian
+/// better (in place, the radial Hessian on AVX2 was 6-9% slower).
+const IN_PLACE_UP_TO: usize = 8;
 /// Largest block, in targets (`C * LANES`): 2 x 16 `f32` or 64 x 1.
 const MAX_BLOCK: usize = 64;
 
@@ -180,38 +189,66 @@ fn block_of<
             row[c] = s.load(&buf[a][c * l..]);
         }
     }
-    // Accumulators by output, then register: with one lane per register
-    // (portable) the loop over registers is then unit-stride, which the
-    // compiler vectorises; with SIMD registers it is all in registers.
-    let mut acc = [[zero; C]; W];
-    for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(NQ)) {
-        let sx = [s.splat(x[0]), s.splat(x[1]), s.splat(x[2])];
-        let mut vq = [zero; NQ];
-        for (v, &q) in vq.iter_mut().zip(q) {
-            *v = s.splat(q);
-        }
-        for c in 0..C {
-            let d = [
-                s.sub(sx[0], ty[0][c]),
-                s.sub(sx[1], ty[1][c]),
-                s.sub(sx[2], ty[2][c]),
-            ];
-            let r2 = s.mul_add(d[2], d[2], s.mul_add(d[1], d[1], s.mul(d[0], d[0])));
-            let mut a = [zero; W];
-            for (v, row) in a.iter_mut().zip(&acc) {
-                *v = row[c];
-            }
-            p.pair::<T, S, NQ, W>(s, regs, &d, r2, &vq, &mut a);
-            for (v, row) in a.into_iter().zip(acc.iter_mut()) {
-                row[c] = v;
-            }
-        }
-    }
-    let scale = s.splat(T::from_f64(p.lane_scale()));
     let mut res = [[T::ZERO; MAX_BLOCK]; W];
-    for c in 0..C {
-        for (row, out) in acc.iter().zip(res.iter_mut()) {
-            s.store(s.mul(row[c], scale), &mut out[c * l..]);
+    if S::LANES > 1 && W <= IN_PLACE_UP_TO {
+        // Accumulators by register, then output: each register's `W`
+        // accumulators go to the micro-kernel in place, with no copy.
+        let mut acc = [[zero; W]; C];
+        for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(NQ)) {
+            let sx = [s.splat(x[0]), s.splat(x[1]), s.splat(x[2])];
+            let mut vq = [zero; NQ];
+            for (v, &q) in vq.iter_mut().zip(q) {
+                *v = s.splat(q);
+            }
+            for (c, a) in acc.iter_mut().enumerate() {
+                let d = [
+                    s.sub(sx[0], ty[0][c]),
+                    s.sub(sx[1], ty[1][c]),
+                    s.sub(sx[2], ty[2][c]),
+                ];
+                let r2 = s.mul_add(d[2], d[2], s.mul_add(d[1], d[1], s.mul(d[0], d[0])));
+                p.pair::<T, S, NQ, W>(s, regs, &d, r2, &vq, a);
+            }
+        }
+        let scale = s.splat(T::from_f64(p.lane_scale()));
+        for (c, a) in acc.iter().enumerate() {
+            for (v, out) in a.iter().zip(res.iter_mut()) {
+                s.store(s.mul(*v, scale), &mut out[c * l..]);
+            }
+        }
+    } else {
+        // Accumulators by output, then register: with one lane per
+        // register (portable) the loop over registers is unit-stride, which
+        // the compiler vectorises.
+        let mut acc = [[zero; C]; W];
+        for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(NQ)) {
+            let sx = [s.splat(x[0]), s.splat(x[1]), s.splat(x[2])];
+            let mut vq = [zero; NQ];
+            for (v, &q) in vq.iter_mut().zip(q) {
+                *v = s.splat(q);
+            }
+            for c in 0..C {
+                let d = [
+                    s.sub(sx[0], ty[0][c]),
+                    s.sub(sx[1], ty[1][c]),
+                    s.sub(sx[2], ty[2][c]),
+                ];
+                let r2 = s.mul_add(d[2], d[2], s.mul_add(d[1], d[1], s.mul(d[0], d[0])));
+                let mut a = [zero; W];
+                for (v, row) in a.iter_mut().zip(&acc) {
+                    *v = row[c];
+                }
+                p.pair::<T, S, NQ, W>(s, regs, &d, r2, &vq, &mut a);
+                for (v, row) in a.into_iter().zip(acc.iter_mut()) {
+                    row[c] = v;
+                }
+            }
+        }
+        let scale = s.splat(T::from_f64(p.lane_scale()));
+        for c in 0..C {
+            for (row, out) in acc.iter().zip(res.iter_mut()) {
+                s.store(s.mul(row[c], scale), &mut out[c * l..]);
+            }
         }
     }
     for (j, o) in ob.chunks_exact_mut(W).enumerate() {

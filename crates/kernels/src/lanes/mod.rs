@@ -28,7 +28,10 @@
 //! target, or 16 for long micro-kernels: [`PairKernel::TWO_REGISTERS_UP_TO`],
 //! [`PairKernel::PORTABLE_LANES`]). A block's target coordinates are
 //! de-interleaved once into registers, and its `W` accumulators stay in
-//! registers for the whole sweep over the sources. Each source costs
+//! registers for the whole sweep over the sources: up to 8 outputs they go
+//! to the micro-kernel in place; beyond (Hessians) they are copied in and
+//! out around each call, which lets the register allocator spill them
+//! better (both measured). Each source costs
 //! `3 + NQ` broadcasts shared by the block; per register the loop forms
 //! `d = x_i - y` (source minus target) and `r2 = |d|^2` (fused
 //! multiply-adds) and calls the micro-kernel. Sources are read in storage
