@@ -92,14 +92,15 @@ impl OperatorParams {
 
     /// The cutoff used for `kernel` in float type `precision`: the one set,
     /// else the larger of the precision's default and the kernel's
-    /// [`Kernel::pinv_rcond_floor`](ferrofmm_kernels::Kernel::pinv_rcond_floor).
+    /// [`Kernel::pinv_rcond_floor`](ferrofmm_kernels::Kernel::pinv_rcond_floor)
+    /// at this order.
     pub fn rcond_for_kernel<K: ferrofmm_kernels::Kernel>(
         &self,
         kernel: &K,
         precision: Precision,
     ) -> f64 {
         self.pinv_rcond.unwrap_or_else(|| {
-            default_pinv_rcond(precision).max(kernel.pinv_rcond_floor().unwrap_or(0.0))
+            default_pinv_rcond(precision).max(kernel.pinv_rcond_floor(self.order).unwrap_or(0.0))
         })
     }
 

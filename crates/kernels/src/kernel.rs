@@ -181,14 +181,16 @@ pub trait Kernel: Clone + Send + Sync + 'static {
     }
 
     /// The smallest relative cutoff the FMM's check-to-equivalent
-    /// pseudo-inverses should use when the user sets none (the library's
-    /// default is `1e-13` in `f64`, `1e-7` in `f32`; the larger of the two
-    /// is used). `None` (the default) for kernels whose equivalent-density
-    /// problem is merely ill-conditioned. A kernel whose single layer on a
-    /// closed surface has a null space (Stokes: a density along the normal
-    /// makes no flow outside) needs a cutoff above that null space's
-    /// rounding level, or the pseudo-inverse amplifies it.
-    fn pinv_rcond_floor(&self) -> Option<f64> {
+    /// pseudo-inverses should use at expansion order `order` when the user
+    /// sets none (the library's default is `1e-13` in `f64`, `1e-7` in
+    /// `f32`; the larger of the two is used). `None` (the default) for
+    /// kernels whose equivalent-density problem is merely ill-conditioned.
+    /// A kernel whose single layer on a closed surface has a near-null
+    /// space (Stokes: a density along the normal makes no flow outside)
+    /// needs a cutoff above it, or the pseudo-inverse amplifies what the
+    /// check points cannot see; how far above can depend on the order
+    /// ([`Stokes3d`](crate::Stokes3d)'s does).
+    fn pinv_rcond_floor(&self, _order: usize) -> Option<f64> {
         None
     }
 

@@ -151,14 +151,29 @@ impl Kernel for Stokes3d {
         Some(-1.0)
     }
 
-    /// `1e-9`: the Stokeslet's single layer on a closed surface has a null
-    /// space (normal densities), whose singular values sit near `1e-12` of
-    /// the largest; with the default `1e-13` cutoff the pseudo-inverse
-    /// amplifies them, and the error at odd orders jumps (measured at
-    /// N = 2000, positive forces: p = 7 gives 1.4e-4 at `1e-13`, 2.6e-7 at
-    /// `1e-9`; p = 6 is 6.4e-6 either way).
-    fn pinv_rcond_floor(&self) -> Option<f64> {
-        Some(1e-9)
+    /// `1e-5` up to order 5, `1e-6` at order 6, `1e-9` from order 7 on.
+    ///
+    /// The Stokeslet's single layer on a closed surface nearly annihilates
+    /// normal densities, and the check matrices' smallest singular values
+    /// fall much faster with the order than Laplace's (relative to the
+    /// largest, upward check matrix: `2e-6` at order 4, `1e-8` at 5, `4e-11`
+    /// at 6, `7e-13` at 7); a cutoff that keeps the smallest lets the
+    /// equivalent densities grow along them, and the error rises. Measured (N = 1e4, leaf 64, FFT M2L; worst of velocity and gradient
+    /// on 400 targets, cube with zero-mean forces): order 5 gives 4.8e-3 at
+    /// `1e-9` (worse than order 4's 2.4e-3), 5.3e-4 at `1e-7` and 2.2e-4
+    /// at `1e-5`; order 6 gives 1.1e-4 at `1e-9`, 4.2e-5 at `1e-6` and
+    /// 8.7e-5 at `1e-5`; orders 7 and 8 are best at `1e-9` or `1e-8` and
+    /// lose 2-4x at `1e-6`. The smaller default `1e-13` amplifies the null
+    /// space's rounding at odd orders (N = 2000, positive forces: order 7
+    /// gives 1.4e-4 at `1e-13`, 2.6e-7 at `1e-9`). With these cutoffs each
+    /// order from 3 to 10 is more accurate than the one before, on the cube
+    /// and on Plummer's positive forces (`docs/kernels.md`).
+    fn pinv_rcond_floor(&self, order: usize) -> Option<f64> {
+        Some(match order {
+            ..=5 => 1e-5,
+            6 => 1e-6,
+            _ => 1e-9,
+        })
     }
 
     /// 3: the force and velocity components.
