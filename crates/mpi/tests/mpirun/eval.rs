@@ -2,6 +2,7 @@
 //! targets, quiet runs and the memory limit.
 
 use crate::common::*;
+use ferrofmm_testing::errors::relative_l2;
 
 /// `eval` with files: the result of 3 ranks (each reading its rows of a
 /// `.npy` file, writing its rows of the output) equals that of 1 rank
@@ -46,13 +47,8 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
     assert!(ok, "{text}");
     let read = |name: &str| read_columns(&path(name), n, 4);
     let (a, b) = (read("o1.npy"), read("o3.npy"));
-    let num: f64 = a.iter().zip(&b).map(|(x, y)| (x - y) * (x - y)).sum();
-    let den: f64 = a.iter().map(|x| x * x).sum();
-    assert!(
-        (num / den).sqrt() <= 1e-12,
-        "R = 3 differs: {}",
-        (num / den).sqrt()
-    );
+    let d = relative_l2(&b, &a);
+    assert!(d <= 1e-12, "R = 3 differs: {d}");
     // f32 on 2 ranks: the f64 result to the accuracy of order 4 in f32.
     let (ok, text) = mpirun(
         2,
@@ -75,13 +71,9 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
     );
     assert!(ok, "{text}");
     let c = read("o32.npy");
-    let num: f64 = a.iter().zip(&c).map(|(x, y)| (x - y) * (x - y)).sum();
     // (f32 has its own pseudo-inverse cutoff, so its operators differ too.)
-    assert!(
-        (num / den).sqrt() <= 1e-3,
-        "f32 differs: {}",
-        (num / den).sqrt()
-    );
+    let d = relative_l2(&c, &a);
+    assert!(d <= 1e-3, "f32 differs: {d}");
     // --check: the error against direct summation at a sample, as JSON.
     let (ok, text) = mpirun(
         2,
@@ -112,13 +104,8 @@ fn eval_command_reads_slices_and_writes_the_input_order() {
     assert!(o5.starts_with("potential\n"), "{}", &o5[..40]);
     let o5 = read_columns(&path("o5.csv"), n, 1);
     let p4: Vec<f64> = a.iter().step_by(4).copied().collect();
-    let num: f64 = o5.iter().zip(&p4).map(|(x, y)| (x - y) * (x - y)).sum();
-    let den: f64 = p4.iter().map(|x| x * x).sum();
-    assert!(
-        (num / den).sqrt() < 1e-3,
-        "order 5 vs 4: {}",
-        (num / den).sqrt()
-    );
+    let d = relative_l2(&o5, &p4);
+    assert!(d < 1e-3, "order 5 vs 4: {d}");
     let (ok, text) = run(2, &path("s.csv"), &path("short.csv"), &path("bad.npy"));
     assert!(!ok && text.contains("charges"), "{text}");
     assert!(!std::path::Path::new(&path("bad.npy")).exists());
@@ -146,11 +133,6 @@ fn eval_command_with_kernels_tolerance_and_cache() {
     write_npy(&path("f.npy"), &f, 3);
     write_npy(&path("z.npy"), &f[..2 * n], 2);
     let read = |name: &str, cols: usize| read_columns(&path(name), n, cols);
-    let rel = |a: &[f64], b: &[f64]| {
-        let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-        let den: f64 = a.iter().map(|x| x * x).sum();
-        (num / den).sqrt()
-    };
     // Stokes: velocities and their gradients (3 + 9 columns).
     for (ranks, out) in [(1, "u1.npy"), (3, "u3.npy")] {
         let (ok, text) = mpirun(
@@ -174,7 +156,7 @@ fn eval_command_with_kernels_tolerance_and_cache() {
         );
         assert!(ok, "R = {ranks}:\n{text}");
     }
-    let d = rel(&read("u1.npy", 12), &read("u3.npy", 12));
+    let d = relative_l2(&read("u3.npy", 12), &read("u1.npy", 12));
     assert!(d <= 1e-12, "Stokes on 3 ranks differs by {d}");
 
     // Helmholtz to a tolerance: chosen, verified, met.
@@ -293,11 +275,6 @@ fn eval_with_separate_targets() {
         assert!(ok, "{text}");
         read_columns(&path(out), m, 4)
     };
-    let rel = |a: &[f64], b: &[f64]| {
-        let num: f64 = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum();
-        let den: f64 = b.iter().map(|x| x * x).sum();
-        (num / den).sqrt()
-    };
     // Operators computed here, as the single machine's below (a cached SVD
     // basis may have been made for another tree's transfer vectors).
     let fixed = [
@@ -311,7 +288,11 @@ fn eval_with_separate_targets() {
     ];
     let one = run(1, "o1.npy", &fixed);
     let three = run(3, "o3.npy", &fixed);
-    assert!(rel(&three, &one) <= 1e-12, "{}", rel(&three, &one));
+    assert!(
+        relative_l2(&three, &one) <= 1e-12,
+        "{}",
+        relative_l2(&three, &one)
+    );
     // The distributed tree's cube: the bounding cube of sources and targets.
     let domain = ferrofmm_tree::Domain::from_points(&[&src, &tgt]).unwrap();
     let single = ferrofmm_fmm::FmmBuilder::new(&src)
@@ -335,17 +316,17 @@ fn eval_with_separate_targets() {
         &mut direct,
     );
     assert!(
-        rel(&one, &single) <= 1e-12,
+        relative_l2(&one, &single) <= 1e-12,
         "{} (against a direct sum: {} and {})",
-        rel(&one, &single),
-        rel(&one, &direct),
-        rel(&single, &direct)
+        relative_l2(&one, &single),
+        relative_l2(&one, &direct),
+        relative_l2(&single, &direct)
     );
     let eps = 1e-5;
     let checked = run(2, "oe.npy", &["--tolerance", "1e-5"]);
     let pot = |v: &[f64]| v.chunks(4).map(|r| r[0]).collect::<Vec<_>>();
-    assert!(rel(&pot(&checked), &pot(&direct)) <= eps);
-    assert!(rel(&checked, &direct) <= 2.0 * eps);
+    assert!(relative_l2(&pot(&checked), &pot(&direct)) <= eps);
+    assert!(relative_l2(&checked, &direct) <= 2.0 * eps);
 }
 
 /// `eval --quiet`: a successful run prints nothing on any rank (its output
