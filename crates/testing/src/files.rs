@@ -216,6 +216,40 @@ pub struct Malformed {
 /// The shared table of malformed files (JSON, read by the Python tests too).
 pub const MALFORMED_JSON: &str = include_str!("../data/malformed.json");
 
+/// The `eval` arguments both commands run on every file form (order 6,
+/// leaf 40, FFT M2L, operators cached in `cache`), so that `ferrofmm` and
+/// `ferrofmm-mpi` are checked on the same run.
+pub fn eval_args(
+    sources: &Path,
+    charges: &Path,
+    kernel: &str,
+    cache: &Path,
+    out: &Path,
+) -> Vec<String> {
+    let path = |p: &Path| p.to_string_lossy().into_owned();
+    [
+        "eval",
+        "--sources",
+        &path(sources),
+        "--charges",
+        &path(charges),
+        "--kernel",
+        kernel,
+        "--order",
+        "6",
+        "--leaf-size",
+        "40",
+        "--scheme",
+        "fft",
+        "--cache-dir",
+        &path(cache),
+        "--out",
+        &path(out),
+    ]
+    .map(String::from)
+    .to_vec()
+}
+
 /// Write the files of [`MALFORMED_JSON`] into `dir`.
 pub fn malformed(dir: &Path) -> Vec<Malformed> {
     let cases: Vec<serde_json::Value> =

@@ -11,7 +11,7 @@ use crate::common;
 use std::path::Path;
 
 use common::{ferrofmm, scratch, texts};
-use ferrofmm_testing::files::{Table, direct, f32_exact, malformed, write_forms};
+use ferrofmm_testing::files::{Table, direct, eval_args, f32_exact, malformed, write_forms};
 
 const N: usize = 240;
 const WAVENUMBER: f64 = 2.0;
@@ -42,25 +42,8 @@ fn read_output(path: &Path) -> (String, Vec<u64>, Vec<f64>) {
 fn eval(dir: &Path, sources: &Path, charges: &Path, kernel: &str) -> (String, Vec<u64>, Vec<f64>) {
     let out = dir.join("out.npy");
     let cache = dir.join("cache");
-    let args = [
-        "eval",
-        "--sources",
-        sources.to_str().unwrap(),
-        "--charges",
-        charges.to_str().unwrap(),
-        "--kernel",
-        kernel,
-        "--order",
-        "6",
-        "--leaf-size",
-        "40",
-        "--scheme",
-        "fft",
-        "--cache-dir",
-        cache.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ];
+    let args = eval_args(sources, charges, kernel, &cache, &out);
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
     let run = ferrofmm(&args);
     let (stdout, stderr) = texts(&run);
     assert!(run.status.success(), "{args:?}: {stdout} {stderr}");

@@ -168,7 +168,7 @@ fn eval_refuses_hostile_input_on_every_rank() {
 #[test]
 fn eval_reads_every_file_form_as_ferrofmm_eval_does() {
     use ferrofmm_testing::errors::relative_l2;
-    use ferrofmm_testing::files::{Table, direct, f32_exact, malformed, write_forms};
+    use ferrofmm_testing::files::{Table, direct, eval_args, f32_exact, malformed, write_forms};
     let scratch = ferrofmm_testing::TempDir::new("mpi-file-forms");
     let dir: &std::path::Path = &scratch;
     let n = 240;
@@ -183,25 +183,8 @@ fn eval_reads_every_file_form_as_ferrofmm_eval_does() {
     let cache = dir.join("cache");
     let eval = |ranks: usize, p: &std::path::Path, q: &std::path::Path, kernel: &str| {
         let _ = std::fs::remove_file(&out);
-        let args = [
-            "eval",
-            "--sources",
-            p.to_str().unwrap(),
-            "--charges",
-            q.to_str().unwrap(),
-            "--kernel",
-            kernel,
-            "--order",
-            "6",
-            "--leaf-size",
-            "40",
-            "--scheme",
-            "fft",
-            "--cache-dir",
-            cache.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ];
+        let args = eval_args(p, q, kernel, &cache, &out);
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
         let (ok, text) = mpirun(ranks, &args);
         assert!(ok, "{args:?}: {text}");
         let npy = npyz::NpyFile::new(std::fs::File::open(&out).unwrap()).unwrap();
