@@ -8,6 +8,7 @@ mod common;
 mod components;
 mod direct;
 mod ewald;
+mod ewald_screened;
 mod gradients;
 mod helmholtz;
 mod lane_kernel;

@@ -1,9 +1,9 @@
 //! [`PeriodicGreen`]: the periodic Green's function of a cell pair by pair,
 //! whole or without its 27 nearest images.
 
-use super::TWO_OVER_SQRT_PI;
 use super::parameters::{PeriodicCell, reduced_cutoff};
 use super::reciprocal::phase_table;
+use super::screening::{Split, min_alpha};
 use super::sum::check_points;
 use crate::{INV_4PI, KernelError};
 use rayon::prelude::*;
@@ -15,8 +15,9 @@ use std::f64::consts::PI;
 const GREEN_ALPHA_SCALE: f64 = 7.0;
 
 /// The periodic Green's function `G(r)` of the Laplace kernel `1/(4 pi r)`
-/// in a cell (tin-foil, zero mean: see the [module docs](crate::ewald)), and `G`
-/// without the 27 nearest images, pair by pair.
+/// in a cell (tin-foil, zero mean: see the [module docs](crate::ewald)), or
+/// of the screened kernel `e^{-kappa r} / (4 pi r)`, and `G` without the 27
+/// nearest images, pair by pair.
 ///
 /// * [`potential`](Self::potential): `G(r)`, every image, periodic;
 /// * [`far_images`](Self::far_images): `F(r) = G(r) - sum_{n in {-1,0,1}^3}
@@ -62,10 +63,37 @@ const GREEN_ALPHA_SCALE: f64 = 7.0;
 /// // Periodic:
 /// assert!((g.potential(r) - g.potential([1.3, 0.8, -2.9])).abs() < 1e-14);
 /// ```
+///
+/// # Screened kernel
+/// [`PeriodicGreen::screened`] gives the same for the modified Helmholtz
+/// (Yukawa) kernel `K(r) = e^{-kappa r} / (4 pi r)`, whose lattice sum
+/// converges absolutely: no background, `(-Delta + kappa^2) F = 0` where
+/// the 27 images are the nearest, and the Ewald split of the module's
+/// `screening.rs` (`erfc(alpha rho) / rho` becomes the screened
+/// short-range kernel `psi(rho)`, `erf(alpha rho) / rho` its long-range
+/// part `l(rho)`, and the reciprocal coefficients `exp(-(k^2 + kappa^2) /
+/// (4 alpha^2)) / (k^2 + kappa^2)`, the `k = 0` one included).
+///
+/// ```
+/// use ferrofmm_kernels::{PeriodicCell, PeriodicGreen, INV_4PI};
+/// let cell = PeriodicCell::cubic([0.0; 3], 1.0).unwrap();
+/// let kappa = 6.0;
+/// let g = PeriodicGreen::screened(cell, kappa, 1e-15).unwrap();
+/// // Screened strongly enough that a few shells of images converge.
+/// let r = [0.3, -0.2, 0.1];
+/// let mut sum = 0.0;
+/// for nx in -8i32..=8 { for ny in -8i32..=8 { for nz in -8i32..=8 {
+///     let d = [r[0] - nx as f64, r[1] - ny as f64, r[2] - nz as f64];
+///     let rho = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+///     sum += INV_4PI * (-kappa * rho).exp() / rho;
+/// }}}
+/// assert!((g.potential(r) - sum).abs() < 1e-14 * sum);
+/// ```
 #[derive(Clone, Debug)]
 pub struct PeriodicGreen {
     cell: PeriodicCell,
     alpha: f64,
+    split: Split,
     r_cut: f64,
     k0: [f64; 3],
     kmax: [usize; 3],
@@ -84,9 +112,22 @@ impl PeriodicGreen {
     /// # Errors
     /// [`KernelError::InvalidParameter`] for a tolerance outside `(0, 1)`.
     pub fn new(cell: PeriodicCell, tolerance: f64) -> Result<Self, KernelError> {
+        Self::screened(cell, 0.0, tolerance)
+    }
+
+    /// The Green's function of the screened kernel `e^{-kappa r} / (4 pi
+    /// r)` in `cell` (see [Screened kernel](#screened-kernel)); `kappa = 0`
+    /// is [`PeriodicGreen::new`]. `alpha = max(7 / V^(1/3), kappa / 8)`.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidParameter`] for a tolerance outside `(0, 1)`,
+    /// or a `kappa` that is negative or not finite.
+    pub fn screened(cell: PeriodicCell, kappa: f64, tolerance: f64) -> Result<Self, KernelError> {
+        let kappa = crate::error::check_wavenumber(kappa)?;
         let s = reduced_cutoff(tolerance)?;
         let volume = cell.volume();
-        let alpha = GREEN_ALPHA_SCALE / volume.cbrt();
+        let alpha = (GREEN_ALPHA_SCALE / volume.cbrt()).max(min_alpha(kappa));
+        let split = Split::new(alpha, kappa);
         let l = cell.lengths();
         let k0 = [0, 1, 2].map(|d| 2.0 * PI / l[d]);
         let k_cut = 2.0 * alpha * s;
@@ -113,26 +154,27 @@ impl PeriodicGreen {
                     }
                     let nz = (mx > 0) as i32 + (my > 0) as i32 + (mz > 0) as i32;
                     let mult = f64::from(1 << nz);
-                    coef.push(mult / volume * (-k2 / (4.0 * alpha * alpha)).exp() / k2);
+                    coef.push(mult / volume * split.fourier(k2));
                 }
             }
         }
         let mut g = Self {
             cell,
             alpha,
+            split,
             r_cut: s / alpha,
             k0,
             kmax,
             columns,
             coef,
-            background: -1.0 / (4.0 * alpha * alpha * volume),
+            background: split.k_zero(volume),
             self_potential: 0.0,
         };
         let mut xi = g.far_images([0.0; 3]);
         for n in near_images() {
             if n != [0, 0, 0] {
-                let d = [0, 1, 2].map(|a| n[a] as f64 * l[a]);
-                xi += INV_4PI / norm(d);
+                let rho = norm([0, 1, 2].map(|a| n[a] as f64 * l[a]));
+                xi += INV_4PI * (-kappa * rho).exp() / rho;
             }
         }
         g.self_potential = xi;
@@ -142,6 +184,11 @@ impl PeriodicGreen {
     /// The cell.
     pub fn cell(&self) -> &PeriodicCell {
         &self.cell
+    }
+
+    /// The screening wavenumber `kappa` (`0`: Laplace).
+    pub fn screening(&self) -> f64 {
+        self.split.kappa()
     }
 
     /// The splitting parameter `alpha`.
@@ -162,7 +209,9 @@ impl PeriodicGreen {
         for_images(r, l, lo, hi, |_, rho| {
             if rho < self.r_cut {
                 at_lattice_point |= rho == 0.0;
-                real += libm::erfc(self.alpha * rho) / rho;
+                if rho > 0.0 {
+                    real += self.split.short(rho, false).0;
+                }
             }
         });
         if at_lattice_point {
@@ -180,13 +229,9 @@ impl PeriodicGreen {
         let mut real = 0.0;
         for_images(r, l, lo, hi, |n, rho| {
             if n.iter().all(|c| c.abs() <= 1) {
-                real -= if rho < 1e-300 {
-                    TWO_OVER_SQRT_PI * self.alpha
-                } else {
-                    libm::erf(self.alpha * rho) / rho
-                };
+                real -= self.split.long(rho);
             } else if rho < self.r_cut {
-                real += libm::erfc(self.alpha * rho) / rho;
+                real += self.split.short(rho, false).0;
             }
         });
         INV_4PI * real + self.reciprocal(r) + self.background

@@ -1,4 +1,5 @@
-//! Ewald summation for the 3D Laplace kernel `K(r) = 1 / (4 pi |r|)` in a
+//! Ewald summation for the 3D Laplace kernel `K(r) = 1 / (4 pi |r|)`, and
+//! the screened (Yukawa) kernel `e^{-kappa |r|} / (4 pi |r|)`, in a
 //! fully periodic orthorhombic cell: the reference sum [`EwaldSum`] and the
 //! pairwise periodic Green's function [`PeriodicGreen`] (with and without
 //! its 27 nearest images) from which the FMM builds its periodisation
@@ -77,12 +78,28 @@
 //! targets `O(N^1.5)`; few targets ([`EwaldOptions::expected_targets`]) get a
 //! smaller `alpha`.
 //!
+//! # The screened (Yukawa) kernel
+//! The same sums serve the modified Helmholtz kernel `K(r) = e^{-kappa r}
+//! / (4 pi r)` ([`EwaldOptions::screening`], [`PeriodicGreen::screened`]),
+//! whose lattice sum converges absolutely: `erfc(alpha r) / r` becomes the
+//! screened short-range kernel, the reciprocal coefficients `exp(-(k^2 +
+//! kappa^2) / (4 alpha^2)) / (k^2 + kappa^2)`, the `k = 0` term is kept
+//! (`Q exp(-kappa^2 / (4 alpha^2)) / (V kappa^2)`; no background, no
+//! neutrality), and the self constant is
+//! `xi = sum_{n != 0} K(n∘L)` in the Ewald form, with
+//! `l(0) = 2 alpha e^{-b^2} / sqrt(pi) - kappa erfc(b)`, `b = kappa / (2
+//! alpha)`, in place of `2 alpha / sqrt(pi)` (`screening.rs` has the
+//! split). As `kappa -> 0` a neutral set's screened sum tends to the
+//! tin-foil Laplace sum.
+//!
 //! # Layout
 //! * `parameters.rs`: the cell, the options and the choice of `alpha`,
 //!   `r_c`, `k_c`;
 //! * `real_space.rs`: the cell list and the real-space sum;
 //! * `reciprocal.rs`: the reciprocal lattice, structure factors and their
 //!   evaluation at targets;
+//! * `screening.rs`: the split of `e^{-kappa r} / r` (Laplace's at
+//!   `kappa = 0`) into short- and long-range parts;
 //! * `sum.rs`: [`EwaldSum`];
 //! * `green.rs`: [`PeriodicGreen`].
 
@@ -90,6 +107,7 @@ mod green;
 mod parameters;
 mod real_space;
 mod reciprocal;
+mod screening;
 mod sum;
 
 pub use green::PeriodicGreen;

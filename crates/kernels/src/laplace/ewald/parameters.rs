@@ -110,13 +110,17 @@ impl PeriodicCell {
     }
 }
 
-/// Options of an [`EwaldSum`](crate::EwaldSum): the tolerance and the
-/// number of targets the sum will be evaluated at (which tunes `alpha`).
+/// Options of an [`EwaldSum`](crate::EwaldSum): the tolerance, the
+/// number of targets the sum will be evaluated at (which tunes `alpha`),
+/// and the screening wavenumber `kappa` (`0`, the default, for the Laplace
+/// kernel `1 / (4 pi r)`; `kappa > 0` for the modified Helmholtz (Yukawa)
+/// kernel `e^{-kappa r} / (4 pi r)`).
 ///
 /// ```
 /// use ferrofmm_kernels::EwaldOptions;
-/// let opts = EwaldOptions::new(1e-12).expected_targets(500);
+/// let opts = EwaldOptions::new(1e-12).expected_targets(500).screening(2.0);
 /// assert_eq!(opts.tolerance, 1e-12);
+/// assert_eq!(opts.screening, 2.0);
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[non_exhaustive]
@@ -128,6 +132,9 @@ pub struct EwaldOptions {
     /// sources. Few targets make the real-space sum cheaper per source and
     /// the structure factors relatively dearer, so `alpha` is smaller.
     pub expected_targets: Option<usize>,
+    /// The screening wavenumber `kappa >= 0` (inverse length) of the kernel
+    /// `e^{-kappa r} / (4 pi r)`; `0` is Laplace.
+    pub screening: f64,
     /// Forces the splitting parameter (tests of `alpha` independence).
     #[doc(hidden)]
     pub alpha: Option<f64>,
@@ -139,8 +146,18 @@ impl EwaldOptions {
         Self {
             tolerance,
             expected_targets: None,
+            screening: 0.0,
             alpha: None,
         }
+    }
+
+    /// The same options for the screened kernel `e^{-kappa r} / (4 pi r)`
+    /// (the modified Helmholtz kernel of
+    /// [`ModifiedHelmholtz3d`](crate::ModifiedHelmholtz3d) with `k =
+    /// kappa`).
+    pub fn screening(mut self, kappa: f64) -> Self {
+        self.screening = kappa;
+        self
     }
 
     /// The same options, tuned for about `n` targets.

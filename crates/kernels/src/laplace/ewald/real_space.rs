@@ -1,8 +1,9 @@
 //! The real-space part of an Ewald sum: a cell list over the periodic box
-//! and the screened pair sum `sum_j sum_n q_j erfc(alpha r) / r`, `r = |y -
-//! x_j - n∘L| < r_c`.
+//! and the short-range pair sum `sum_j sum_n q_j psi(r)`, `r = |y - x_j -
+//! n∘L| < r_c` (`psi(r) = erfc(alpha r) / r` for Laplace; the screened
+//! kernel's in [`Split`]).
 
-use super::TWO_OVER_SQRT_PI;
+use super::screening::Split;
 
 /// Sources sorted into a regular grid of cells (structure of arrays,
 /// coordinates relative to the cell origin, in `[0, L)`), with the stencil
@@ -26,7 +27,7 @@ pub(crate) struct CellList {
     /// when `r_c` exceeds `L`) whose cells come within `r_c` of cell 0.
     stencil: Vec<[i64; 3]>,
     r_cut2: f64,
-    alpha: f64,
+    split: Split,
 }
 
 impl CellList {
@@ -37,7 +38,7 @@ impl CellList {
         positions: &[[f64; 3]],
         charges: &[f64],
         r_cut: f64,
-        alpha: f64,
+        split: Split,
     ) -> Self {
         let n_src = positions.len();
         let max_cells = (2 * n_src).max(8) as f64;
@@ -110,19 +111,19 @@ impl CellList {
             q,
             stencil,
             r_cut2,
-            alpha,
+            split,
         }
     }
 
-    /// `[sum, gx, gy, gz]` of `q_j erfc(alpha r) / r` over the sources and
-    /// their images within `r_c` of `t` (relative, in `[0, L)`), **without**
-    /// the factor `1/(4 pi)`; the gradient (with respect to `t`) only when
+    /// `[sum, gx, gy, gz]` of `q_j psi(r)` over the sources and their
+    /// images within `r_c` of `t` (relative, in `[0, L)`), **without** the
+    /// factor `1/(4 pi)`; the gradient (with respect to `t`) only when
     /// `grad`. A pair at zero distance contributes its regular part
-    /// `lim_{r->0} (erfc(alpha r) - 1) / r = -2 alpha / sqrt(pi)` and no
-    /// gradient.
+    /// `lim_{r->0} (psi(r) - e^{-kappa r} / r) = -l(0)` (Laplace: `-2 alpha
+    /// / sqrt(pi)`) and no gradient.
     pub(crate) fn sum(&self, t: [f64; 3], grad: bool) -> [f64; 4] {
         let c = [0, 1, 2].map(|d| ((t[d] / self.h[d]) as i64).clamp(0, self.n[d] as i64 - 1));
-        let alpha = self.alpha;
+        let split = self.split;
         let mut acc = [0.0f64; 4];
         for o in &self.stencil {
             let mut idx = [0usize; 3];
@@ -151,18 +152,13 @@ impl CellList {
                 }
                 let qj = qs[j];
                 if r2 < f64::MIN_POSITIVE {
-                    acc[0] -= qj * TWO_OVER_SQRT_PI * alpha;
+                    acc[0] -= qj * split.long(0.0);
                     continue;
                 }
-                let r = r2.sqrt();
-                let rinv = 1.0 / r;
-                let e = libm::erfc(alpha * r);
-                acc[0] += qj * e * rinv;
+                let (psi, g) = split.short(r2.sqrt(), grad);
+                acc[0] += qj * psi;
                 if grad {
-                    let g = (e * rinv + TWO_OVER_SQRT_PI * alpha * (-alpha * alpha * r2).exp())
-                        * rinv
-                        * rinv
-                        * qj;
+                    let g = g * qj;
                     acc[1] -= g * dx;
                     acc[2] -= g * dy;
                     acc[3] -= g * dz;

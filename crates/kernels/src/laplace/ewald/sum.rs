@@ -4,11 +4,14 @@
 use super::parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 use super::real_space::CellList;
 use super::reciprocal::ReciprocalLattice;
+use super::screening::{Split, min_alpha};
 use crate::{EvalMode, INV_4PI, KernelError};
 use rayon::prelude::*;
 
-/// The Ewald sum of charges in a periodic cell, with conducting
-/// ("tin-foil") surroundings: the potential
+/// The Ewald sum of charges in a periodic cell, for the Laplace kernel with
+/// conducting ("tin-foil") surroundings or the screened (Yukawa) kernel
+/// `e^{-kappa r} / (4 pi r)` ([`EwaldOptions::screening`]). The Laplace
+/// potential is
 ///
 /// ```text
 /// phi(y) = sum_j q_j G(y - x_j)
@@ -19,7 +22,19 @@ use rayon::prelude::*;
 ///
 /// with `S(k) = sum_j q_j exp(i k . x_j)`, `Q = sum_j q_j`, and its gradient
 /// with respect to `y`; see the [module docs](crate::ewald) for the conventions
-/// (background for `Q != 0`, self terms, the cubic shape term). At a source
+/// (background for `Q != 0`, self terms, the cubic shape term). With
+/// screening `kappa > 0` the lattice sum converges absolutely and
+///
+/// ```text
+/// phi(y) = 1/(4 pi) sum_j sum_n q_j psi(|y - x_j - n∘L|)                  (|..| < r_c)
+///        + sum_{k != 0, |k| <= k_c} (1/V) exp(-(k^2 + kappa^2)/(4 alpha^2)) / (k^2 + kappa^2)
+///                                   Re(exp(i k.y) conj(S(k)))
+///        + Q exp(-kappa^2 / (4 alpha^2)) / (V kappa^2)
+/// ```
+///
+/// with `psi` the screened short-range kernel (`erfc(alpha r) / r` at
+/// `kappa = 0`; see the module's `screening.rs`), no background and no
+/// neutrality needed; `alpha` is kept `>= kappa / 8`. At a source
 /// (`at_sources`, `all`, `energy`) its own pair is left out and its images
 /// kept, `phi_i = sum_{j != i} q_j G(x_i - x_j) + q_i xi`; at a separate
 /// point, a source at zero distance is treated in the same way.
@@ -49,6 +64,7 @@ use rayon::prelude::*;
 pub struct EwaldSum {
     cell: PeriodicCell,
     params: EwaldParameters,
+    split: Split,
     /// Wrapped positions relative to the origin, in source order.
     positions: Vec<[f64; 3]>,
     charges: Vec<f64>,
@@ -67,7 +83,9 @@ impl EwaldSum {
     /// # Errors
     /// [`KernelError::NotMultipleOf3`], [`KernelError::ChargesLength`],
     /// [`KernelError::NonFinite`] for bad points or charges;
-    /// [`KernelError::InvalidParameter`] for a tolerance outside `(0, 1)`.
+    /// [`KernelError::InvalidParameter`] for a tolerance outside `(0, 1)` (or,
+    /// through [`EwaldSum::with_options`], a screening that is negative or
+    /// not finite).
     pub fn new(
         cell: PeriodicCell,
         sources: &[f64],
@@ -103,32 +121,35 @@ impl EwaldSum {
                 value,
             });
         }
+        let kappa = crate::error::check_wavenumber(options.screening)?;
         let params = match options.alpha {
             Some(alpha) => EwaldParameters::with_alpha(&cell, options.tolerance, alpha)?,
-            None => EwaldParameters::balanced(
-                &cell,
-                options.tolerance,
-                n,
-                options.expected_targets.unwrap_or(n),
-            )?,
+            None => {
+                let balanced = EwaldParameters::balanced(
+                    &cell,
+                    options.tolerance,
+                    n,
+                    options.expected_targets.unwrap_or(n),
+                )?;
+                if balanced.alpha < min_alpha(kappa) {
+                    EwaldParameters::with_alpha(&cell, options.tolerance, min_alpha(kappa))?
+                } else {
+                    balanced
+                }
+            }
         };
+        let split = Split::new(params.alpha, kappa);
         let positions: Vec<[f64; 3]> = sources
             .chunks_exact(3)
             .map(|p| cell.wrap_relative([p[0], p[1], p[2]]))
             .collect();
-        let cells = CellList::new(
-            cell.lengths(),
-            &positions,
-            charges,
-            params.r_cut,
-            params.alpha,
-        );
-        let lattice =
-            ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, params.alpha);
+        let cells = CellList::new(cell.lengths(), &positions, charges, params.r_cut, split);
+        let lattice = ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, &split);
         let (b_re, b_im) = lattice.coefficients(&positions, charges);
         Ok(Self {
             cell,
             params,
+            split,
             positions,
             charges: charges.to_vec(),
             total_charge: charges.iter().sum(),
@@ -149,6 +170,11 @@ impl EwaldSum {
         &self.params
     }
 
+    /// The screening wavenumber `kappa` (`0`: Laplace).
+    pub fn screening(&self) -> f64 {
+        self.split.kappa()
+    }
+
     /// The number of sources.
     pub fn n_sources(&self) -> usize {
         self.positions.len()
@@ -160,8 +186,8 @@ impl EwaldSum {
         self.lattice.len()
     }
 
-    /// `Q = sum_j q_j`; when not zero, the potentials include a uniform
-    /// background of total charge `-Q`.
+    /// `Q = sum_j q_j`; when not zero, the Laplace potentials include a
+    /// uniform background of total charge `-Q` (screened ones need none).
     pub fn total_charge(&self) -> f64 {
         self.total_charge
     }
@@ -214,8 +240,8 @@ impl EwaldSum {
         Ok(self.evaluate(self.n_sources(), |k| self.positions[k], mode))
     }
 
-    /// The energy `E = 1/2 sum_i q_i phi_i` (tin-foil; with the background
-    /// when `Q != 0`).
+    /// The energy `E = 1/2 sum_i q_i phi_i` (Laplace: tin-foil, with the
+    /// background when `Q != 0`).
     pub fn energy(&self) -> f64 {
         let phi = self.evaluate(self.n_sources(), |k| self.positions[k], EvalMode::Potential);
         0.5 * phi
@@ -232,8 +258,8 @@ impl EwaldSum {
     {
         let grad = mode.has_gradient();
         let vpt = mode.values_per_target();
-        let background =
-            -self.total_charge / (4.0 * self.params.alpha * self.params.alpha * self.cell.volume());
+        // The `k = 0` term: Laplace's background, or the screened constant.
+        let background = self.total_charge * self.split.k_zero(self.cell.volume());
         let mut out = vec![0.0; vpt * count];
         out.par_chunks_mut(vpt).enumerate().for_each_init(
             || self.lattice.scratch(),
@@ -257,7 +283,7 @@ impl EwaldSum {
 fn check_mode(mode: EvalMode) -> Result<(), KernelError> {
     if mode.has_hessian() {
         return Err(KernelError::Unsupported {
-            kernel: "laplace3d (Ewald)".to_string(),
+            kernel: "Ewald sum".to_string(),
             kind: "charge",
             mode: mode.name(),
         });
