@@ -59,8 +59,8 @@ fn brute_force(
                     let k = INV_4PI * qj * (-kappa * r).exp() / r;
                     add(0, k);
                     let g = -k * (1.0 + kappa * r) / (r * r);
-                    for a in 0..3 {
-                        add(1 + a, g * d[a]);
+                    for (a, da) in d.iter().enumerate() {
+                        add(1 + a, g * da);
                     }
                 }
             }
