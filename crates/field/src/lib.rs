@@ -123,4 +123,4 @@ pub use params::{MAX_ORDER, MIN_ORDER, OperatorParams, default_pinv_rcond};
 pub use pinv::PinvSummary;
 pub use surface::{SurfaceKind, SurfaceRadii, expansion_len, n_surface_points, surface_points};
 pub use sysmem::{address_space_limit, available_memory};
-pub use usage::{M2lUsage, planned_sets};
+pub use usage::{M2lUsage, first_m2l_level, planned_sets};

@@ -138,28 +138,48 @@ impl M2lUsage {
     }
 }
 
+/// The shallowest level whose M2L operators a tree with `usage` needs:
+/// [`FIRST_M2L_LEVEL`] (2), or 1 when V lists reach level 1, which only a
+/// periodic tree's wrapped lists do (a level-1 box and the images of its
+/// siblings one cell away).
+pub fn first_m2l_level(usage: &M2lUsage) -> u32 {
+    usage
+        .levels()
+        .next()
+        .map_or(FIRST_M2L_LEVEL, |l| l.min(FIRST_M2L_LEVEL))
+}
+
+/// Whether a non-homogeneous kernel's M2L store for `usage` may go through
+/// the cache: only when its sets start at [`FIRST_M2L_LEVEL`], the layout
+/// cache files have (a periodic tree's extra level-1 set is computed, not
+/// cached).
+pub(crate) fn cacheable(homogeneous: bool, usage: &M2lUsage) -> bool {
+    homogeneous || first_m2l_level(usage) == FIRST_M2L_LEVEL
+}
+
 /// The transfer vectors (indices) to compute per operator set for
 /// [`M2lScheme::precompute_for`](crate::M2lScheme::precompute_for): nothing for an empty `usage`; all 316 per
 /// set with a cache directory (so the file stays complete); otherwise the
 /// union of the used vectors (homogeneous kernel, one set) or those of each
-/// level `2..=depth`.
+/// level [`first_m2l_level`]`..=depth`.
 pub fn planned_sets(
     homogeneous: bool,
     params: &OperatorParams,
     depth: u32,
     usage: &M2lUsage,
 ) -> Vec<Vec<usize>> {
+    let first = first_m2l_level(usage);
     let n_sets = if homogeneous {
         1
     } else {
-        (depth + 1).saturating_sub(FIRST_M2L_LEVEL) as usize
+        (depth + 1).saturating_sub(first) as usize
     };
     if usage.is_empty() {
         vec![Vec::new(); n_sets]
-    } else if params.cache_dir.is_some() {
+    } else if params.cache_dir.is_some() && cacheable(homogeneous, usage) {
         vec![(0..N_TRANSFER_VECTORS).collect(); n_sets]
     } else {
-        usage.per_set(homogeneous, FIRST_M2L_LEVEL, depth)
+        usage.per_set(homogeneous, first, depth)
     }
 }
 

@@ -589,6 +589,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             cell.validate()?;
             check_periodic_problem(
                 &self.kernel,
+                cell,
                 self.source_kind,
                 self.mode,
                 self.domain.is_some(),
@@ -628,6 +629,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
 /// [`FmmBuilder::periodic`]).
 fn check_periodic_problem<K: Kernel>(
     kernel: &K,
+    cell: &Periodic,
     kind: SourceKind,
     mode: EvalMode,
     domain_given: bool,
@@ -638,18 +640,28 @@ fn check_periodic_problem<K: Kernel>(
                 .to_string(),
         ));
     }
-    if (kernel as &dyn std::any::Any)
-        .downcast_ref::<Laplace3d>()
-        .is_none()
-    {
-        // The name every front end takes (`yukawa`), with the library's.
-        let name = match ferrofmm_kernels::KernelChoice::of(kernel) {
-            Some(c) => format!("{} ({})", c.description().name, kernel.name()),
-            None => kernel.name(),
-        };
-        return Err(FmmError::InvalidParameter(format!(
-            "periodic boundaries run the Laplace kernel only in this release, not {name}"
-        )));
+    // The name every front end takes (`yukawa`), with the library's.
+    let name = || match ferrofmm_kernels::KernelChoice::of(kernel) {
+        Some(c) => format!("{} ({})", c.description().name, kernel.name()),
+        None => kernel.name(),
+    };
+    match crate::periodic::lattice_screening(kernel) {
+        None => {
+            return Err(FmmError::InvalidParameter(format!(
+                "periodic boundaries run the Laplace and Yukawa (modified Helmholtz) kernels \
+                 only in this release, not {}",
+                name()
+            )));
+        }
+        Some(kappa) if kappa > 0.0 && cell.surface() == crate::SurfaceTerm::Vacuum => {
+            return Err(FmmError::InvalidParameter(format!(
+                "the vacuum surface term belongs to the Laplace lattice sum, which converges \
+                 only conditionally; {}'s converges absolutely and has none: leave the surface \
+                 term at its default",
+                name()
+            )));
+        }
+        Some(_) => {}
     }
     if kind != SourceKind::Charge {
         return Err(FmmError::InvalidParameter(

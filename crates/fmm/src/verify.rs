@@ -372,12 +372,13 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         charges: &[T],
         eps: f64,
     ) -> Result<Option<Box<Truth<'s>>>, FmmError> {
-        let Some(cell) = self.periodic() else {
+        let Some(far) = &self.periodic else {
             return Ok(None);
         };
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
         let truth = PeriodicTruth::new(
-            cell,
+            &far.cell,
+            far.screening(),
             &points.sources,
             &charges[..self.n_sources],
             points.targets.as_deref(),

@@ -95,12 +95,14 @@ impl<T: Real> DenseM2l<T> {
 
     /// Whether `K_v` of transfer vector index `vector` is held for `level`.
     pub fn has_vector(&self, level: u32, vector: usize) -> bool {
-        if self.slots.is_empty() || level < FIRST_M2L_LEVEL {
+        if self.slots.is_empty() || level < self.levels.first_level.min(FIRST_M2L_LEVEL) {
             return false;
         }
         let set = match self.levels.homogeneity {
             Some(_) => 0,
-            None if level <= self.levels.depth => (level - FIRST_M2L_LEVEL) as usize,
+            None if level >= self.levels.first_level && level <= self.levels.depth => {
+                (level - self.levels.first_level) as usize
+            }
             None => return false,
         };
         self.slots

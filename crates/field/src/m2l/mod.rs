@@ -33,7 +33,7 @@ use ferrofmm_kernels::{Kernel, Real};
 use rayon::prelude::*;
 
 use crate::levels::FIRST_M2L_LEVEL;
-use crate::usage::planned_sets;
+use crate::usage::{cacheable, first_m2l_level, planned_sets};
 
 use crate::cache::{CacheKey, CachePayload, load_or_compute};
 use crate::estimate::seconds_for;
@@ -236,10 +236,14 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
 /// which level, at which half-width (`levels`), and the transfer vectors
 /// of each set (`sets`, from [`planned_sets`]).
 pub(crate) struct Plan {
-    /// Levels `2..=depth` and their sets.
+    /// Levels [`first_m2l_level`]`..=depth` (2 unless a periodic tree's
+    /// V lists reach level 1) and their sets.
     pub levels: LevelMap,
     /// Per set, the transfer vector indices to compute.
     pub sets: Vec<Vec<usize>>,
+    /// Whether the store may go through the cache (its sets start at
+    /// level 2, as cache files' do).
+    cacheable: bool,
 }
 
 impl Plan {
@@ -251,9 +255,19 @@ impl Plan {
         depth: u32,
         usage: &M2lUsage,
     ) -> Result<Self, FieldError> {
-        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, FIRST_M2L_LEVEL)?;
-        let sets = planned_sets(levels.homogeneity.is_some(), params, depth, usage);
-        Ok(Plan { levels, sets })
+        let homogeneous = kernel.homogeneity().is_some();
+        let first = if homogeneous {
+            FIRST_M2L_LEVEL
+        } else {
+            first_m2l_level(usage)
+        };
+        let levels = LevelMap::new(kernel.homogeneity(), domain_width, depth, first)?;
+        let sets = planned_sets(homogeneous, params, depth, usage);
+        Ok(Plan {
+            levels,
+            sets,
+            cacheable: cacheable(homogeneous, usage),
+        })
     }
 
     /// Whether every set gets all 316 vectors.
@@ -273,7 +287,7 @@ impl Plan {
         compute: impl FnOnce() -> Result<S, FieldError>,
     ) -> Result<(S, CacheStatus), FieldError> {
         match params.cache_dir.as_deref() {
-            Some(dir) if self.is_complete() => {
+            Some(dir) if self.cacheable && self.is_complete() => {
                 load_or_compute(Some(dir), params.cache_size_limit, &key(), accept, compute)
             }
             _ => Ok((compute()?, CacheStatus::Disabled)),

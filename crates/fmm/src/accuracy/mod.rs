@@ -186,11 +186,12 @@ pub fn relative_errors_sources_with_progress<P: Real, T: Real, K: Kernel>(
         .errors_at(sample)
 }
 
-/// The Ewald truth of a periodic Laplace problem: the charges at the
-/// sources (`f64`, wrapped or not) in `cell`, at the `targets` (`None`:
-/// the sources themselves, each leaving out only itself), to
-/// `tolerance`, tuned for about `expected` targets. The one truth of a
-/// periodic run's verification and of [`relative_errors_periodic`].
+/// The Ewald truth of a periodic Laplace (`kappa = 0`) or Yukawa problem:
+/// the charges at the sources (`f64`, wrapped or not) in `cell`, at the
+/// `targets` (`None`: the sources themselves, each leaving out only
+/// itself), to `tolerance`, tuned for about `expected` targets. The one
+/// truth of a periodic run's verification and of
+/// [`relative_errors_periodic`].
 pub(crate) struct PeriodicTruth<'a> {
     ewald: ferrofmm_kernels::EwaldSum,
     targets: Option<&'a [f64]>,
@@ -200,8 +201,10 @@ pub(crate) struct PeriodicTruth<'a> {
 impl<'a> PeriodicTruth<'a> {
     /// # Errors
     /// What [`ferrofmm_kernels::EwaldSum::with_options`] refuses.
+    #[allow(clippy::too_many_arguments)]
     pub(crate) fn new<T: Real>(
         cell: &crate::Periodic,
+        kappa: f64,
         sources: &[f64],
         charges: &[T],
         targets: Option<&'a [f64]>,
@@ -211,7 +214,9 @@ impl<'a> PeriodicTruth<'a> {
     ) -> Result<Self, crate::FmmError> {
         let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
         let cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
-        let options = ferrofmm_kernels::EwaldOptions::new(tolerance).expected_targets(expected);
+        let options = ferrofmm_kernels::EwaldOptions::new(tolerance)
+            .expected_targets(expected)
+            .screening(kappa);
         Ok(PeriodicTruth {
             ewald: ferrofmm_kernels::EwaldSum::with_options(cell, sources, &q, options)?,
             targets,
@@ -237,17 +242,20 @@ impl<'a> PeriodicTruth<'a> {
     }
 }
 
-/// [`relative_errors`] of a periodic Laplace run ([`crate::Periodic`]):
-/// the truth at the sampled targets is the Ewald sum
-/// ([`ferrofmm_kernels::EwaldSum`], to `1e-13`) of the charges at the
-/// sources in the cell, at the `targets` (`None`: the targets are the
-/// sources, each leaving out only itself).
+/// [`relative_errors`] of a periodic run ([`crate::Periodic`]) of
+/// `kernel` (Laplace or Yukawa): the truth at the sampled targets is the
+/// Ewald sum ([`ferrofmm_kernels::EwaldSum`], to `1e-13`, screened for
+/// Yukawa) of the charges at the sources in the cell, at the `targets`
+/// (`None`: the targets are the sources, each leaving out only itself).
 ///
 /// # Errors
-/// What [`ferrofmm_kernels::EwaldSum::new`] refuses (a bad cell, points or
+/// [`FmmError::InvalidParameter`](crate::FmmError::InvalidParameter) for a
+/// kernel with no lattice sum here; what
+/// [`ferrofmm_kernels::EwaldSum::new`] refuses (a bad cell, points or
 /// charges that do not match, Hessians).
 #[allow(clippy::too_many_arguments)]
-pub fn relative_errors_periodic<T: Real>(
+pub fn relative_errors_periodic<T: Real, K: Kernel>(
+    kernel: &K,
     cell: &crate::Periodic,
     mode: EvalMode,
     sources: &[f64],
@@ -256,12 +264,23 @@ pub fn relative_errors_periodic<T: Real>(
     values: &[T],
     sample: &[usize],
 ) -> Result<ErrorReport, crate::FmmError> {
-    let exact = PeriodicTruth::new(cell, sources, charges, targets, mode, 1e-13, sample.len())?
-        .at(sample)?;
+    let kappa = crate::periodic::lattice_screening(kernel).ok_or_else(|| {
+        crate::FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
+    })?;
+    let exact = PeriodicTruth::new(
+        cell,
+        kappa,
+        sources,
+        charges,
+        targets,
+        mode,
+        1e-13,
+        sample.len(),
+    )?
+    .at(sample)?;
     let truth = |_: &[usize]| -> Vec<f64> { exact.clone() };
-    let laplace = ferrofmm_kernels::Laplace3d;
     let problem = Comparison::new(
-        &laplace,
+        kernel,
         SourceKind::Charge,
         mode,
         sources,

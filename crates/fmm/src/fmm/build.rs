@@ -253,7 +253,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let periodic = match &b.periodic {
             Some(cell) => {
                 let t = Instant::now();
-                let far = far_images(cell, b.order, &parts)?;
+                let far = far_images(cell, &b.kernel, b.order, &parts)?;
                 setup.operators += t.elapsed();
                 Some(far)
             }
@@ -325,7 +325,12 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);
         if let Some(far) = &self.periodic {
             let t = Instant::now();
-            self.periodic = Some(far_images(&far.cell, chosen.order, &self.parts)?);
+            self.periodic = Some(far_images(
+                &far.cell,
+                &self.kernel,
+                chosen.order,
+                &self.parts,
+            )?);
             setup.operators += t.elapsed();
             self.setup.operators = setup.operators;
         }
@@ -342,17 +347,27 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
     }
 }
 
-/// The far images of a periodic run at `order`, for the surfaces of its
-/// tree's operators.
-fn far_images<T: Real, S: M2lScheme<T>>(
+/// The far images of a periodic run of `kernel` at `order`, for the
+/// surfaces of its tree's operators.
+fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
     cell: &crate::periodic::Periodic,
+    kernel: &K,
     order: usize,
     parts: &[Part<T, S>],
 ) -> Result<FarImages, FmmError> {
+    let kappa = crate::periodic::lattice_screening(kernel).ok_or_else(|| {
+        FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
+    })?;
     let radii = parts[0]
         .tree_part()
         .expect("a periodic run has one tree")
         .operators
         .radii();
-    FarImages::new(*cell, order, radii.upward_equivalent, radii.downward_check)
+    FarImages::new(
+        *cell,
+        kappa,
+        order,
+        radii.upward_equivalent,
+        radii.downward_check,
+    )
 }

@@ -84,7 +84,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 value: charges[index].to_f64(),
             });
         }
-        if self.periodic.is_some() {
+        if self.periodic.as_ref().is_some_and(|f| f.needs_neutral()) {
             for q in charges.chunks(self.n_sources * per_source) {
                 crate::periodic::check_neutral(q)?;
             }

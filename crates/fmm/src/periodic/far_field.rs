@@ -4,7 +4,7 @@
 //! [module docs](super)).
 
 use ferrofmm_field::surface_points;
-use ferrofmm_kernels::{PeriodicCell, PeriodicGreen, Real};
+use ferrofmm_kernels::{Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen, Real};
 
 use super::{Periodic, SurfaceTerm};
 use crate::FmmError;
@@ -17,10 +17,24 @@ const GREEN_TOLERANCE: f64 = 1e-15;
 /// refused as not neutral.
 pub(crate) const NEUTRALITY: f64 = 1e-8;
 
+/// The screening `kappa` of a kernel whose lattice sum the library sums:
+/// `0` for [`Laplace3d`], `k` for [`ModifiedHelmholtz3d`] (whose `k = 0` is
+/// Laplace); `None` for any other kernel.
+pub(crate) fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
+    let any = kernel as &dyn std::any::Any;
+    if any.downcast_ref::<Laplace3d>().is_some() {
+        return Some(0.0);
+    }
+    any.downcast_ref::<ModifiedHelmholtz3d>().map(|k| k.k)
+}
+
 /// What a periodic FMM keeps for its far images.
 #[derive(Clone, Debug)]
 pub(crate) struct FarImages {
     pub(crate) cell: Periodic,
+    /// The kernel's screening (`0`: Laplace, with its neutral projection,
+    /// constant and surface term; `> 0`: Yukawa, which needs none).
+    kappa: f64,
     /// `P`, row-major `n x n` (check point `i`, equivalent point `j`).
     operator: Vec<f64>,
     /// The root's upward equivalent points relative to the cell's centre.
@@ -28,10 +42,12 @@ pub(crate) struct FarImages {
 }
 
 impl FarImages {
-    /// `P` for `cell` at `order`, with the root surfaces of radii
+    /// `P` for `cell` at `order`, for the kernel with screening `kappa`
+    /// ([`lattice_screening`]), with the root surfaces of radii
     /// `upward_equivalent` and `downward_check` half-widths.
     pub(crate) fn new(
         cell: Periodic,
+        kappa: f64,
         order: usize,
         upward_equivalent: f64,
         downward_check: f64,
@@ -40,15 +56,26 @@ impl FarImages {
         let equivalent = surface_points::<f64>(order, [0.0; 3], half, upward_equivalent);
         let check = surface_points::<f64>(order, [0.0; 3], half, downward_check);
         let green_cell = PeriodicCell::new([0.0; 3], cell.lengths())?;
-        let green = PeriodicGreen::new(green_cell, GREEN_TOLERANCE)?;
+        let green = PeriodicGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?;
         // `far_images(r)` depends on differences only: the cell's origin
         // does not matter, the points are relative to its centre.
         let operator = green.far_images_matrix(&check, &equivalent)?;
         Ok(FarImages {
             cell,
+            kappa,
             operator,
             equivalent,
         })
+    }
+
+    /// The kernel's screening: `0` for Laplace.
+    pub(crate) fn screening(&self) -> f64 {
+        self.kappa
+    }
+
+    /// Whether the cell must be neutral (Laplace).
+    pub(crate) fn needs_neutral(&self) -> bool {
+        self.kappa == 0.0
     }
 
     /// Number of surface points.
@@ -60,7 +87,10 @@ impl FarImages {
     /// for the root multipole `root` (its first `n` values), and the
     /// constant `C` of the module docs for the wrapped charges `q` at the
     /// wrapped points `x` (relative to anything: only differences and
-    /// the cell's centre `centre`, in the same frame, matter).
+    /// the cell's centre `centre`, in the same frame, matter). A screened
+    /// kernel's far images are a smooth solution of `(-Delta + kappa^2) u =
+    /// 0` in the root, kept exactly by the local expansion: no projection,
+    /// `C = 0`.
     pub(crate) fn root_check<T: Real>(
         &self,
         root: &[T],
@@ -70,13 +100,12 @@ impl FarImages {
     ) -> (Vec<T>, f64) {
         let n = self.n();
         let mut u: Vec<f64> = root[..n].iter().map(|v| v.to_f64()).collect();
+        if self.kappa > 0.0 {
+            return (self.apply(&u), 0.0);
+        }
         let mean = u.iter().sum::<f64>() / n as f64;
         u.iter_mut().for_each(|v| *v -= mean);
-        let check: Vec<T> = self
-            .operator
-            .chunks_exact(n)
-            .map(|row| T::from_f64(row.iter().zip(&u).map(|(a, b)| a * b).sum()))
-            .collect();
+        let check = self.apply(&u);
         // Second moments `sum w |p - c|^2` of the charges and of `u`.
         let charges: f64 = x
             .chunks_exact(3)
@@ -96,6 +125,14 @@ impl FarImages {
             .sum();
         let constant = (charges - equivalent) / (6.0 * self.cell.volume());
         (check, constant)
+    }
+
+    /// `P u`.
+    fn apply<T: Real>(&self, u: &[f64]) -> Vec<T> {
+        self.operator
+            .chunks_exact(self.n())
+            .map(|row| T::from_f64(row.iter().zip(u).map(|(a, b)| a * b).sum()))
+            .collect()
     }
 
     /// Adds the constant `constant` and, in vacuum, the dipole term to the

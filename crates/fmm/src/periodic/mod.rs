@@ -75,4 +75,4 @@ mod cell;
 mod far_field;
 
 pub use cell::{Periodic, PeriodicAxes, SurfaceTerm};
-pub(crate) use far_field::{FarImages, check_neutral};
+pub(crate) use far_field::{FarImages, check_neutral, lattice_screening};

@@ -150,7 +150,7 @@ fn madelung_constants_to_the_f64_floor() {
 
 /// `n` points uniform in the cell `[origin, origin + side)` (or in two
 /// small balls when `clustered`), zero-mean charges.
-fn random_box(
+pub(crate) fn random_box(
     n: usize,
     side: f64,
     origin: [f64; 3],
@@ -179,7 +179,7 @@ fn random_box(
     (points, q)
 }
 
-fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
+pub(crate) fn rel_l2(a: &[f64], b: &[f64]) -> f64 {
     let d: f64 = a.iter().zip(b).map(|(x, y)| (x - y).powi(2)).sum();
     let n: f64 = b.iter().map(|y| y * y).sum();
     (d / n).sqrt()
