@@ -225,8 +225,9 @@ pub struct FmmArgs {
     /// `LX,LY,LZ`; only cubes run in this release). Every target sees
     /// every image of every source (Ewald's convention, tin-foil
     /// surroundings unless --surface vacuum); points outside the cell are
-    /// wrapped into it; the cell must be neutral (demo charges are made
-    /// so). Laplace kernel and charges only.
+    /// wrapped into it. Laplace (the cell must be neutral; demo charges
+    /// are made so) or Yukawa (screened: any charges, no surface term)
+    /// kernels, charges only.
     #[arg(long = "box", value_name = "L|LX,LY,LZ")]
     pub periodic_box: Option<String>,
     /// The periodic cell's lower corner (default 0,0,0).
@@ -238,7 +239,7 @@ pub struct FmmArgs {
     pub periodic: Option<String>,
     /// How the periodic Laplace sum is closed: tin-foil (conducting
     /// surroundings, the default, as particle-mesh Ewald) or vacuum (adds
-    /// the dipole term).
+    /// the dipole term). Yukawa's sum converges absolutely: tin-foil only.
     #[arg(long, value_name = "tin-foil|vacuum", requires = "periodic_box")]
     pub surface: Option<String>,
 }

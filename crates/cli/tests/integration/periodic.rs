@@ -33,6 +33,37 @@ fn a_periodic_demo_meets_its_tolerance_against_ewald() {
     assert!(errors["gradient"].as_f64().unwrap() <= 1e-5, "{errors}");
 }
 
+/// Yukawa in a periodic cell with positive (not neutral) charges, checked
+/// against the screened Ewald sum.
+#[test]
+fn a_periodic_yukawa_demo_with_positive_charges() {
+    let out = ferrofmm(&[
+        "demo",
+        "--n",
+        "3000",
+        "--kernel",
+        "yukawa:4",
+        "--charges",
+        "positive",
+        "--box",
+        "1",
+        "--tolerance",
+        "1e-6",
+        "--check",
+        "300",
+        "--json",
+    ]);
+    let (stdout, stderr) = texts(&out);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value =
+        serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+    let periodic = v["periodic"].as_str().expect("a periodic row");
+    assert!(periodic.contains("screened"), "{periodic}");
+    let errors = &v["errors"];
+    assert!(errors["potential"].as_f64().unwrap() <= 1e-6, "{errors}");
+    assert!(errors["gradient"].as_f64().unwrap() <= 1e-6, "{errors}");
+}
+
 #[test]
 fn bad_boxes_and_charged_cells_are_refused() {
     for args in [
@@ -42,7 +73,26 @@ fn bad_boxes_and_charged_cells_are_refused() {
         vec!["demo", "--n", "100", "--box", "1", "--periodic", "xy"],
         vec!["demo", "--n", "100", "--periodic", "xyz"],
         vec!["demo", "--n", "100", "--box", "1", "--surface", "metal"],
-        vec!["demo", "--n", "100", "--box", "1", "--kernel", "yukawa:2"],
+        vec![
+            "demo",
+            "--n",
+            "100",
+            "--box",
+            "1",
+            "--kernel",
+            "helmholtz:2",
+        ],
+        vec![
+            "demo",
+            "--n",
+            "100",
+            "--box",
+            "1",
+            "--kernel",
+            "yukawa:2",
+            "--surface",
+            "vacuum",
+        ],
     ] {
         let out = ferrofmm(&args);
         let (_, stderr) = texts(&out);

@@ -17,10 +17,19 @@ const GREEN_TOLERANCE: f64 = 1e-15;
 /// refused as not neutral.
 pub(crate) const NEUTRALITY: f64 = 1e-8;
 
-/// The screening `kappa` of a kernel whose lattice sum the library sums:
-/// `0` for [`Laplace3d`], `k` for [`ModifiedHelmholtz3d`] (whose `k = 0` is
-/// Laplace); `None` for any other kernel.
-pub(crate) fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
+/// The screening `kappa` of a kernel whose lattice sum the periodic FMM
+/// sums: `0` for [`Laplace3d`] (whose cell must be neutral), `k` for
+/// [`ModifiedHelmholtz3d`] (whose `k = 0` is Laplace); `None` for any other
+/// kernel, which [`crate::FmmBuilder::periodic`] refuses.
+///
+/// ```
+/// use ferrofmm_fmm::periodic::lattice_screening;
+/// use ferrofmm_kernels::{Helmholtz3d, Laplace3d, ModifiedHelmholtz3d};
+/// assert_eq!(lattice_screening(&Laplace3d), Some(0.0));
+/// assert_eq!(lattice_screening(&ModifiedHelmholtz3d::new(2.0).unwrap()), Some(2.0));
+/// assert_eq!(lattice_screening(&Helmholtz3d::new(2.0).unwrap()), None);
+/// ```
+pub fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
     let any = kernel as &dyn std::any::Any;
     if any.downcast_ref::<Laplace3d>().is_some() {
         return Some(0.0);

@@ -75,4 +75,5 @@ mod cell;
 mod far_field;
 
 pub use cell::{Periodic, PeriodicAxes, SurfaceTerm};
-pub(crate) use far_field::{FarImages, check_neutral, lattice_screening};
+pub use far_field::lattice_screening;
+pub(crate) use far_field::{FarImages, check_neutral};

@@ -305,8 +305,10 @@ where
             format!("generating {n} points ({})", geometry.name()),
             || {
                 let mut q: Vec<f64> = charges.generate(n * settings.kernel.components(), seed);
-                if settings.periodic.is_some() {
-                    // A periodic cell must be neutral.
+                if settings.periodic.is_some()
+                    && ferrofmm_fmm::periodic::lattice_screening(&kernel) == Some(0.0)
+                {
+                    // A periodic Laplace cell must be neutral.
                     let mean = q.iter().sum::<f64>() / q.len().max(1) as f64;
                     q.iter_mut().for_each(|x| *x -= mean);
                 }
@@ -436,6 +438,7 @@ where
                 format!("Ewald sums on {} sampled targets", sample.len()),
                 || {
                     ferrofmm_fmm::relative_errors_periodic(
+                        &kernel,
                         cell,
                         mode,
                         &sources,
@@ -534,9 +537,13 @@ where
                 "box {} ({}, {}), origin {:?}",
                 c.width(),
                 c.axes(),
-                match c.surface() {
-                    ferrofmm_fmm::SurfaceTerm::TinFoil => "tin-foil",
-                    ferrofmm_fmm::SurfaceTerm::Vacuum => "vacuum",
+                match (
+                    ferrofmm_fmm::periodic::lattice_screening(&kernel),
+                    c.surface()
+                ) {
+                    (Some(k), _) if k > 0.0 => "screened, absolutely convergent",
+                    (_, ferrofmm_fmm::SurfaceTerm::TinFoil) => "tin-foil",
+                    (_, ferrofmm_fmm::SurfaceTerm::Vacuum) => "vacuum",
                 },
                 c.origin()
             )
