@@ -248,14 +248,36 @@ def test_unsupported_periodic_problems_are_value_errors():
         ferrofmm.laplace(x, dipoles=np.ones((8, 3)), box=1.0, eps=1e-6)
     with pytest.raises(ValueError, match="charges only"):
         ferrofmm.laplace(x, q, dipoles=np.ones((8, 3)), box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match=r"Laplace kernel only.*not yukawa \(modified_helmholtz3d\)"):
-        ferrofmm.yukawa(x, q, k=1.0, box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match="Laplace kernel only"):
+    with pytest.raises(ValueError, match=r"Laplace and Yukawa.*not helmholtz \(helmholtz3d\)"):
         ferrofmm.helmholtz(x, q + 0j, k=1.0, box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match="Laplace kernel only"):
+    with pytest.raises(ValueError, match="Laplace and Yukawa"):
         ferrofmm.stokes(x, np.ones((8, 3)), box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match="Laplace kernel only"):
-        ferrofmm.Fmm(x, kernel="yukawa", k=1.0, box=1.0, eps=1e-6)
+    with pytest.raises(ValueError, match="vacuum surface term"):
+        ferrofmm.yukawa(x, q, k=1.0, box=1.0, eps=1e-6, surface="vacuum")
+    with pytest.raises(ValueError, match="vacuum surface term"):
+        ferrofmm.Fmm(x, kernel="yukawa", k=1.0, box=1.0, eps=1e-6, surface="vacuum")
+
+
+@pytest.mark.parametrize("k", [0.5, 6.0])
+def test_periodic_yukawa_against_the_screened_ewald_sum(k):
+    # Positive charges: a Yukawa cell need not be neutral.
+    rng = np.random.default_rng(7)
+    x = rng.random((N, 3))
+    q = rng.random(N)
+    truth = ferrofmm.ewald(x, q, 1.0, k=k, gradient=True, eps=1e-13)
+    assert truth.info["kernel"] == "yukawa"
+    for eps in (1e-4, 1e-8):
+        r = ferrofmm.yukawa(x, q, k=k, box=1.0, eps=eps, gradient=True)
+        assert rel(r.potential, truth.potential) < eps
+        assert rel(r.gradient, truth.gradient) < eps
+        assert r.info["verified"] is True
+        assert r.energy == pytest.approx(truth.energy, rel=10 * eps)
+    # The same through Fmm, reused with other charges.
+    fmm = ferrofmm.Fmm(x, kernel="yukawa", k=k, box=1.0, eps=1e-6)
+    q2 = rng.standard_normal(N)
+    r2 = fmm.evaluate(q2)
+    t2 = ferrofmm.ewald(x, q2, 1.0, k=k, eps=1e-13)
+    assert rel(r2.potential, t2.potential) < 1e-6
 
 
 def test_ewald_bad_input():
@@ -276,6 +298,9 @@ def test_ewald_bad_input():
         ferrofmm.ewald(np.where(x == 0.5, np.nan, x), q, 1.0)
     with pytest.raises(ValueError, match="one charge vector"):
         ferrofmm.ewald(x, np.stack([q, q]), 1.0)
+    for k in (-1.0, np.inf, np.nan):
+        with pytest.raises(ValueError, match="k must be"):
+            ferrofmm.ewald(x, q, 1.0, k=k)
     # A charged cell gets a neutralising background (Ewald's convention).
     r = ferrofmm.ewald(x, q + 0.25, 1.0)
     assert r.info["total_charge"] == pytest.approx(2.0)

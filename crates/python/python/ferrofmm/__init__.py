@@ -32,6 +32,8 @@ Periodic boundaries (Laplace, a neutral cubic cell of side L; points are wrapped
     r = ferrofmm.laplace(x, q - q.mean(), box=1.0, eps=1e-8, gradient=True)
     r.energy               # 1/2 sum q phi, per cell
     ferrofmm.ewald(x, q - q.mean(), 1.0)     # the Ewald reference sum
+    ferrofmm.yukawa(x, q, k=3.0, box=1.0)    # screened: any charges
+    ferrofmm.ewald(x, q, 1.0, k=3.0)         # its reference sum
 
 The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
 

@@ -182,9 +182,19 @@ yukawa = _with_wavenumber(
     """Yukawa (modified Helmholtz) potentials ``phi(y) = sum_i q_i exp(-k r) / (4 pi r)``.
 
     ``r = |y - x_i|`` and ``k >= 0`` is the screening wavenumber (inverse
-    length). The other parameters and the result are as for :func:`laplace`;
-    periodic boundaries (``box``) run the Laplace kernel only in this
-    release (``ValueError``).
+    length). The other parameters and the result are as for :func:`laplace`.
+    With ``box`` (periodic boundaries) the lattice sum converges absolutely:
+    any charges (no neutrality), no ``surface`` term, checked against
+    ``ewald(..., k=k)``.
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> x = np.random.default_rng(0).random((2000, 3))
+    >>> r = ferrofmm.yukawa(x, np.ones(2000), k=3.0, box=1.0, eps=1e-6)
+    >>> ref = ferrofmm.ewald(x, np.ones(2000), 1.0, k=3.0)
+    >>> bool(np.linalg.norm(r.potential - ref.potential) < 1e-6 * np.linalg.norm(ref.potential))
+    True
     """,
 )
 

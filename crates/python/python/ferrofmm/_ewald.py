@@ -23,15 +23,19 @@ def ewald(
     gradient: bool = False,
     eps: float = 1e-12,
     threads: Optional[int] = None,
+    k: float = 0.0,
 ) -> FmmResult:
-    """The Ewald sum of charges in a periodic cell: the reference of ``laplace(..., box=)``.
+    """The Ewald sum of charges in a periodic cell: the reference of ``laplace(..., box=)``
+    and ``yukawa(..., box=)``.
 
     ``phi(y) = sum_i sum_n q_i / (4 pi |y - x_i - n L|)`` over every image
     ``n`` of every charge (a source leaves out its own direct term, its
     images kept), closed with tin-foil (conducting) surroundings as
-    :func:`laplace` with ``box`` and ``surface="tin-foil"``. Direct
-    summation split by Ewald's method, ``O(N^1.5)``: a reference for a
-    few thousand points, not a solver.
+    :func:`laplace` with ``box`` and ``surface="tin-foil"``; with ``k > 0``
+    the Yukawa sum ``sum_i sum_n q_i exp(-k r_n) / (4 pi r_n)``, which
+    converges absolutely (no background, any charges), as :func:`yukawa`
+    with ``box``. Direct summation split by Ewald's method, ``O(N^1.5)``: a
+    reference for a few thousand points, not a solver.
 
     Parameters
     ----------
@@ -39,9 +43,9 @@ def ewald(
         Charge positions (float64 or float32; computed in float64).
         Points outside the cell are wrapped into it.
     charges : array_like, shape (n,)
-        One charge per point. A cell that is not neutral gets a uniform
-        background of total charge ``-sum q`` (Ewald's convention; the
-        periodic FMM refuses such a cell).
+        One charge per point. A Laplace cell that is not neutral gets a
+        uniform background of total charge ``-sum q`` (Ewald's convention;
+        the periodic FMM refuses such a cell); a Yukawa cell needs none.
     box : float or sequence of 3 floats
         The cell's side ``L``, or its sides ``(Lx, Ly, Lz)``: orthorhombic
         cells run here (the FMM takes cubes only).
@@ -57,6 +61,9 @@ def ewald(
         square of the values; the floor is a few ``1e-15``).
     threads : int, optional
         Threads (default: one per core, or ``RAYON_NUM_THREADS``).
+    k : float
+        The Yukawa screening wavenumber ``k >= 0`` (inverse length); ``0``
+        (the default) is Laplace.
 
     Returns
     -------
@@ -89,6 +96,9 @@ def ewald(
     if eps_value is None:
         raise TypeError("eps must be a float, got None")
     threads = _positive_int("threads", threads)
+    k_value = _real("k", k)
+    if k_value is None or not (np.isfinite(k_value) and k_value >= 0.0):
+        raise ValueError(f"k must be a finite float >= 0, got {k!r}")
     wide = np.dtype(np.float64)
     values, energy, info_json = _ferrofmm.ewald_sum(
         _flat(src, wide),
@@ -99,9 +109,10 @@ def ewald(
         gradient,
         eps_value,
         threads,
+        k_value,
     )
     info = json.loads(info_json)
-    info["kernel_name"] = "laplace"
+    info["kernel_name"] = "yukawa" if k_value > 0.0 else "laplace"
     v = values.reshape(-1, 4 if gradient else 1)
     potential = np.ascontiguousarray(v[:, 0])
     grad = np.ascontiguousarray(v[:, 1:4]) if gradient else None

@@ -41,8 +41,10 @@ def ewald_sum(
     gradient: bool,
     eps: float,
     threads: Optional[int] = ...,
+    k: float = ...,
 ) -> Tuple[npt.NDArray[np.float64], Optional[float], str]:
-    """The Ewald sum (tin-foil) of ``charges`` at ``sources`` (flat, x y z
+    """The Ewald sum (Laplace with tin-foil surroundings, or Yukawa with
+    screening ``k > 0``) of ``charges`` at ``sources`` (flat, x y z
     interleaved) in the cell ``origin + [0, lengths)``, at the sources or
     at ``targets``: the flat values (``phi`` or ``phi, gx, gy, gz`` per
     target), the energy ``1/2 sum q phi`` (at the sources, else ``None``)

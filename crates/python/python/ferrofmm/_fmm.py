@@ -194,12 +194,13 @@ class Fmm:
         (each source excluding itself); ``evaluate`` then returns them as
         ``result.at_sources``. The sources are added as targets.
     box : float or sequence of 3 floats, optional
-        Periodic boundaries (Laplace kernel, charges): the side ``L`` of
+        Periodic boundaries (Laplace or Yukawa kernel, charges): the side ``L`` of
         the cubic cell ``[box_origin, box_origin + L)^3`` that repeats
         along ``periodic``; every target sees every image of every source
         (the Ewald convention). Points outside the cell are wrapped into
-        it; results come in the caller's order. The charges of each
-        vector must sum to zero (``ValueError`` at evaluation otherwise).
+        it; results come in the caller's order. With Laplace the charges
+        of each vector must sum to zero (``ValueError`` at evaluation
+        otherwise); Yukawa's sum converges for any charges.
         Three sides are accepted but only cubes run in this release; other
         kernels, dipoles and Hessians with a box are refused
         (``ValueError``). ``eps`` is chosen and verified as in free space,
