@@ -524,14 +524,17 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// the maths and the conventions). Points outside the cell are wrapped
     /// into it; results come in the caller's order.
     ///
-    /// This release runs the Laplace kernel with charges in a cubic cell
-    /// periodic in `x`, `y` and `z`; the cell must be neutral
-    /// ([`FmmError::NotNeutral`] at evaluation otherwise). Other kernels,
-    /// dipoles, slabs, rods, non-cubic boxes and a
-    /// [`FmmBuilder::domain`] beside the cell are refused when building.
-    /// A tolerance is chosen and verified as in free space, the
+    /// This release runs the Laplace kernel and the Yukawa kernel
+    /// ([`ferrofmm_kernels::ModifiedHelmholtz3d`]) with charges in a cubic
+    /// cell periodic in `x`, `y` and `z` ([`crate::periodic::lattice_screening`]
+    /// says which kernels). A Laplace cell must be neutral
+    /// ([`FmmError::NotNeutral`] at evaluation otherwise); a Yukawa cell
+    /// need not be, and takes no vacuum surface term (its sum converges
+    /// absolutely). Other kernels, dipoles, slabs, rods, non-cubic boxes
+    /// and a [`FmmBuilder::domain`] beside the cell are refused when
+    /// building. A tolerance is chosen and verified as in free space, the
     /// verification's truth being an Ewald sum
-    /// ([`ferrofmm_kernels::EwaldSum`]).
+    /// ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Periodic};

@@ -26,6 +26,11 @@
 //! background). The total energy is `E = 1/2 sum_i q_i phi_i`
 //! ([`crate::Fmm::energy`]).
 //!
+//! The Yukawa kernel `e^{-kappa r} / (4 pi r)`
+//! ([`ferrofmm_kernels::ModifiedHelmholtz3d`]) is summed too
+//! ([`lattice_screening`]): its lattice sum converges absolutely, so any
+//! charges are accepted and there is no surface term.
+//!
 //! # How
 //!
 //! Points are wrapped into the cell `[origin, origin + L)^3`, and the
@@ -52,7 +57,13 @@
 //! cell over `L`), built once. The root's local expansion then passes down
 //! the tree as every local expansion does (L2L, L2P).
 //!
-//! `G` minus its 27 nearest images is smooth inside the root's check
+//! For Yukawa `G` is the screened periodic Green's function
+//! ([`ferrofmm_kernels::PeriodicGreen::screened`]); `G` minus its 27
+//! nearest images solves `(-Delta + kappa^2) u = 0` in the root, the local
+//! expansion keeps it exactly, and none of the Laplace corrections below
+//! apply.
+//!
+//! For Laplace, `G` minus its 27 nearest images is smooth inside the root's check
 //! surface but not harmonic: `Laplacian G = -delta + 1 / V` (the
 //! background), so it holds the quadratic `|r|^2 / (6 V)`. Applied to a
 //! neutral density the quadratic leaves a linear function (harmonic, kept
