@@ -3,7 +3,7 @@
 
 use super::parameters::{PeriodicCell, reduced_cutoff};
 use super::reciprocal::phase_table;
-use super::screening::{Split, min_alpha};
+use super::screening::Split;
 use super::sum::check_points;
 use crate::{INV_4PI, KernelError};
 use rayon::prelude::*;
@@ -117,7 +117,7 @@ impl PeriodicGreen {
 
     /// The Green's function of the screened kernel `e^{-kappa r} / (4 pi
     /// r)` in `cell` (see [Screened kernel](#screened-kernel)); `kappa = 0`
-    /// is [`PeriodicGreen::new`]. `alpha = max(7 / V^(1/3), kappa / 8)`.
+    /// is [`PeriodicGreen::new`]. `alpha = 7 / V^(1/3)`, as for Laplace.
     ///
     /// # Errors
     /// [`KernelError::InvalidParameter`] for a tolerance outside `(0, 1)`,
@@ -126,7 +126,7 @@ impl PeriodicGreen {
         let kappa = crate::error::check_wavenumber(kappa)?;
         let s = reduced_cutoff(tolerance)?;
         let volume = cell.volume();
-        let alpha = (GREEN_ALPHA_SCALE / volume.cbrt()).max(min_alpha(kappa));
+        let alpha = GREEN_ALPHA_SCALE / volume.cbrt();
         let split = Split::new(alpha, kappa);
         let l = cell.lengths();
         let k0 = [0, 1, 2].map(|d| 2.0 * PI / l[d]);

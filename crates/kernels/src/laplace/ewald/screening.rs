@@ -42,19 +42,19 @@
 //! -(2 alpha / sqrt(pi)) (-alpha)^(j-1) H_{j-1}(b + alpha t) e^{-(b + alpha
 //! t)^2}`.
 //!
-//! To keep `e^{kappa r}` finite, sums use `alpha >= kappa / 8` (`b <= 4`;
-//! [`min_alpha`]).
+//! The same cut-offs serve every `b`: at `r_c = s / alpha` (`s^2 =
+//! ln(1/tol)`) the larger term is `e^{-kappa r_c} erfc(s - b) ~ e^{-s^2 -
+//! b^2}`, so `alpha` is chosen as for Laplace whatever `kappa` is. (Raising
+//! it with `kappa` would grow the reciprocal lattice as `kappa^3`: at `kappa
+//! L = 2000`, some `1e9` wave vectors.) Strong screening makes `b` large:
+//! `psi` is then the whole kernel, `l` vanishes, and `e^{kappa r}
+//! erfc(alpha r + b)`, a huge factor times one that underflows, is taken
+//! through logarithms where `e^{kappa r}` would overflow.
 
 use super::TWO_OVER_SQRT_PI;
 
 /// Below this `r (alpha (1 + b) + kappa)`, `l(r)` comes from its series.
 const SERIES_BELOW: f64 = 0.02;
-
-/// The smallest splitting parameter a sum with screening `kappa` uses:
-/// `kappa / 8`, so that `b = kappa / (2 alpha) <= 4`.
-pub(crate) fn min_alpha(kappa: f64) -> f64 {
-    kappa / 8.0
-}
 
 /// The split of `e^{-kappa r} / r` at `alpha` (module docs). All values
 /// are without the kernel's `1 / (4 pi)`.
@@ -208,7 +208,13 @@ mod tests {
     /// `psi + l` is the kernel, and `l`'s series joins its closed form.
     #[test]
     fn split_adds_up_and_series_joins() {
-        for &(alpha, kappa) in &[(3.0, 0.0), (3.0, 1.0), (2.0, 7.5), (7.0, 40.0)] {
+        for &(alpha, kappa) in &[
+            (3.0, 0.0),
+            (3.0, 1.0),
+            (2.0, 7.5),
+            (7.0, 40.0),
+            (7.0, 2000.0),
+        ] {
             let s = Split::new(alpha, kappa);
             for &r in &[1e-3, 0.05, 0.3, 0.9, 1.7] {
                 let (psi, _) = s.short(r, false);

@@ -4,7 +4,7 @@
 use super::parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 use super::real_space::CellList;
 use super::reciprocal::ReciprocalLattice;
-use super::screening::{Split, min_alpha};
+use super::screening::Split;
 use crate::{EvalMode, INV_4PI, KernelError};
 use rayon::prelude::*;
 
@@ -34,7 +34,7 @@ use rayon::prelude::*;
 ///
 /// with `psi` the screened short-range kernel (`erfc(alpha r) / r` at
 /// `kappa = 0`; see the module's `screening.rs`), no background and no
-/// neutrality needed; `alpha` is kept `>= kappa / 8`. At a source
+/// neutrality needed; `alpha` and the cut-offs are Laplace's. At a source
 /// (`at_sources`, `all`, `energy`) its own pair is left out and its images
 /// kept, `phi_i = sum_{j != i} q_j G(x_i - x_j) + q_i xi`; at a separate
 /// point, a source at zero distance is treated in the same way.
@@ -124,19 +124,12 @@ impl EwaldSum {
         let kappa = crate::error::check_wavenumber(options.screening)?;
         let params = match options.alpha {
             Some(alpha) => EwaldParameters::with_alpha(&cell, options.tolerance, alpha)?,
-            None => {
-                let balanced = EwaldParameters::balanced(
-                    &cell,
-                    options.tolerance,
-                    n,
-                    options.expected_targets.unwrap_or(n),
-                )?;
-                if balanced.alpha < min_alpha(kappa) {
-                    EwaldParameters::with_alpha(&cell, options.tolerance, min_alpha(kappa))?
-                } else {
-                    balanced
-                }
-            }
+            None => EwaldParameters::balanced(
+                &cell,
+                options.tolerance,
+                n,
+                options.expected_targets.unwrap_or(n),
+            )?,
         };
         let split = Split::new(params.alpha, kappa);
         let positions: Vec<[f64; 3]> = sources
