@@ -597,6 +597,9 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
                 self.mode,
                 self.domain.is_some(),
             )?;
+            if let Some(eps) = self.tolerance {
+                crate::periodic::check_screened_tolerance(&self.kernel, cell, eps, T::PRECISION)?;
+            }
         }
         Ok(())
     }

@@ -185,6 +185,56 @@ impl FarImages {
     }
 }
 
+/// Below this `k L` a periodic Yukawa sum's constant term limits the
+/// accuracy ([`check_screened_tolerance`]).
+pub(crate) const WEAK_SCREENING: f64 = 0.3;
+
+/// Rounding amplification of a periodic Yukawa run at `k L < 0.3`, times
+/// `(k L)^2`: measured (1e3-3e3 points in the unit cell, order 12, f64,
+/// positive and zero-mean charges; gradient errors `1.3e-8`, `1.3e-6`,
+/// `1.2e-4` at `k L = 0.1, 0.01, 0.001`, i.e. `1.2e6 u / (k L)^2` with `u`
+/// the unit roundoff).
+const WEAK_SCREENING_AMPLIFICATION: f64 = 1.2e6;
+
+/// Refuse a tolerance that a periodic Yukawa run with weak screening
+/// cannot reach. Its lattice sum holds the constant `Q e^{-b^2} / (V
+/// k^2)`, about `1 / (k L)^2` times the potential's variation over the
+/// cell; the root's local expansion carries it, and its rounding, times
+/// the pseudo-inverse's amplification, reaches the gradients (and a
+/// neutral cell's potentials): the smallest error is about `1.2e6 u / (k
+/// L)^2` (`u` the unit roundoff: `1.7e-9 / ...` below `k L = 0.3` in f64).
+/// Laplace and `k L >= 0.3` are not limited here.
+pub(crate) fn check_screened_tolerance<K: Kernel>(
+    kernel: &K,
+    cell: &Periodic,
+    eps: f64,
+    precision: ferrofmm_kernels::Precision,
+) -> Result<(), FmmError> {
+    let Some(kappa) = lattice_screening(kernel).filter(|&k| k > 0.0) else {
+        return Ok(());
+    };
+    let kl = kappa * cell.width();
+    if kl >= WEAK_SCREENING {
+        return Ok(());
+    }
+    let unit = match precision {
+        ferrofmm_kernels::Precision::F32 => f64::from(f32::EPSILON) / 2.0,
+        ferrofmm_kernels::Precision::F64 => f64::EPSILON / 2.0,
+    };
+    let limit = WEAK_SCREENING_AMPLIFICATION * unit / (kl * kl);
+    if eps < limit {
+        return Err(FmmError::InvalidParameter(format!(
+            "tolerance {eps:e} is beyond what a periodic Yukawa sum with k L = {kl:.2e} can \
+             promise in {} (smallest: {limit:.1e}): its lattice sum holds the constant \
+             Q / (V k^2), 1 / (k L)^2 times the potential's variation, whose rounding the \
+             gradients see; ask for a larger tolerance, or use the Laplace kernel where the \
+             screening length is this much longer than the cell",
+            precision.name()
+        )));
+    }
+    Ok(())
+}
+
 /// Refuse a Laplace cell that is not neutral.
 pub(crate) fn check_neutral<T: Real>(charges: &[T]) -> Result<(), FmmError> {
     let (sum, abs) = charges.iter().fold((0.0f64, 0.0f64), |(s, a), q| {

@@ -200,3 +200,39 @@ fn yukawa_refuses_the_vacuum_surface_term() {
         .unwrap();
     assert!(fmm.evaluate(&[1.0, 0.5]).is_ok());
 }
+
+/// Weak screening (`k L < 0.3`): the lattice sum's constant `Q / (V k^2)`
+/// limits the accuracy; a tolerance beyond it is refused with the reason,
+/// one within it is met (verified against the screened Ewald sum).
+#[test]
+fn weak_screening_limits_the_tolerance() {
+    let (points, _) = random_box(1000, 1.0, [0.0; 3], false, 21);
+    let q = positive(1000, 22);
+    let cell = Periodic::cube(1.0);
+    let kappa = 0.01;
+    let build = |eps: f64| {
+        FmmBuilder::new(&points)
+            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
+            .periodic(cell)
+            .mode(EvalMode::PotentialGradient)
+            .tolerance(eps)
+            .build_with::<FftM2l<f64>>(Default::default())
+    };
+    match build(1e-8) {
+        Err(FmmError::InvalidParameter(m)) => {
+            assert!(m.contains("k L = 1.00e-2") && m.contains("smallest"), "{m}")
+        }
+        other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
+    }
+    let mut fmm = build(1e-5).unwrap();
+    let out = fmm.evaluate_verified(&q).unwrap();
+    let (ep, eg) = errors(&out.values, &ewald(&points, &q, cell, kappa));
+    assert!(ep <= 1e-5 && eg <= 1e-5, "{ep:e} {eg:e}");
+    // In f32 nothing is promised this weakly screened.
+    let refused = FmmBuilder::<f32, _>::from_f64(&points)
+        .kernel(ModifiedHelmholtz3d::new(0.1).unwrap())
+        .periodic(cell)
+        .tolerance(1e-3)
+        .build_with::<FftM2l<f32>>(Default::default());
+    assert!(matches!(refused, Err(FmmError::InvalidParameter(_))));
+}
