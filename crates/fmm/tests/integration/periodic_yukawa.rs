@@ -60,7 +60,8 @@ fn run(
 /// Uniform and clustered (straddling a face, far from the origin) boxes,
 /// zero-mean and positive charges, weak (`kappa L = 1`) and strong (`kappa
 /// L = 12`) screening: the error falls with the order and stays within
-/// ten times the free-space rule of thumb.
+/// ten times the free-space rule of thumb (orders 4 and 8 here; 12 and 14
+/// reach 1e-10 and 1e-11 in docs/periodic.md's table).
 #[test]
 fn random_boxes_against_screened_ewald_at_several_orders() {
     for (clustered, origin, kappa) in [(false, [0.0; 3], 0.5), (true, [-3.0, 1.0, 1e3], 6.0)] {
@@ -69,7 +70,7 @@ fn random_boxes_against_screened_ewald_at_several_orders() {
         for (name, q) in [("zero-mean", zero_mean), ("positive", positive(1200, 8))] {
             let truth = ewald(&points, &q, cell, kappa);
             let mut last = f64::INFINITY;
-            for order in [4, 7, 10] {
+            for order in [4, 8] {
                 let out = run(&points, &q, cell, kappa, |b| b.order(order).leaf_size(24));
                 let (ep, eg) = errors(&out, &truth);
                 let bound = 10f64.powi(2 - order as i32);
@@ -235,4 +236,45 @@ fn weak_screening_limits_the_tolerance() {
         .tolerance(1e-3)
         .build_with::<FftM2l<f32>>(Default::default());
     assert!(matches!(refused, Err(FmmError::InvalidParameter(_))));
+}
+
+/// Every M2L scheme runs a periodic Yukawa tree, its level-1 operators
+/// included, and they agree.
+#[test]
+fn every_scheme_runs_periodic_yukawa() {
+    let (points, q) = random_box(400, 1.0, [0.0; 3], false, 31);
+    let cell = Periodic::cube(1.0);
+    let kappa = 2.0;
+    let builder = || {
+        FmmBuilder::new(&points)
+            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
+            .periodic(cell)
+            .mode(EvalMode::PotentialGradient)
+            .order(5)
+            .leaf_size(8)
+    };
+    let fft = builder()
+        .build_with::<FftM2l<f64>>(Default::default())
+        .unwrap();
+    let depth = fft.tree().depth();
+    assert!(
+        depth >= 3,
+        "a tree with V lists at levels 1 and below ({depth})"
+    );
+    let fft = fft.evaluate(&q).unwrap();
+    let dense = builder().build_dense().unwrap().evaluate(&q).unwrap();
+    let svd = builder().build_svd().unwrap().evaluate(&q).unwrap();
+    let truth = ewald(&points, &q, cell, kappa);
+    let mut worst = 0.0f64;
+    for (name, out) in [("fft", &fft), ("dense", &dense), ("svd", &svd)] {
+        let (ep, eg) = errors(out, &truth);
+        assert!(ep <= 1e-3 && eg <= 1e-2, "{name}: {ep:e} {eg:e}");
+        worst = worst.max(ep);
+    }
+    // The schemes round differently (FFT: a convolution; SVD: a
+    // truncation) but agree well inside the expansion's own error.
+    for (a, b) in [(&dense, &fft), (&svd, &dense)] {
+        let d = rel_l2(a, b);
+        assert!(d <= 0.2 * worst, "{d:e} against an error of {worst:e}");
+    }
 }
