@@ -278,3 +278,56 @@ fn every_scheme_runs_periodic_yukawa() {
         assert!(d <= 0.2 * worst, "{d:e} against an error of {worst:e}");
     }
 }
+
+/// Separate targets see every image (against the screened Ewald sum at
+/// points), and f32 runs where its precision allows.
+#[test]
+fn yukawa_targets_and_single_precision() {
+    let (points, _) = random_box(1000, 1.0, [0.0; 3], false, 41);
+    let targets = random_box(200, 1.0, [0.0; 3], false, 42).0;
+    let q = positive(1000, 43);
+    let kappa = 3.0;
+    let cell = PeriodicCell::new([0.0; 3], [1.0; 3]).unwrap();
+    let sum = EwaldSum::with_options(cell, &points, &q, EwaldOptions::new(1e-14).screening(kappa))
+        .unwrap();
+    let phi = FmmBuilder::new(&points)
+        .targets(&targets)
+        .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
+        .periodic(Periodic::cube(1.0))
+        .order(9)
+        .leaf_size(20)
+        .build_with::<FftM2l<f64>>(Default::default())
+        .unwrap()
+        .evaluate(&q)
+        .unwrap();
+    let truth = sum.at_points(&targets, EvalMode::Potential).unwrap();
+    let e = rel_l2(&phi, &truth);
+    assert!(e <= 1e-6, "{e:e}");
+
+    let q32: Vec<f32> = q.iter().map(|&x| x as f32).collect();
+    let mut fmm = FmmBuilder::<f32, _>::from_f64(&points)
+        .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
+        .periodic(Periodic::cube(1.0))
+        .tolerance(1e-4)
+        .build_with::<FftM2l<f32>>(Default::default())
+        .unwrap();
+    let phi32: Vec<f64> = fmm
+        .evaluate_verified(&q32)
+        .unwrap()
+        .values
+        .iter()
+        .map(|&x| f64::from(x))
+        .collect();
+    let q64: Vec<f64> = q32.iter().map(|&x| f64::from(x)).collect();
+    let truth = EwaldSum::with_options(
+        cell,
+        &points,
+        &q64,
+        EwaldOptions::new(1e-12).screening(kappa),
+    )
+    .unwrap()
+    .all(EvalMode::Potential)
+    .unwrap();
+    let e = rel_l2(&phi32, &truth);
+    assert!(e <= 1e-4, "{e:e}");
+}
