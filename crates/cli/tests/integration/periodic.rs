@@ -4,64 +4,43 @@ use crate::common;
 
 use common::{ferrofmm, scratch, texts, write_csv};
 
-#[test]
-fn a_periodic_demo_meets_its_tolerance_against_ewald() {
-    let out = ferrofmm(&[
-        "demo",
-        "--n",
-        "3000",
-        "--box",
-        "1",
-        "--tolerance",
-        "1e-5",
-        "--check",
-        "300",
-        "--json",
-    ]);
+/// `ferrofmm demo --n 3000 --box 1 --check 300 --json` with `extra`
+/// arguments and tolerance `eps`: its JSON report, after checking that the
+/// sampled errors (against the Ewald sum) meet `eps`.
+fn periodic_demo(extra: &[&str], eps: &str) -> serde_json::Value {
+    let mut args = vec!["demo", "--n", "3000", "--box", "1", "--tolerance", eps];
+    args.extend_from_slice(extra);
+    args.extend(["--check", "300", "--json"]);
+    let out = ferrofmm(&args);
     let (stdout, stderr) = texts(&out);
     assert!(out.status.success(), "{stderr}");
     let v: serde_json::Value =
         serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+    let eps: f64 = eps.parse().unwrap();
+    let errors = &v["errors"];
+    assert!(errors["potential"].as_f64().unwrap() <= eps, "{errors}");
+    assert!(errors["gradient"].as_f64().unwrap() <= eps, "{errors}");
+    v
+}
+
+#[test]
+fn a_periodic_demo_meets_its_tolerance_against_ewald() {
+    let v = periodic_demo(&[], "1e-5");
     let periodic = v["periodic"].as_str().expect("a periodic row");
     assert!(
         periodic.contains("xyz") && periodic.contains("tin-foil"),
         "{periodic}"
     );
     assert!(v["energy"].as_f64().expect("an energy").is_finite());
-    let errors = &v["errors"];
-    assert!(errors["potential"].as_f64().unwrap() <= 1e-5, "{errors}");
-    assert!(errors["gradient"].as_f64().unwrap() <= 1e-5, "{errors}");
 }
 
 /// Yukawa in a periodic cell with positive (not neutral) charges, checked
 /// against the screened Ewald sum.
 #[test]
 fn a_periodic_yukawa_demo_with_positive_charges() {
-    let out = ferrofmm(&[
-        "demo",
-        "--n",
-        "3000",
-        "--kernel",
-        "yukawa:4",
-        "--charges",
-        "positive",
-        "--box",
-        "1",
-        "--tolerance",
-        "1e-6",
-        "--check",
-        "300",
-        "--json",
-    ]);
-    let (stdout, stderr) = texts(&out);
-    assert!(out.status.success(), "{stderr}");
-    let v: serde_json::Value =
-        serde_json::from_str(stdout.lines().last().expect("output")).expect("JSON");
+    let v = periodic_demo(&["--kernel", "yukawa:4", "--charges", "positive"], "1e-6");
     let periodic = v["periodic"].as_str().expect("a periodic row");
     assert!(periodic.contains("screened"), "{periodic}");
-    let errors = &v["errors"];
-    assert!(errors["potential"].as_f64().unwrap() <= 1e-6, "{errors}");
-    assert!(errors["gradient"].as_f64().unwrap() <= 1e-6, "{errors}");
 }
 
 #[test]

@@ -264,9 +264,7 @@ pub fn relative_errors_periodic<T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> Result<ErrorReport, crate::FmmError> {
-    let kappa = crate::periodic::lattice_screening(kernel).ok_or_else(|| {
-        crate::FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
-    })?;
+    let kappa = crate::periodic::required_screening(kernel)?;
     let exact = PeriodicTruth::new(
         cell,
         kappa,

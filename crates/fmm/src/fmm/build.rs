@@ -355,9 +355,7 @@ fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
     order: usize,
     parts: &[Part<T, S>],
 ) -> Result<FarImages, FmmError> {
-    let kappa = crate::periodic::lattice_screening(kernel).ok_or_else(|| {
-        FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
-    })?;
+    let kappa = crate::periodic::required_screening(kernel)?;
     let radii = parts[0]
         .tree_part()
         .expect("a periodic run has one tree")

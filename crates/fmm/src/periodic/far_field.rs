@@ -37,6 +37,14 @@ pub fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
     any.downcast_ref::<ModifiedHelmholtz3d>().map(|k| k.k)
 }
 
+/// [`lattice_screening`], or the error that names a kernel without a
+/// lattice sum here.
+pub(crate) fn required_screening<K: Kernel>(kernel: &K) -> Result<f64, FmmError> {
+    lattice_screening(kernel).ok_or_else(|| {
+        FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
+    })
+}
+
 /// What a periodic FMM keeps for its far images.
 #[derive(Clone, Debug)]
 pub(crate) struct FarImages {
@@ -159,6 +167,11 @@ impl FarImages {
         centre: [f64; 3],
         out: &mut [T],
     ) {
+        if constant == 0.0 && self.cell.surface() == SurfaceTerm::TinFoil {
+            // Nothing to add (a screened kernel's far images need no
+            // terms): no pass over the targets.
+            return;
+        }
         let dipole: [f64; 3] = match self.cell.surface() {
             SurfaceTerm::TinFoil => [0.0; 3],
             SurfaceTerm::Vacuum => {

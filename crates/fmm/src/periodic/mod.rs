@@ -87,4 +87,6 @@ mod far_field;
 
 pub use cell::{Periodic, PeriodicAxes, SurfaceTerm};
 pub use far_field::lattice_screening;
-pub(crate) use far_field::{FarImages, check_neutral, check_screened_tolerance};
+pub(crate) use far_field::{
+    FarImages, check_neutral, check_screened_tolerance, required_screening,
+};

@@ -211,14 +211,20 @@ fn errors_against_ewald(
     )
     .unwrap();
     let truth = ewald.all(EvalMode::PotentialGradient).unwrap();
+    split_errors(&out, &truth)
+}
+
+/// The potential and gradient errors (relative L2) of `[phi, grad]`
+/// values against the truth.
+pub(crate) fn split_errors(values: &[f64], truth: &[f64]) -> (f64, f64) {
     let pick = |v: &[f64], grad: bool| -> Vec<f64> {
         v.chunks_exact(4)
             .flat_map(|c| if grad { c[1..].to_vec() } else { vec![c[0]] })
             .collect()
     };
     (
-        rel_l2(&pick(&out, false), &pick(&truth, false)),
-        rel_l2(&pick(&out, true), &pick(&truth, true)),
+        rel_l2(&pick(values, false), &pick(truth, false)),
+        rel_l2(&pick(values, true), &pick(truth, true)),
     )
 }
 

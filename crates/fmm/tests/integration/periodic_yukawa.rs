@@ -3,7 +3,7 @@
 //! absolutely, so any charges (neutral or not) are summed over every
 //! image, against the library's screened Ewald sum.
 
-use super::periodic::{random_box, rel_l2};
+use super::periodic::{random_box, rel_l2, split_errors as errors};
 use ferrofmm_field::FftM2l;
 use ferrofmm_fmm::{FmmBuilder, FmmError, Periodic, SurfaceTerm, relative_errors_periodic};
 use ferrofmm_kernels::{EvalMode, EwaldOptions, EwaldSum, ModifiedHelmholtz3d, PeriodicCell};
@@ -23,17 +23,16 @@ fn ewald(points: &[f64], q: &[f64], cell: Periodic, kappa: f64) -> Vec<f64> {
         .unwrap()
 }
 
-/// The potential and gradient errors (relative L2) against the Ewald sum.
-fn errors(values: &[f64], truth: &[f64]) -> (f64, f64) {
-    let pick = |v: &[f64], grad: bool| -> Vec<f64> {
-        v.chunks_exact(4)
-            .flat_map(|c| if grad { c[1..].to_vec() } else { vec![c[0]] })
-            .collect()
-    };
-    (
-        rel_l2(&pick(values, false), &pick(truth, false)),
-        rel_l2(&pick(values, true), &pick(truth, true)),
-    )
+/// A periodic Yukawa FMM's builder: potentials and gradients.
+fn periodic_yukawa(
+    points: &[f64],
+    cell: Periodic,
+    kappa: f64,
+) -> FmmBuilder<'_, f64, ModifiedHelmholtz3d> {
+    FmmBuilder::new(points)
+        .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
+        .periodic(cell)
+        .mode(EvalMode::PotentialGradient)
 }
 
 fn run(
@@ -45,16 +44,11 @@ fn run(
         FmmBuilder<'_, f64, ModifiedHelmholtz3d>,
     ) -> FmmBuilder<'_, f64, ModifiedHelmholtz3d>,
 ) -> Vec<f64> {
-    build(
-        FmmBuilder::new(points)
-            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
-            .periodic(cell)
-            .mode(EvalMode::PotentialGradient),
-    )
-    .build_with::<FftM2l<f64>>(Default::default())
-    .unwrap()
-    .evaluate(q)
-    .unwrap()
+    build(periodic_yukawa(points, cell, kappa))
+        .build_with::<FftM2l<f64>>(Default::default())
+        .unwrap()
+        .evaluate(q)
+        .unwrap()
 }
 
 /// Uniform and clustered (straddling a face, far from the origin) boxes,
@@ -96,10 +90,7 @@ fn yukawa_tolerances_are_met() {
     let kappa = 3.0;
     let truth = ewald(&points, &q, cell, kappa);
     for eps in [1e-3, 1e-6, 1e-9] {
-        let mut fmm = FmmBuilder::new(&points)
-            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
-            .periodic(cell)
-            .mode(EvalMode::PotentialGradient)
+        let mut fmm = periodic_yukawa(&points, cell, kappa)
             .tolerance(eps)
             .build_with::<FftM2l<f64>>(Default::default())
             .unwrap();
@@ -212,10 +203,7 @@ fn weak_screening_limits_the_tolerance() {
     let cell = Periodic::cube(1.0);
     let kappa = 0.01;
     let build = |eps: f64| {
-        FmmBuilder::new(&points)
-            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
-            .periodic(cell)
-            .mode(EvalMode::PotentialGradient)
+        periodic_yukawa(&points, cell, kappa)
             .tolerance(eps)
             .build_with::<FftM2l<f64>>(Default::default())
     };
@@ -245,14 +233,7 @@ fn every_scheme_runs_periodic_yukawa() {
     let (points, q) = random_box(400, 1.0, [0.0; 3], false, 31);
     let cell = Periodic::cube(1.0);
     let kappa = 2.0;
-    let builder = || {
-        FmmBuilder::new(&points)
-            .kernel(ModifiedHelmholtz3d::new(kappa).unwrap())
-            .periodic(cell)
-            .mode(EvalMode::PotentialGradient)
-            .order(5)
-            .leaf_size(8)
-    };
+    let builder = || periodic_yukawa(&points, cell, kappa).order(5).leaf_size(8);
     let fft = builder()
         .build_with::<FftM2l<f64>>(Default::default())
         .unwrap();
