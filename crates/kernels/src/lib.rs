@@ -115,3 +115,4 @@ pub use registry::{
 };
 pub use simd::{ParseSimdLevelError, SimdLevel, set_simd_level};
 pub use stokes::Stokes3d;
+pub use stokes::ewald::{PeriodicStokeslet, StokesEwaldSum};

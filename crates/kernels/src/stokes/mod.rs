@@ -24,6 +24,7 @@
 //! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
 //! as every kernel's outputs: the quantity, then its components).
 
+pub mod ewald;
 mod pair;
 
 use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};

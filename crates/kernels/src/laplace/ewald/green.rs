@@ -325,16 +325,16 @@ impl PeriodicGreen {
 }
 
 /// `{-1, 0, 1}^3`.
-fn near_images() -> impl Iterator<Item = [i64; 3]> {
+pub(crate) fn near_images() -> impl Iterator<Item = [i64; 3]> {
     (0..27).map(|i| [i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1])
 }
 
-fn norm(d: [f64; 3]) -> f64 {
+pub(crate) fn norm(d: [f64; 3]) -> f64 {
     (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt()
 }
 
 /// Calls `f(n, |r + n L|)` for every image `n` in `lo..=hi` (per axis).
-fn for_images(
+pub(crate) fn for_images(
     r: [f64; 3],
     l: [f64; 3],
     lo: [i64; 3],

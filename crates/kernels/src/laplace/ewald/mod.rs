@@ -103,12 +103,12 @@
 //! * `sum.rs`: [`EwaldSum`];
 //! * `green.rs`: [`PeriodicGreen`].
 
-mod green;
-mod parameters;
-mod real_space;
-mod reciprocal;
-mod screening;
-mod sum;
+pub(crate) mod green;
+pub(crate) mod parameters;
+pub(crate) mod real_space;
+pub(crate) mod reciprocal;
+pub(crate) mod screening;
+pub(crate) mod sum;
 
 pub use green::PeriodicGreen;
 pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};

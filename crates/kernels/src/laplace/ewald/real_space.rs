@@ -1,6 +1,8 @@
 //! The real-space part of an Ewald sum: a cell list over the periodic box
-//! and the short-range pair sum `sum_j sum_n q_j psi(r)`, `r = |y - x_j -
-//! n∘L| < r_c` (`psi(r) = erfc(alpha r) / r` for Laplace; the screened
+//! ([`CellList`], which visits the sources and images within `r_c` of a
+//! point, for any kernel's short-range part) and the scalar short-range
+//! pair sum `sum_j sum_n q_j psi(r)`, `r = |y - x_j - n∘L| < r_c`
+//! ([`ShortRange`]; `psi(r) = erfc(alpha r) / r` for Laplace, the screened
 //! kernel's in [`Split`]).
 
 use super::screening::Split;
@@ -22,24 +24,18 @@ pub(crate) struct CellList {
     x: Vec<f64>,
     y: Vec<f64>,
     z: Vec<f64>,
-    q: Vec<f64>,
+    /// `order[k]`: the input index of the source stored `k`-th.
+    order: Vec<usize>,
     /// Integer cell offsets (unbounded, so images of the whole cell appear
     /// when `r_c` exceeds `L`) whose cells come within `r_c` of cell 0.
     stencil: Vec<[i64; 3]>,
     r_cut2: f64,
-    split: Split,
 }
 
 impl CellList {
-    /// Sort `positions` (relative, in `[0, L)`) with `charges` into cells
-    /// of size about `r_c / 2`, with at most about `2N` cells.
-    pub(crate) fn new(
-        lengths: [f64; 3],
-        positions: &[[f64; 3]],
-        charges: &[f64],
-        r_cut: f64,
-        split: Split,
-    ) -> Self {
+    /// Sort `positions` (relative, in `[0, L)`) into cells of size about
+    /// `r_c / 2`, with at most about `2N` cells.
+    pub(crate) fn new(lengths: [f64; 3], positions: &[[f64; 3]], r_cut: f64) -> Self {
         let n_src = positions.len();
         let max_cells = (2 * n_src).max(8) as f64;
         let mut h_target = 0.5 * r_cut;
@@ -67,19 +63,15 @@ impl CellList {
         }
         let start = count.clone();
         let mut next = count;
-        let (mut x, mut y, mut z, mut q) = (
-            vec![0.0; n_src],
-            vec![0.0; n_src],
-            vec![0.0; n_src],
-            vec![0.0; n_src],
-        );
+        let (mut x, mut y, mut z) = (vec![0.0; n_src], vec![0.0; n_src], vec![0.0; n_src]);
+        let mut order = vec![0usize; n_src];
         for (i, &c) in cells.iter().enumerate() {
             let k = next[c];
             next[c] += 1;
             x[k] = positions[i][0];
             y[k] = positions[i][1];
             z[k] = positions[i][2];
-            q[k] = charges[i];
+            order[k] = i;
         }
         let m = [0, 1, 2].map(|d| (r_cut / h[d]).ceil() as i64);
         let r_cut2 = r_cut * r_cut;
@@ -108,23 +100,24 @@ impl CellList {
             x,
             y,
             z,
-            q,
+            order,
             stencil,
             r_cut2,
-            split,
         }
     }
 
-    /// `[sum, gx, gy, gz]` of `q_j psi(r)` over the sources and their
-    /// images within `r_c` of `t` (relative, in `[0, L)`), **without** the
-    /// factor `1/(4 pi)`; the gradient (with respect to `t`) only when
-    /// `grad`. A pair at zero distance contributes its regular part
-    /// `lim_{r->0} (psi(r) - e^{-kappa r} / r) = -l(0)` (Laplace: `-2 alpha
-    /// / sqrt(pi)`) and no gradient.
-    pub(crate) fn sum(&self, t: [f64; 3], grad: bool) -> [f64; 4] {
+    /// `values` (one item per source, input order) in storage order, so
+    /// that [`CellList::visit`]'s index `k` reads item `k`.
+    pub(crate) fn sorted<V: Copy>(&self, values: &[V]) -> Vec<V> {
+        self.order.iter().map(|&i| values[i]).collect()
+    }
+
+    /// Calls `f(k, d, r2)` for every source `k` (storage order) and image
+    /// within `r_c` of `t` (relative, in `[0, L)`), with `d = t - x_k -
+    /// n∘L` and `r2 = |d|^2` (zero for a source at `t`).
+    #[inline]
+    pub(crate) fn visit(&self, t: [f64; 3], mut f: impl FnMut(usize, [f64; 3], f64)) {
         let c = [0, 1, 2].map(|d| ((t[d] / self.h[d]) as i64).clamp(0, self.n[d] as i64 - 1));
-        let split = self.split;
-        let mut acc = [0.0f64; 4];
         for o in &self.stencil {
             let mut idx = [0usize; 3];
             let mut ts = [0.0f64; 3];
@@ -135,36 +128,66 @@ impl CellList {
                 ts[d] = t[d] - u.div_euclid(nd) as f64 * self.lengths[d];
             }
             let cell = idx[0] + self.n[0] * (idx[1] + self.n[1] * idx[2]);
-            let range = self.start[cell]..self.start[cell + 1];
-            let (xs, ys, zs, qs) = (
-                &self.x[range.clone()],
-                &self.y[range.clone()],
-                &self.z[range.clone()],
-                &self.q[range],
-            );
+            let (lo, hi) = (self.start[cell], self.start[cell + 1]);
+            let (xs, ys, zs) = (&self.x[lo..hi], &self.y[lo..hi], &self.z[lo..hi]);
             for j in 0..xs.len() {
-                let dx = ts[0] - xs[j];
-                let dy = ts[1] - ys[j];
-                let dz = ts[2] - zs[j];
-                let r2 = dx * dx + dy * dy + dz * dz;
-                if r2 >= self.r_cut2 {
-                    continue;
-                }
-                let qj = qs[j];
-                if r2 < f64::MIN_POSITIVE {
-                    acc[0] -= qj * split.long(0.0);
-                    continue;
-                }
-                let (psi, g) = split.short(r2.sqrt(), grad);
-                acc[0] += qj * psi;
-                if grad {
-                    let g = g * qj;
-                    acc[1] -= g * dx;
-                    acc[2] -= g * dy;
-                    acc[3] -= g * dz;
+                let d = [ts[0] - xs[j], ts[1] - ys[j], ts[2] - zs[j]];
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 < self.r_cut2 {
+                    f(lo + j, d, r2);
                 }
             }
         }
+    }
+}
+
+/// The scalar short-range sum of Laplace and Yukawa: a [`CellList`] with
+/// the charges in its storage order and the kernel's [`Split`].
+#[derive(Clone, Debug)]
+pub(crate) struct ShortRange {
+    cells: CellList,
+    q: Vec<f64>,
+    split: Split,
+}
+
+impl ShortRange {
+    /// The sum over `positions` (relative, in `[0, L)`) with `charges`.
+    pub(crate) fn new(
+        lengths: [f64; 3],
+        positions: &[[f64; 3]],
+        charges: &[f64],
+        r_cut: f64,
+        split: Split,
+    ) -> Self {
+        let cells = CellList::new(lengths, positions, r_cut);
+        let q = cells.sorted(charges);
+        Self { cells, q, split }
+    }
+
+    /// `[sum, gx, gy, gz]` of `q_j psi(r)` over the sources and their
+    /// images within `r_c` of `t` (relative, in `[0, L)`), **without** the
+    /// factor `1/(4 pi)`; the gradient (with respect to `t`) only when
+    /// `grad`. A pair at zero distance contributes its regular part
+    /// `lim_{r->0} (psi(r) - e^{-kappa r} / r) = -l(0)` (Laplace: `-2 alpha
+    /// / sqrt(pi)`) and no gradient.
+    pub(crate) fn sum(&self, t: [f64; 3], grad: bool) -> [f64; 4] {
+        let split = self.split;
+        let mut acc = [0.0f64; 4];
+        self.cells.visit(t, |k, d, r2| {
+            let qj = self.q[k];
+            if r2 < f64::MIN_POSITIVE {
+                acc[0] -= qj * split.long(0.0);
+                return;
+            }
+            let (psi, g) = split.short(r2.sqrt(), grad);
+            acc[0] += qj * psi;
+            if grad {
+                let g = g * qj;
+                acc[1] -= g * d[0];
+                acc[2] -= g * d[1];
+                acc[3] -= g * d[2];
+            }
+        });
         acc
     }
 }

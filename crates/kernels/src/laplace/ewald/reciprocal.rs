@@ -150,9 +150,38 @@ impl ReciprocalLattice {
     }
 
     /// `B_k = a_k conj(S(k))` as `(re, im)`, with `S(k) = sum_j q_j exp(i k
-    /// . x_j)`; parallel over `m_x`, each `S(k)` summed in source order
-    /// (deterministic).
+    /// . x_j)` ([`ReciprocalLattice::structure_factors`]).
     pub(crate) fn coefficients(
+        &self,
+        positions: &[[f64; 3]],
+        charges: &[f64],
+    ) -> (Vec<f64>, Vec<f64>) {
+        let (mut br, mut bi) = self.structure_factors(positions, charges);
+        for k in 0..br.len() {
+            br[k] *= self.coef[k];
+            bi[k] *= -self.coef[k];
+        }
+        (br, bi)
+    }
+
+    /// The wave vectors `k`, in the order of every per-`k` array here.
+    pub(crate) fn wave_vectors(&self) -> Vec<[f64; 3]> {
+        let mut out = Vec::with_capacity(self.len());
+        for c in &self.columns {
+            for mz in c.lo..=c.hi {
+                out.push([
+                    c.mx as f64 * self.k0[0],
+                    c.my as f64 * self.k0[1],
+                    mz as f64 * self.k0[2],
+                ]);
+            }
+        }
+        out
+    }
+
+    /// `S(k) = sum_j q_j exp(i k . x_j)` as `(re, im)`; parallel over
+    /// `m_x`, each `S(k)` summed in source order (deterministic).
+    pub(crate) fn structure_factors(
         &self,
         positions: &[[f64; 3]],
         charges: &[f64],
@@ -199,10 +228,6 @@ impl ReciprocalLattice {
         for (sr, si) in parts {
             br.extend(sr);
             bi.extend(si);
-        }
-        for k in 0..br.len() {
-            br[k] *= self.coef[k];
-            bi[k] *= -self.coef[k];
         }
         (br, bi)
     }

@@ -2,7 +2,7 @@
 //! charges, the reference of the periodic FMM.
 
 use super::parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
-use super::real_space::CellList;
+use super::real_space::ShortRange;
 use super::reciprocal::ReciprocalLattice;
 use super::screening::Split;
 use crate::{EvalMode, INV_4PI, KernelError};
@@ -69,7 +69,7 @@ pub struct EwaldSum {
     positions: Vec<[f64; 3]>,
     charges: Vec<f64>,
     total_charge: f64,
-    cells: CellList,
+    cells: ShortRange,
     lattice: ReciprocalLattice,
     b_re: Vec<f64>,
     b_im: Vec<f64>,
@@ -136,7 +136,7 @@ impl EwaldSum {
             .chunks_exact(3)
             .map(|p| cell.wrap_relative([p[0], p[1], p[2]]))
             .collect();
-        let cells = CellList::new(cell.lengths(), &positions, charges, params.r_cut, split);
+        let cells = ShortRange::new(cell.lengths(), &positions, charges, params.r_cut, split);
         let lattice = ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, &split);
         let (b_re, b_im) = lattice.coefficients(&positions, charges);
         Ok(Self {
