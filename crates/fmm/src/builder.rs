@@ -524,17 +524,21 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// the maths and the conventions). Points outside the cell are wrapped
     /// into it; results come in the caller's order.
     ///
-    /// This release runs the Laplace kernel and the Yukawa kernel
-    /// ([`ferrofmm_kernels::ModifiedHelmholtz3d`]) with charges in a cubic
-    /// cell periodic in `x`, `y` and `z` ([`crate::periodic::lattice_screening`]
+    /// This release runs the Laplace kernel, the Yukawa kernel
+    /// ([`ferrofmm_kernels::ModifiedHelmholtz3d`]) and the Stokeslet
+    /// ([`ferrofmm_kernels::Stokes3d`]) with charges (point forces) in a
+    /// cubic cell periodic in `x`, `y` and `z` ([`crate::periodic::lattice_sum`]
     /// says which kernels). A Laplace cell must be neutral
     /// ([`FmmError::NotNeutral`] at evaluation otherwise); a Yukawa cell
     /// need not be, and takes no vacuum surface term (its sum converges
-    /// absolutely). Other kernels, dipoles, slabs, rods, non-cubic boxes
+    /// absolutely); Stokes takes any forces, with Hasimoto's convention
+    /// (zero mean velocity, a net force balanced by a uniform pressure
+    /// gradient). Other kernels, dipoles, slabs, rods, non-cubic boxes
     /// and a [`FmmBuilder::domain`] beside the cell are refused when
     /// building. A tolerance is chosen and verified as in free space, the
     /// verification's truth being an Ewald sum
-    /// ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa).
+    /// ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa;
+    /// [`ferrofmm_kernels::StokesEwaldSum`] for Stokes).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Periodic};
@@ -651,19 +655,28 @@ fn check_periodic_problem<K: Kernel>(
         Some(c) => format!("{} ({})", c.description().name, kernel.name()),
         None => kernel.name(),
     };
-    match crate::periodic::lattice_screening(kernel) {
+    use crate::periodic::LatticeSum;
+    match crate::periodic::lattice_sum(kernel) {
         None => {
             return Err(FmmError::InvalidParameter(format!(
-                "periodic boundaries run the Laplace and Yukawa (modified Helmholtz) kernels \
-                 only in this release, not {}",
+                "periodic boundaries run the Laplace, Yukawa (modified Helmholtz) and Stokes \
+                 kernels only in this release, not {}",
                 name()
             )));
         }
-        Some(kappa) if kappa > 0.0 && cell.surface() == crate::SurfaceTerm::Vacuum => {
+        Some(LatticeSum::Yukawa { .. }) if cell.surface() == crate::SurfaceTerm::Vacuum => {
             return Err(FmmError::InvalidParameter(format!(
                 "the vacuum surface term belongs to the Laplace lattice sum, which converges \
                  only conditionally; {}'s converges absolutely and has none: leave the surface \
                  term at its default",
+                name()
+            )));
+        }
+        Some(LatticeSum::Stokes { .. }) if cell.surface() == crate::SurfaceTerm::Vacuum => {
+            return Err(FmmError::InvalidParameter(format!(
+                "the vacuum surface term belongs to the Laplace lattice sum; {}'s is Hasimoto's \
+                 (zero mean velocity, the net force balanced by a uniform pressure gradient) \
+                 and has none: leave the surface term at its default",
                 name()
             )));
         }

@@ -378,9 +378,9 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
         let truth = PeriodicTruth::new(
             &far.cell,
-            far.screening(),
+            far.lattice(),
             &points.sources,
-            &charges[..self.n_sources],
+            &charges[..self.n_sources * self.kernel.values_per_source(self.source_kind)],
             points.targets.as_deref(),
             self.mode,
             tolerance,

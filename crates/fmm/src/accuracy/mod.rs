@@ -31,7 +31,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Real, SourceKind};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
@@ -186,16 +186,40 @@ pub fn relative_errors_sources_with_progress<P: Real, T: Real, K: Kernel>(
         .errors_at(sample)
 }
 
-/// The Ewald truth of a periodic Laplace (`kappa = 0`) or Yukawa problem:
-/// the charges at the sources (`f64`, wrapped or not) in `cell`, at the
-/// `targets` (`None`: the sources themselves, each leaving out only
-/// itself), to `tolerance`, tuned for about `expected` targets. The one
-/// truth of a periodic run's verification and of
-/// [`relative_errors_periodic`].
+/// The Ewald truth of a periodic Laplace, Yukawa or Stokes problem
+/// ([`crate::periodic::LatticeSum`]): the densities at the sources (`f64`,
+/// wrapped or not) in `cell`, at the `targets` (`None`: the sources
+/// themselves, each leaving out only itself), to `tolerance`, tuned for
+/// about `expected` targets. The one truth of a periodic run's
+/// verification and of [`relative_errors_periodic`].
 pub(crate) struct PeriodicTruth<'a> {
-    ewald: ferrofmm_kernels::EwaldSum,
+    sum: LatticeTruth,
     targets: Option<&'a [f64]>,
     mode: EvalMode,
+}
+
+/// The Ewald sum behind a [`PeriodicTruth`].
+enum LatticeTruth {
+    /// Laplace or Yukawa.
+    Scalar(ferrofmm_kernels::EwaldSum),
+    /// Hasimoto's Stokes sum.
+    Stokes(ferrofmm_kernels::StokesEwaldSum),
+}
+
+impl LatticeTruth {
+    fn at_points(&self, at: &[f64], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
+        match self {
+            LatticeTruth::Scalar(s) => s.at_points(at, mode),
+            LatticeTruth::Stokes(s) => s.at_points(at, mode),
+        }
+    }
+
+    fn at_sources(&self, sample: &[usize], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
+        match self {
+            LatticeTruth::Scalar(s) => s.at_sources(sample, mode),
+            LatticeTruth::Stokes(s) => s.at_sources(sample, mode),
+        }
+    }
 }
 
 impl<'a> PeriodicTruth<'a> {
@@ -204,7 +228,7 @@ impl<'a> PeriodicTruth<'a> {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn new<T: Real>(
         cell: &crate::Periodic,
-        kappa: f64,
+        lattice: crate::periodic::LatticeSum,
         sources: &[f64],
         charges: &[T],
         targets: Option<&'a [f64]>,
@@ -212,16 +236,29 @@ impl<'a> PeriodicTruth<'a> {
         tolerance: f64,
         expected: usize,
     ) -> Result<Self, crate::FmmError> {
+        use crate::periodic::LatticeSum;
         let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
         let cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
-        let options = ferrofmm_kernels::EwaldOptions::new(tolerance)
-            .expected_targets(expected)
-            .screening(kappa);
-        Ok(PeriodicTruth {
-            ewald: ferrofmm_kernels::EwaldSum::with_options(cell, sources, &q, options)?,
-            targets,
-            mode,
-        })
+        let options = ferrofmm_kernels::EwaldOptions::new(tolerance).expected_targets(expected);
+        let sum = match lattice {
+            LatticeSum::Stokes { viscosity } => {
+                LatticeTruth::Stokes(ferrofmm_kernels::StokesEwaldSum::with_options(
+                    cell, sources, &q, viscosity, options,
+                )?)
+            }
+            LatticeSum::Yukawa { kappa } => {
+                LatticeTruth::Scalar(ferrofmm_kernels::EwaldSum::with_options(
+                    cell,
+                    sources,
+                    &q,
+                    options.screening(kappa),
+                )?)
+            }
+            LatticeSum::Laplace => LatticeTruth::Scalar(ferrofmm_kernels::EwaldSum::with_options(
+                cell, sources, &q, options,
+            )?),
+        };
+        Ok(PeriodicTruth { sum, targets, mode })
     }
 
     /// The values at the targets `sample`.
@@ -235,18 +272,20 @@ impl<'a> PeriodicTruth<'a> {
                     .iter()
                     .flat_map(|&j| [t[3 * j], t[3 * j + 1], t[3 * j + 2]])
                     .collect();
-                self.ewald.at_points(&at, self.mode)?
+                self.sum.at_points(&at, self.mode)?
             }
-            None => self.ewald.at_sources(sample, self.mode)?,
+            None => self.sum.at_sources(sample, self.mode)?,
         })
     }
 }
 
 /// [`relative_errors`] of a periodic run ([`crate::Periodic`]) of
-/// `kernel` (Laplace or Yukawa): the truth at the sampled targets is the
-/// Ewald sum ([`ferrofmm_kernels::EwaldSum`], to `1e-13`, screened for
-/// Yukawa) of the charges at the sources in the cell, at the `targets`
-/// (`None`: the targets are the sources, each leaving out only itself).
+/// `kernel` (Laplace, Yukawa or Stokes: [`crate::periodic::lattice_sum`]):
+/// the truth at the sampled targets is the Ewald sum
+/// ([`ferrofmm_kernels::EwaldSum`] to `1e-13`, screened for Yukawa;
+/// [`ferrofmm_kernels::StokesEwaldSum`] for Stokes) of the charges (or
+/// forces) at the sources in the cell, at the `targets` (`None`: the
+/// targets are the sources, each leaving out only itself).
 ///
 /// # Errors
 /// [`FmmError::InvalidParameter`](crate::FmmError::InvalidParameter) for a
@@ -264,10 +303,10 @@ pub fn relative_errors_periodic<T: Real, K: Kernel>(
     values: &[T],
     sample: &[usize],
 ) -> Result<ErrorReport, crate::FmmError> {
-    let kappa = crate::periodic::required_screening(kernel)?;
+    let lattice = crate::periodic::required_lattice(kernel)?;
     let exact = PeriodicTruth::new(
         cell,
-        kappa,
+        lattice,
         sources,
         charges,
         targets,

@@ -355,7 +355,7 @@ fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
     order: usize,
     parts: &[Part<T, S>],
 ) -> Result<FarImages, FmmError> {
-    let kappa = crate::periodic::required_screening(kernel)?;
+    let lattice = crate::periodic::required_lattice(kernel)?;
     let radii = parts[0]
         .tree_part()
         .expect("a periodic run has one tree")
@@ -363,7 +363,7 @@ fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
         .radii();
     FarImages::new(
         *cell,
-        kappa,
+        lattice,
         order,
         radii.upward_equivalent,
         radii.downward_check,

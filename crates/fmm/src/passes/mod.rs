@@ -94,7 +94,7 @@ pub(crate) fn evaluate<T: Real, K: Kernel, S: M2lScheme<T>>(
         .collect();
     let mut root_checks: Vec<Vec<T>> = fmm.parts.iter().map(|_| Vec::new()).collect();
     // A periodic cell: the far images act on the root ([`crate::periodic`]).
-    let mut periodic_constant = 0.0;
+    let mut periodic_constant = [0.0; 3];
     if let (Some(far), Some(tp)) = (&fmm.periodic, fmm.parts[0].tree_part()) {
         let t = Instant::now();
         let centre = cell_centre(far, tp);

@@ -4,7 +4,10 @@
 //! [module docs](super)).
 
 use ferrofmm_field::surface_points;
-use ferrofmm_kernels::{Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen, Real};
+use ferrofmm_kernels::{
+    Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen, PeriodicStokeslet, Real,
+    Stokes3d,
+};
 
 use super::{Periodic, SurfaceTerm};
 use crate::FmmError;
@@ -17,10 +20,75 @@ const GREEN_TOLERANCE: f64 = 1e-15;
 /// refused as not neutral.
 pub(crate) const NEUTRALITY: f64 = 1e-8;
 
-/// The screening `kappa` of a kernel whose lattice sum the periodic FMM
-/// sums: `0` for [`Laplace3d`] (whose cell must be neutral), `k` for
+/// The lattice sum a periodic run of a kernel computes
+/// ([`lattice_sum`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[non_exhaustive]
+pub enum LatticeSum {
+    /// Laplace, `1 / (4 pi r)`: Ewald's sum (conditionally convergent;
+    /// the cell must be neutral; tin-foil or vacuum surroundings).
+    Laplace,
+    /// Yukawa, `e^{-kappa r} / (4 pi r)`: absolutely convergent, any
+    /// charges.
+    Yukawa {
+        /// The screening `kappa > 0`.
+        kappa: f64,
+    },
+    /// The Stokeslet of viscosity `mu`: Hasimoto's sum (zero mean velocity,
+    /// a net force balanced by a uniform pressure gradient), any forces.
+    Stokes {
+        /// The viscosity `mu > 0`.
+        viscosity: f64,
+    },
+}
+
+impl LatticeSum {
+    /// Components per density and per value: 3 for Stokes, else 1.
+    pub fn components(self) -> usize {
+        match self {
+            LatticeSum::Stokes { .. } => 3,
+            _ => 1,
+        }
+    }
+}
+
+/// The lattice sum the periodic FMM computes for `kernel`:
+/// [`Laplace3d`], [`ModifiedHelmholtz3d`] (Yukawa, `k > 0`) and
+/// [`Stokes3d`]; `None` for any other kernel, which
+/// [`crate::FmmBuilder::periodic`] refuses.
+///
+/// ```
+/// use ferrofmm_fmm::periodic::{lattice_sum, LatticeSum};
+/// use ferrofmm_kernels::{Helmholtz3d, Laplace3d, ModifiedHelmholtz3d, Stokes3d};
+/// assert_eq!(lattice_sum(&Laplace3d), Some(LatticeSum::Laplace));
+/// assert_eq!(
+///     lattice_sum(&ModifiedHelmholtz3d::new(2.0).unwrap()),
+///     Some(LatticeSum::Yukawa { kappa: 2.0 })
+/// );
+/// assert_eq!(lattice_sum(&Stokes3d::new(0.5).unwrap()), Some(LatticeSum::Stokes { viscosity: 0.5 }));
+/// assert_eq!(lattice_sum(&Helmholtz3d::new(2.0).unwrap()), None);
+/// ```
+pub fn lattice_sum<K: Kernel>(kernel: &K) -> Option<LatticeSum> {
+    let any = kernel as &dyn std::any::Any;
+    if any.downcast_ref::<Laplace3d>().is_some() {
+        return Some(LatticeSum::Laplace);
+    }
+    if let Some(k) = any.downcast_ref::<ModifiedHelmholtz3d>() {
+        return Some(if k.k == 0.0 {
+            LatticeSum::Laplace
+        } else {
+            LatticeSum::Yukawa { kappa: k.k }
+        });
+    }
+    any.downcast_ref::<Stokes3d>().map(|s| LatticeSum::Stokes {
+        viscosity: s.viscosity,
+    })
+}
+
+/// The screening `kappa` of a scalar kernel whose lattice sum the periodic
+/// FMM sums: `0` for [`Laplace3d`] (whose cell must be neutral), `k` for
 /// [`ModifiedHelmholtz3d`] (whose `k = 0` is Laplace); `None` for any other
-/// kernel, which [`crate::FmmBuilder::periodic`] refuses.
+/// kernel, [`Stokes3d`] included (see [`lattice_sum`]).
 ///
 /// ```
 /// use ferrofmm_fmm::periodic::lattice_screening;
@@ -30,17 +98,17 @@ pub(crate) const NEUTRALITY: f64 = 1e-8;
 /// assert_eq!(lattice_screening(&Helmholtz3d::new(2.0).unwrap()), None);
 /// ```
 pub fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
-    let any = kernel as &dyn std::any::Any;
-    if any.downcast_ref::<Laplace3d>().is_some() {
-        return Some(0.0);
+    match lattice_sum(kernel)? {
+        LatticeSum::Laplace => Some(0.0),
+        LatticeSum::Yukawa { kappa } => Some(kappa),
+        LatticeSum::Stokes { .. } => None,
     }
-    any.downcast_ref::<ModifiedHelmholtz3d>().map(|k| k.k)
 }
 
-/// [`lattice_screening`], or the error that names a kernel without a
-/// lattice sum here.
-pub(crate) fn required_screening<K: Kernel>(kernel: &K) -> Result<f64, FmmError> {
-    lattice_screening(kernel).ok_or_else(|| {
+/// [`lattice_sum`], or the error that names a kernel without a lattice sum
+/// here.
+pub(crate) fn required_lattice<K: Kernel>(kernel: &K) -> Result<LatticeSum, FmmError> {
+    lattice_sum(kernel).ok_or_else(|| {
         FmmError::InvalidParameter(format!("no periodic lattice sum for {}", kernel.name()))
     })
 }
@@ -49,22 +117,24 @@ pub(crate) fn required_screening<K: Kernel>(kernel: &K) -> Result<f64, FmmError>
 #[derive(Clone, Debug)]
 pub(crate) struct FarImages {
     pub(crate) cell: Periodic,
-    /// The kernel's screening (`0`: Laplace, with its neutral projection,
-    /// constant and surface term; `> 0`: Yukawa, which needs none).
-    kappa: f64,
-    /// `P`, row-major `n x n` (check point `i`, equivalent point `j`).
+    /// The lattice sum (Laplace: with its neutral projection, constant and
+    /// surface term; Yukawa: none of them; Stokes: a constant velocity).
+    lattice: LatticeSum,
+    /// `P`, row-major `c n x c n` (check point `i` and component `a`,
+    /// equivalent point `j` and component `b`, at row `c i + a` and column
+    /// `c j + b`).
     operator: Vec<f64>,
     /// The root's upward equivalent points relative to the cell's centre.
     equivalent: Vec<f64>,
 }
 
 impl FarImages {
-    /// `P` for `cell` at `order`, for the kernel with screening `kappa`
-    /// ([`lattice_screening`]), with the root surfaces of radii
+    /// `P` for `cell` at `order`, for the lattice sum `lattice`
+    /// ([`lattice_sum`]), with the root surfaces of radii
     /// `upward_equivalent` and `downward_check` half-widths.
     pub(crate) fn new(
         cell: Periodic,
-        kappa: f64,
+        lattice: LatticeSum,
         order: usize,
         upward_equivalent: f64,
         downward_check: f64,
@@ -73,81 +143,133 @@ impl FarImages {
         let equivalent = surface_points::<f64>(order, [0.0; 3], half, upward_equivalent);
         let check = surface_points::<f64>(order, [0.0; 3], half, downward_check);
         let green_cell = PeriodicCell::new([0.0; 3], cell.lengths())?;
-        let green = PeriodicGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?;
         // `far_images(r)` depends on differences only: the cell's origin
         // does not matter, the points are relative to its centre.
-        let operator = green.far_images_matrix(&check, &equivalent)?;
+        let operator = match lattice {
+            LatticeSum::Laplace => PeriodicGreen::new(green_cell, GREEN_TOLERANCE)?
+                .far_images_matrix(&check, &equivalent)?,
+            LatticeSum::Yukawa { kappa } => {
+                PeriodicGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
+                    .far_images_matrix(&check, &equivalent)?
+            }
+            LatticeSum::Stokes { viscosity } => {
+                PeriodicStokeslet::new(green_cell, viscosity, GREEN_TOLERANCE)?
+                    .far_images_matrix(&check, &equivalent)?
+            }
+        };
         Ok(FarImages {
             cell,
-            kappa,
+            lattice,
             operator,
             equivalent,
         })
     }
 
-    /// The kernel's screening: `0` for Laplace.
-    pub(crate) fn screening(&self) -> f64 {
-        self.kappa
+    /// The lattice sum.
+    pub(crate) fn lattice(&self) -> LatticeSum {
+        self.lattice
     }
 
     /// Whether the cell must be neutral (Laplace).
     pub(crate) fn needs_neutral(&self) -> bool {
-        self.kappa == 0.0
+        self.lattice == LatticeSum::Laplace
     }
 
-    /// Number of surface points.
-    fn n(&self) -> usize {
-        self.equivalent.len() / 3
+    /// Values per expansion: surface points times components.
+    fn len(&self) -> usize {
+        self.lattice.components() * self.equivalent.len() / 3
     }
 
     /// The far images' potentials on the root's downward check surface
-    /// for the root multipole `root` (its first `n` values), and the
-    /// constant `C` of the module docs for the wrapped charges `q` at the
-    /// wrapped points `x` (relative to anything: only differences and
-    /// the cell's centre `centre`, in the same frame, matter). A screened
-    /// kernel's far images are a smooth solution of `(-Delta + kappa^2) u =
-    /// 0` in the root, kept exactly by the local expansion: no projection,
-    /// `C = 0`.
+    /// for the root multipole `root` (its first `c n` values), and the
+    /// constant `C` (one per component) of the module docs for the wrapped
+    /// densities `q` at the wrapped points `x` (relative to anything: only
+    /// differences and the cell's centre `centre`, in the same frame,
+    /// matter). A screened kernel's far images are a smooth solution of
+    /// `(-Delta + kappa^2) u = 0` in the root, kept exactly by the local
+    /// expansion: no projection, `C = 0`. Stokes' are a smooth Stokes flow
+    /// there (the uniform force that balances the cell's is taken by the
+    /// pressure); its constant velocity `C` comes from the second moments
+    /// of the forces, as Laplace's from those of the charges.
     pub(crate) fn root_check<T: Real>(
         &self,
         root: &[T],
         x: &[T],
         centre: [f64; 3],
         q: &[T],
-    ) -> (Vec<T>, f64) {
-        let n = self.n();
-        let mut u: Vec<f64> = root[..n].iter().map(|v| v.to_f64()).collect();
-        if self.kappa > 0.0 {
-            return (self.apply(&u), 0.0);
+    ) -> (Vec<T>, [f64; 3]) {
+        let mut u: Vec<f64> = root[..self.len()].iter().map(|v| v.to_f64()).collect();
+        match self.lattice {
+            LatticeSum::Yukawa { .. } => (self.apply(&u), [0.0; 3]),
+            LatticeSum::Stokes { viscosity } => {
+                let constant = self.stokes_constant(&u, x, centre, q, viscosity);
+                (self.apply(&u), constant)
+            }
+            LatticeSum::Laplace => {
+                let n = u.len();
+                let mean = u.iter().sum::<f64>() / n as f64;
+                u.iter_mut().for_each(|v| *v -= mean);
+                let check = self.apply(&u);
+                // Second moments `sum w |p - c|^2` of the charges and of `u`.
+                let charges: f64 = x
+                    .chunks_exact(3)
+                    .zip(q)
+                    .map(|(p, q)| {
+                        q.to_f64()
+                            * (0..3)
+                                .map(|a| (p[a].to_f64() - centre[a]).powi(2))
+                                .sum::<f64>()
+                    })
+                    .sum();
+                let equivalent: f64 = self
+                    .equivalent
+                    .chunks_exact(3)
+                    .zip(&u)
+                    .map(|(p, u)| u * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]))
+                    .sum();
+                let constant = (charges - equivalent) / (6.0 * self.cell.volume());
+                (check, [constant, 0.0, 0.0])
+            }
         }
-        let mean = u.iter().sum::<f64>() / n as f64;
-        u.iter_mut().for_each(|v| *v -= mean);
-        let check = self.apply(&u);
-        // Second moments `sum w |p - c|^2` of the charges and of `u`.
-        let charges: f64 = x
-            .chunks_exact(3)
-            .zip(q)
-            .map(|(p, q)| {
-                q.to_f64()
-                    * (0..3)
-                        .map(|a| (p[a].to_f64() - centre[a]).powi(2))
-                        .sum::<f64>()
-            })
-            .sum();
-        let equivalent: f64 = self
-            .equivalent
-            .chunks_exact(3)
-            .zip(&u)
-            .map(|(p, u)| u * (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]))
-            .sum();
-        let constant = (charges - equivalent) / (6.0 * self.cell.volume());
-        (check, constant)
+    }
+
+    /// Stokes' constant velocity `C_i = ((2/15) dT_i - (1/15) dS_i) / (mu
+    /// V)` with `T_i = sum f_i |p - c|^2` and `S_i = sum (f . (p - c)) (p
+    /// - c)_i`, `d` the forces' moment less the equivalent density's (see
+    /// the [module docs](super)).
+    fn stokes_constant<T: Real>(
+        &self,
+        u: &[f64],
+        x: &[T],
+        centre: [f64; 3],
+        q: &[T],
+        viscosity: f64,
+    ) -> [f64; 3] {
+        let mut t = [0.0f64; 3];
+        let mut s = [0.0f64; 3];
+        let mut add = |p: [f64; 3], f: [f64; 3], sign: f64| {
+            let r2 = p[0] * p[0] + p[1] * p[1] + p[2] * p[2];
+            let pf = p[0] * f[0] + p[1] * f[1] + p[2] * f[2];
+            for i in 0..3 {
+                t[i] += sign * f[i] * r2;
+                s[i] += sign * pf * p[i];
+            }
+        };
+        for (p, f) in x.chunks_exact(3).zip(q.chunks_exact(3)) {
+            let p = std::array::from_fn(|a| p[a].to_f64() - centre[a]);
+            add(p, std::array::from_fn(|a| f[a].to_f64()), 1.0);
+        }
+        for (p, f) in self.equivalent.chunks_exact(3).zip(u.chunks_exact(3)) {
+            add([p[0], p[1], p[2]], [f[0], f[1], f[2]], -1.0);
+        }
+        let scale = 1.0 / (viscosity * self.cell.volume());
+        std::array::from_fn(|i| scale * (2.0 * t[i] - s[i]) / 15.0)
     }
 
     /// `P u`.
     fn apply<T: Real>(&self, u: &[f64]) -> Vec<T> {
         self.operator
-            .chunks_exact(self.n())
+            .chunks_exact(self.len())
             .map(|row| T::from_f64(row.iter().zip(u).map(|(a, b)| a * b).sum()))
             .collect()
     }
@@ -159,7 +281,7 @@ impl FarImages {
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_terms<T: Real>(
         &self,
-        constant: f64,
+        constant: [f64; 3],
         w: usize,
         x: &[T],
         q: &[T],
@@ -167,11 +289,21 @@ impl FarImages {
         centre: [f64; 3],
         out: &mut [T],
     ) {
-        if constant == 0.0 && self.cell.surface() == SurfaceTerm::TinFoil {
+        if constant == [0.0; 3] && self.cell.surface() == SurfaceTerm::TinFoil {
             // Nothing to add (a screened kernel's far images need no
             // terms): no pass over the targets.
             return;
         }
+        if let LatticeSum::Stokes { .. } = self.lattice {
+            // A constant velocity; no surface term (refused when building).
+            for o in out.chunks_exact_mut(w) {
+                for i in 0..3 {
+                    o[i] += T::from_f64(constant[i]);
+                }
+            }
+            return;
+        }
+        let constant = constant[0];
         let dipole: [f64; 3] = match self.cell.surface() {
             SurfaceTerm::TinFoil => [0.0; 3],
             SurfaceTerm::Vacuum => {
@@ -223,7 +355,7 @@ pub(crate) fn check_screened_tolerance<K: Kernel>(
     eps: f64,
     precision: ferrofmm_kernels::Precision,
 ) -> Result<(), FmmError> {
-    let Some(kappa) = lattice_screening(kernel).filter(|&k| k > 0.0) else {
+    let Some(LatticeSum::Yukawa { kappa }) = lattice_sum(kernel) else {
         return Ok(());
     };
     let kl = kappa * cell.width();

@@ -86,7 +86,5 @@ mod cell;
 mod far_field;
 
 pub use cell::{Periodic, PeriodicAxes, SurfaceTerm};
-pub use far_field::lattice_screening;
-pub(crate) use far_field::{
-    FarImages, check_neutral, check_screened_tolerance, required_screening,
-};
+pub(crate) use far_field::{FarImages, check_neutral, check_screened_tolerance, required_lattice};
+pub use far_field::{LatticeSum, lattice_screening, lattice_sum};

@@ -13,6 +13,7 @@ mod hostile;
 mod memory;
 mod outliers;
 mod periodic;
+mod periodic_stokes;
 mod periodic_yukawa;
 mod proptest_fmm;
 mod registry;
