@@ -234,9 +234,9 @@ impl FarImages {
     }
 
     /// Stokes' constant velocity `C_i = ((2/15) dT_i - (1/15) dS_i) / (mu
-    /// V)` with `T_i = sum f_i |p - c|^2` and `S_i = sum (f . (p - c)) (p
-    /// - c)_i`, `d` the forces' moment less the equivalent density's (see
-    /// the [module docs](super)).
+    /// V)` with `T_i = sum f_i |r|^2` and `S_i = sum (f . r) r_i`, `r = p -
+    /// c`, `d` the forces' moment less the equivalent density's (see the
+    /// [module docs](super)).
     fn stokes_constant<T: Real>(
         &self,
         u: &[f64],
