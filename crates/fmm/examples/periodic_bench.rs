@@ -1,13 +1,18 @@
-//! Periodic Laplace (or Yukawa) runs against a converged Ewald reference
-//! (issue 32): the figures behind docs/periodic.md, and the files a peer
-//! (OpenMM) is run on.
+//! Periodic Laplace (or Yukawa, or Stokes) runs against a converged Ewald
+//! reference (issue 32): the figures behind docs/periodic.md, and the
+//! files a peer (OpenMM) is run on.
 //!
-//! `cargo run --release --features sweeps --example periodic_bench -- N L DIR [k=K] [verify] [EPS...]`
+//! `cargo run --release --features sweeps --example periodic_bench -- N L DIR [k=K | stokes | sediment] [verify] [EPS...]`
 //!
 //! `k=K` runs the Yukawa kernel `e^{-K r} / (4 pi r)` against the screened
-//! Ewald sum; `verify` runs the library's verification after each
-//! evaluation (raising the order when the choice fell short), as the
-//! front ends do.
+//! Ewald sum; `stokes` the Stokeslet (viscosity 1) with forces uniform in
+//! `[-0.5, 0.5)^3` less their mean (zero sum), `sediment` with the force
+//! `(0, 0, -1)` on every point (a sedimenting suspension), both against
+//! Hasimoto's sum ([`ferrofmm_kernels::StokesEwaldSum`]; the written
+//! `charges.f64` are then the forces, `reference.f64` the velocity and its
+//! gradient, 12 values an ion); `verify` runs the library's verification
+//! after each evaluation (raising the order when the choice fell short),
+//! as the front ends do.
 //!
 //! Writes to `DIR`: `points.f64` (N x 3), `charges.f64` (N, +-1, neutral),
 //! `sample.f64` (the indices of the sampled ions), `reference.f64` (at
@@ -24,6 +29,7 @@ use std::time::Instant;
 use ferrofmm_fmm::{FmmBuilder, Geometry, Periodic, random_sample};
 use ferrofmm_kernels::{
     EvalMode, EwaldOptions, EwaldSum, Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell,
+    Stokes3d, StokesEwaldSum,
 };
 
 /// Ions whose reference values are computed.
@@ -54,9 +60,13 @@ fn main() {
     let mut rest: &[String] = &args[4..];
     let mut kappa = 0.0;
     let mut verify = false;
+    // `Some(true)`: equal forces (sedimenting); `Some(false)`: zero sum.
+    let mut stokes: Option<bool> = None;
     loop {
         match rest.first().map(String::as_str) {
             Some(a) if a.starts_with("k=") => kappa = a[2..].parse().expect("k=K"),
+            Some("stokes") => stokes = Some(false),
+            Some("sediment") => stokes = Some(true),
             Some("verify") => verify = true,
             _ => break,
         }
@@ -78,9 +88,20 @@ fn main() {
         .iter()
         .map(|x| x * side)
         .collect();
-    let charges: Vec<f64> = (0..n)
-        .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
-        .collect();
+    let charges: Vec<f64> = match stokes {
+        None => (0..n)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect(),
+        Some(true) => (0..n).flat_map(|_| [0.0, 0.0, -1.0]).collect(),
+        Some(false) => {
+            let mut f = ferrofmm_fmm::Charges::Signed.generate::<f64>(3 * n, 2);
+            for c in 0..3 {
+                let mean = f.iter().skip(c).step_by(3).sum::<f64>() / n as f64;
+                f.iter_mut().skip(c).step_by(3).for_each(|x| *x -= mean);
+            }
+            f
+        }
+    };
     let sample = random_sample(n, SAMPLE);
     write(dir.join("points.f64"), &points);
     write(dir.join("charges.f64"), &charges);
@@ -94,10 +115,18 @@ fn main() {
     let options = EwaldOptions::new(1e-14)
         .expected_targets(sample.len())
         .screening(kappa);
-    let ewald = EwaldSum::with_options(cell, &points, &charges, options).expect("ewald");
-    let reference = ewald
-        .at_sources(&sample, EvalMode::PotentialGradient)
-        .expect("reference");
+    let reference = match stokes {
+        None => EwaldSum::with_options(cell, &points, &charges, options)
+            .expect("ewald")
+            .at_sources(&sample, EvalMode::PotentialGradient),
+        Some(_) => {
+            let options = EwaldOptions::new(1e-14).expected_targets(sample.len());
+            StokesEwaldSum::with_options(cell, &points, &charges, 1.0, options)
+                .expect("ewald")
+                .at_sources(&sample, EvalMode::PotentialGradient)
+        }
+    }
+    .expect("reference");
     let reference_s = t.elapsed().as_secs_f64();
     write(dir.join("reference.f64"), &reference);
     println!(
@@ -112,7 +141,9 @@ fn main() {
         side,
         verify,
     };
-    if kappa > 0.0 {
+    if stokes.is_some() {
+        run.settings(Stokes3d::default(), &settings);
+    } else if kappa > 0.0 {
         run.settings(ModifiedHelmholtz3d::new(kappa).expect("k"), &settings);
     } else {
         run.settings(Laplace3d, &settings);
@@ -139,11 +170,19 @@ impl Run<'_> {
             side,
             verify,
         } = *self;
-        let n = charges.len();
+        let c = kernel.components();
+        let w = 4 * c;
+        let n = charges.len() / c;
 
         let pick = |v: &[f64], grad: bool| -> Vec<f64> {
-            v.chunks_exact(4)
-                .flat_map(|c| if grad { c[1..].to_vec() } else { vec![c[0]] })
+            v.chunks_exact(w)
+                .flat_map(|v| {
+                    if grad {
+                        v[c..].to_vec()
+                    } else {
+                        v[..c].to_vec()
+                    }
+                })
                 .collect()
         };
         for &(eps, order) in settings {
@@ -180,9 +219,10 @@ impl Run<'_> {
             }
             let at: Vec<f64> = sample
                 .iter()
-                .flat_map(|&i| values[4 * i..4 * i + 4].to_vec())
+                .flat_map(|&i| values[w * i..w * (i + 1)].to_vec())
                 .collect();
-            let energy = fmm.energy(charges, &values).expect("energy");
+            // The energy of charges; none for forces.
+            let energy = fmm.energy(charges, &values).unwrap_or(f64::NAN);
             let eps = eps.map_or("null".to_string(), |e| format!("{e:e}"));
             println!(
                 "{{\"code\": \"ferrofmm\", \"n\": {n}, \"eps\": {eps}, \"order\": {}, \"leaf\": {}, \"setup_s\": {setup_s:.3}, \"eval_s\": {best:.3}, \"check_s\": {check_s:.3}, \"pot_err\": {:.3e}, \"grad_err\": {:.3e}, \"energy\": {energy:.15e}}}",

@@ -90,6 +90,7 @@ pub mod helmholtz;
 mod kernel;
 pub mod lanes;
 pub mod laplace;
+mod lattice;
 pub mod modified_helmholtz;
 mod real;
 pub mod reference;

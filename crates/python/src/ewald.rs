@@ -1,9 +1,12 @@
-//! `ewald`: the Ewald reference sum of charges in a periodic cell
-//! ([`EwaldSum`]), the truth the periodic FMM is checked against.
+//! `ewald` and `stokes_ewald`: the Ewald reference sums of charges
+//! ([`EwaldSum`]) and of point forces ([`StokesEwaldSum`]) in a periodic
+//! cell, the truths the periodic FMM is checked against.
 
 use std::time::Instant;
 
-use ferrofmm_kernels::{EvalMode, EwaldOptions, EwaldSum, KernelError, PeriodicCell};
+use ferrofmm_kernels::{
+    EvalMode, EwaldOptions, EwaldSum, KernelError, PeriodicCell, StokesEwaldSum,
+};
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
@@ -39,15 +42,7 @@ pub(crate) fn ewald_sum<'py>(
     threads: Option<usize>,
     k: f64,
 ) -> PyResult<(Bound<'py, PyAny>, Option<f64>, String)> {
-    let lengths = crate::engine::box_lengths(&lengths)?;
-    let origin: [f64; 3] = origin.try_into().map_err(|o: Vec<f64>| {
-        PyValueError::new_err(format!(
-            "box_origin takes three numbers (x, y, z), got {} values",
-            o.len()
-        ))
-    })?;
-    let cell = PeriodicCell::new(origin, lengths)
-        .map_err(|e| PyValueError::new_err(format!("box: {e}")))?;
+    let cell = cell(&lengths, origin)?;
     let threads = Threads::new(py, threads)?;
     let sources = Floats::from_numpy("sources", sources)?.into_f64();
     let charges = Floats::from_numpy("charges", charges)?.into_f64();
@@ -106,4 +101,92 @@ pub(crate) fn ewald_sum<'py>(
     })?;
     let (values, energy, info) = result.map_err(kernel_error)?;
     Ok((PyArray1::from_vec(py, values).into_any(), energy, info))
+}
+
+/// Hasimoto's Ewald sum of the point `forces` (three per source, flat) at
+/// `sources` in the orthorhombic cell `origin + [0, lengths)`, viscosity 1
+/// (zero mean velocity, a net force balanced by a uniform pressure
+/// gradient: [`StokesEwaldSum`]), evaluated at the sources (each without
+/// its own direct term, its images kept) or at `targets`, to relative
+/// tolerance `eps`. Returns the flat values (`u` (3), then with `gradient`
+/// `d_c u_a` at `3 + 3 c + a`, per target, float64) and a JSON report.
+#[pyfunction]
+#[pyo3(signature = (sources, forces, lengths, origin, targets, gradient, eps, threads=None))]
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn stokes_ewald_sum<'py>(
+    py: Python<'py>,
+    sources: &Bound<'py, PyAny>,
+    forces: &Bound<'py, PyAny>,
+    lengths: Vec<f64>,
+    origin: Vec<f64>,
+    targets: Option<&Bound<'py, PyAny>>,
+    gradient: bool,
+    eps: f64,
+    threads: Option<usize>,
+) -> PyResult<(Bound<'py, PyAny>, String)> {
+    let cell = cell(&lengths, origin)?;
+    let threads = Threads::new(py, threads)?;
+    let sources = Floats::from_numpy("sources", sources)?.into_f64();
+    let forces = Floats::from_numpy("forces", forces)?.into_f64();
+    let targets = targets
+        .map(|t| Floats::from_numpy("targets", t).map(Floats::into_f64))
+        .transpose()?;
+    let mode = if gradient {
+        EvalMode::PotentialGradient
+    } else {
+        EvalMode::Potential
+    };
+    let result = interruptible(py, &threads, None, move || {
+        let start = Instant::now();
+        let n = sources.len() / 3;
+        let mut options = EwaldOptions::new(eps);
+        if let Some(t) = &targets {
+            options = options.expected_targets(t.len() / 3);
+        }
+        let sum = StokesEwaldSum::with_options(cell, &sources, &forces, 1.0, options)?;
+        let values = match &targets {
+            Some(t) => sum.at_points(t, mode)?,
+            None => sum.all(mode)?,
+        };
+        let p = sum.parameters();
+        let total: Vec<f64> = (0..3)
+            .map(|c| forces.iter().skip(c).step_by(3).sum())
+            .collect();
+        let info = json!({
+            "kernel": "stokes",
+            "method": "ewald",
+            "dtype": "float64",
+            "eps": eps,
+            "n_sources": n,
+            "n_targets": targets.as_ref().map_or(n, |t| t.len() / 3),
+            "total_force": total,
+            "alpha": p.alpha,
+            "r_cut": p.r_cut,
+            "k_cut": p.k_cut,
+            "threads": rayon::current_num_threads(),
+            "periodic": {
+                "box": cell.lengths(),
+                "origin": cell.origin(),
+                "axes": "xyz",
+                "surface": "none (Hasimoto: zero mean velocity)",
+            },
+            "timings": {"total": start.elapsed().as_secs_f64()},
+        });
+        Ok::<_, KernelError>((values, info.to_string()))
+    })?;
+    let (values, info) = result.map_err(kernel_error)?;
+    Ok((PyArray1::from_vec(py, values).into_any(), info))
+}
+
+/// The cell `origin + [0, lengths)` of the `box` and `box_origin`
+/// arguments, or the ValueError that says what is wrong.
+fn cell(lengths: &[f64], origin: Vec<f64>) -> PyResult<PeriodicCell> {
+    let lengths = crate::engine::box_lengths(lengths)?;
+    let origin: [f64; 3] = origin.try_into().map_err(|o: Vec<f64>| {
+        PyValueError::new_err(format!(
+            "box_origin takes three numbers (x, y, z), got {} values",
+            o.len()
+        ))
+    })?;
+    PeriodicCell::new(origin, lengths).map_err(|e| PyValueError::new_err(format!("box: {e}")))
 }

@@ -42,6 +42,7 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<octree::NativeOctree>()?;
     m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
     m.add_function(wrap_pyfunction!(ewald::ewald_sum, m)?)?;
+    m.add_function(wrap_pyfunction!(ewald::stokes_ewald_sum, m)?)?;
     m.add_function(wrap_pyfunction!(files::read_file, m)?)?;
     m.add_function(wrap_pyfunction!(files::write_file, m)?)?;
     m.add_function(wrap_pyfunction!(files::column_names, m)?)?;

@@ -248,10 +248,10 @@ def test_unsupported_periodic_problems_are_value_errors():
         ferrofmm.laplace(x, dipoles=np.ones((8, 3)), box=1.0, eps=1e-6)
     with pytest.raises(ValueError, match="charges only"):
         ferrofmm.laplace(x, q, dipoles=np.ones((8, 3)), box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match=r"Laplace and Yukawa.*not helmholtz \(helmholtz3d\)"):
+    with pytest.raises(ValueError, match=r"Laplace, Yukawa.*not helmholtz \(helmholtz3d\)"):
         ferrofmm.helmholtz(x, q + 0j, k=1.0, box=1.0, eps=1e-6)
-    with pytest.raises(ValueError, match="Laplace and Yukawa"):
-        ferrofmm.stokes(x, np.ones((8, 3)), box=1.0, eps=1e-6)
+    with pytest.raises(ValueError, match="Hasimoto"):
+        ferrofmm.stokes(x, np.ones((8, 3)), box=1.0, eps=1e-6, surface="vacuum")
     with pytest.raises(ValueError, match="vacuum surface term"):
         ferrofmm.yukawa(x, q, k=1.0, box=1.0, eps=1e-6, surface="vacuum")
     with pytest.raises(ValueError, match="vacuum surface term"):
@@ -304,3 +304,41 @@ def test_ewald_bad_input():
     # A charged cell gets a neutralising background (Ewald's convention).
     r = ferrofmm.ewald(x, q + 0.25, 1.0)
     assert r.info["total_charge"] == pytest.approx(2.0)
+
+
+def test_periodic_stokes_against_hasimotos_sum():
+    # Equal forces (a sedimenting suspension: the net force is balanced by
+    # the pressure) and zero-sum ones.
+    rng = np.random.default_rng(9)
+    x = rng.random((N, 3))
+    for f in (np.tile([0.0, 0.0, -1.0], (N, 1)), rng.standard_normal((N, 3))):
+        truth = ferrofmm.stokes_ewald(x, f, 1.0, gradient=True, eps=1e-13)
+        assert truth.info["kernel"] == "stokes"
+        for eps in (1e-4, 1e-7):
+            r = ferrofmm.stokes(x, f, box=1.0, eps=eps, gradient=True)
+            assert r.potential.shape == (N, 3) and r.gradient.shape == (N, 3, 3)
+            assert rel(r.potential, truth.potential) < eps
+            assert rel(r.gradient, truth.gradient) < eps
+            assert r.info["verified"] is True
+    # The velocity gradient is the Jacobian, traceless (incompressible).
+    assert np.abs(np.trace(truth.gradient, axis1=1, axis2=2)).max() < 1e-10
+    # Through Fmm, reused with other forces, at separate targets.
+    t = rng.random((300, 3)) * 2.0 - 0.5
+    fmm = ferrofmm.Fmm(x, kernel="stokes", targets=t, box=1.0, eps=1e-6)
+    f2 = rng.random((N, 3))
+    r2 = fmm.evaluate(f2)
+    t2 = ferrofmm.stokes_ewald(x, f2, 1.0, targets=t, eps=1e-13)
+    assert rel(r2.potential, t2.potential) < 1e-6
+
+
+def test_stokes_ewald_bad_input():
+    x = np.random.default_rng(1).random((8, 3))
+    f = np.ones((8, 3))
+    with pytest.raises(ValueError, match="shape \\(8, 3\\)"):
+        ferrofmm.stokes_ewald(x, f[:, :2], 1.0)
+    with pytest.raises(ValueError, match="finite"):
+        ferrofmm.stokes_ewald(x, np.where(f == 1.0, np.nan, f), 1.0)
+    with pytest.raises(ValueError, match="finite and > 0"):
+        ferrofmm.stokes_ewald(x, f, -1.0)
+    with pytest.raises(ValueError, match="tolerance"):
+        ferrofmm.stokes_ewald(x, f, 1.0, eps=0.0)

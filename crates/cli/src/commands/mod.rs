@@ -226,8 +226,10 @@ pub struct FmmArgs {
     /// every image of every source (Ewald's convention, tin-foil
     /// surroundings unless --surface vacuum); points outside the cell are
     /// wrapped into it. Laplace (the cell must be neutral; demo charges
-    /// are made so) or Yukawa (screened: any charges, no surface term)
-    /// kernels, charges only.
+    /// are made so), Yukawa (screened: any charges, no surface term) or
+    /// Stokes (Hasimoto: zero mean velocity, any forces, a net force
+    /// balanced by a uniform pressure gradient) kernels, charges (point
+    /// forces) only.
     #[arg(long = "box", value_name = "L|LX,LY,LZ")]
     pub periodic_box: Option<String>,
     /// The periodic cell's lower corner (default 0,0,0).
@@ -239,7 +241,8 @@ pub struct FmmArgs {
     pub periodic: Option<String>,
     /// How the periodic Laplace sum is closed: tin-foil (conducting
     /// surroundings, the default, as particle-mesh Ewald) or vacuum (adds
-    /// the dipole term). Yukawa's sum converges absolutely: tin-foil only.
+    /// the dipole term). Yukawa's sum converges absolutely and Stokes'
+    /// is Hasimoto's: tin-foil only.
     #[arg(long, value_name = "tin-foil|vacuum", requires = "periodic_box")]
     pub surface: Option<String>,
 }

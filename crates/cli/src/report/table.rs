@@ -251,9 +251,15 @@ impl RunReport {
                     .direct_check_s
                     .map(|s| format!(", {}", seconds(s)))
                     .unwrap_or_default();
+                // A periodic run's truth is an Ewald sum over every image.
+                let truth = if self.periodic.is_some() {
+                    "the Ewald sum"
+                } else {
+                    "direct summation"
+                };
                 let _ = writeln!(
                     o,
-                    "relative L2 error vs direct summation ({} sampled targets{check})",
+                    "relative L2 error vs {truth} ({} sampled targets{check})",
                     err.n_sampled
                 );
                 row(&mut o, "potential", format!("{:.2e}", err.potential));

@@ -43,6 +43,15 @@ fn a_periodic_yukawa_demo_with_positive_charges() {
     assert!(periodic.contains("screened"), "{periodic}");
 }
 
+/// Stokes in a periodic cell with positive forces (a net force, balanced
+/// by the pressure), checked against Hasimoto's sum.
+#[test]
+fn a_periodic_stokes_demo_with_a_net_force() {
+    let v = periodic_demo(&["--kernel", "stokes", "--charges", "positive"], "1e-4");
+    let periodic = v["periodic"].as_str().expect("a periodic row");
+    assert!(periodic.contains("Hasimoto"), "{periodic}");
+}
+
 #[test]
 fn bad_boxes_and_charged_cells_are_refused() {
     for args in [

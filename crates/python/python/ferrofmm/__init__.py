@@ -34,6 +34,8 @@ Periodic boundaries (Laplace, a neutral cubic cell of side L; points are wrapped
     ferrofmm.ewald(x, q - q.mean(), 1.0)     # the Ewald reference sum
     ferrofmm.yukawa(x, q, k=3.0, box=1.0)    # screened: any charges
     ferrofmm.ewald(x, q, 1.0, k=3.0)         # its reference sum
+    ferrofmm.stokes(x, f, box=1.0)           # Hasimoto: any forces, zero mean velocity
+    ferrofmm.stokes_ewald(x, f, 1.0)         # its reference sum
 
 The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
 
@@ -54,7 +56,7 @@ from __future__ import annotations
 from . import _ferrofmm
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE, MAX_ORDER, MIN_ORDER
 from ._calls import helmholtz, laplace, stokes, yukawa
-from ._ewald import ewald
+from ._ewald import ewald, stokes_ewald
 from ._fmm import DEFAULT_EPS, AccuracyWarning, Fmm, FmmResult
 from ._files import load, save
 from ._octree import Octree
@@ -71,6 +73,7 @@ __all__ = [
     "helmholtz",
     "stokes",
     "ewald",
+    "stokes_ewald",
     "Fmm",
     "FmmResult",
     "Octree",

@@ -117,3 +117,87 @@ def ewald(
     potential = np.ascontiguousarray(v[:, 0])
     grad = np.ascontiguousarray(v[:, 1:4]) if gradient else None
     return FmmResult(potential, grad, info, None, energy)
+
+
+def stokes_ewald(
+    points: Any,
+    forces: Any,
+    box: Any,
+    *,
+    targets: Any = None,
+    box_origin: Any = (0.0, 0.0, 0.0),
+    gradient: bool = False,
+    eps: float = 1e-12,
+    threads: Optional[int] = None,
+) -> FmmResult:
+    """Hasimoto's Ewald sum of point forces in a periodic cell: the reference of
+    ``stokes(..., box=)``.
+
+    ``u(y) = sum_i G_per(y - x_i) f_i`` with the periodic Stokeslet of
+    viscosity 1 (``G = (I / r + d d^T / r^3) / (8 pi)`` summed over every
+    image with the ``k = 0`` Fourier term dropped): the mean velocity over
+    the cell is zero, and a net force is balanced by a uniform pressure
+    gradient, so any forces are accepted. A source leaves out its own
+    direct term (its images kept). Direct summation split by Hasimoto's
+    method: a reference for a few thousand points, not a solver.
+
+    Parameters
+    ----------
+    points : array_like, shape (n, 3)
+        Force positions (computed in float64); wrapped into the cell.
+    forces : array_like, shape (n, 3)
+        One force per point.
+    box : float or sequence of 3 floats
+        The cell's side ``L``, or its sides ``(Lx, Ly, Lz)``.
+    targets, box_origin, gradient, eps, threads
+        As for :func:`ewald`.
+
+    Returns
+    -------
+    FmmResult
+        ``.potential`` the velocity (m, 3), ``.gradient`` (m, 3, 3) with
+        ``[j, a, c] = d u_a / d x_c`` or None, ``.energy`` None, ``.info``
+        (``method`` ``"ewald"``, ``eps``, ``alpha``, ``r_cut``, ``k_cut``,
+        ``total_force``, ``periodic``, ``timings``).
+
+    Examples
+    --------
+    >>> import numpy as np, ferrofmm
+    >>> r = ferrofmm.stokes_ewald([[0.5, 0.5, 0.5]], [[1.0, 0.0, 0.0]], 1.0)
+    >>> round(float(-r.potential[0, 0] * 6 * np.pi), 9)  # Hasimoto's constant
+    2.837297479
+    """
+    gradient = _bool("gradient", gradient)
+    src = _points("points", points)
+    tgt = None if targets is None else _points("targets", targets)
+    f = np.asarray(forces, dtype=np.float64) if not isinstance(forces, np.ndarray) else forces
+    if f.dtype.kind in "iu":
+        f = f.astype(np.float64)
+    if f.dtype.kind != "f" or f.shape != (len(src), 3):
+        raise ValueError(
+            f"forces must be a float array of shape ({len(src)}, 3), got {f.dtype} {f.shape}"
+        )
+    if not np.all(np.isfinite(f)):
+        raise ValueError("forces must be finite (no NaN or infinity)")
+    lengths, origin, _, _ = _cell(box, box_origin, None, None)
+    eps_value = _real("eps", eps)
+    if eps_value is None:
+        raise TypeError("eps must be a float, got None")
+    threads = _positive_int("threads", threads)
+    wide = np.dtype(np.float64)
+    values, info_json = _ferrofmm.stokes_ewald_sum(
+        _flat(src, wide),
+        _flat(f, wide),
+        lengths,
+        origin if origin is not None else [0.0, 0.0, 0.0],
+        None if tgt is None else _flat(tgt, wide),
+        gradient,
+        eps_value,
+        threads,
+    )
+    info = json.loads(info_json)
+    info["kernel_name"] = "stokes"
+    v = values.reshape(-1, 4 if gradient else 1, 3)
+    velocity = np.ascontiguousarray(v[:, 0, :])
+    grad = np.ascontiguousarray(np.swapaxes(v[:, 1:4, :], 1, 2)) if gradient else None
+    return FmmResult(velocity, grad, info, None, None)

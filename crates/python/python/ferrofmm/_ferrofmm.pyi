@@ -32,6 +32,23 @@ def check_run_memory(
     build: bool = ...,
 ) -> None: ...
 
+def stokes_ewald_sum(
+    sources: npt.NDArray[np.floating],
+    forces: npt.NDArray[np.floating],
+    lengths: List[float],
+    origin: List[float],
+    targets: Optional[npt.NDArray[np.floating]],
+    gradient: bool,
+    eps: float,
+    threads: Optional[int] = ...,
+) -> Tuple[npt.NDArray[np.float64], str]:
+    """Hasimoto's Ewald sum of the point ``forces`` (flat, three per source)
+    at ``sources`` in the cell ``origin + [0, lengths)``, viscosity 1, at the
+    sources or at ``targets``: the flat values (``u`` (3), then with
+    ``gradient`` ``d_c u_a`` at ``3 + 3 c + a``, per target) and a JSON
+    report."""
+    ...
+
 def ewald_sum(
     sources: npt.NDArray[np.floating],
     charges: npt.NDArray[np.floating],

@@ -537,13 +537,16 @@ where
                 "box {} ({}, {}), origin {:?}",
                 c.width(),
                 c.axes(),
-                match (
-                    ferrofmm_fmm::periodic::lattice_screening(&kernel),
-                    c.surface()
-                ) {
-                    (Some(k), _) if k > 0.0 => "screened, absolutely convergent",
-                    (_, ferrofmm_fmm::SurfaceTerm::TinFoil) => "tin-foil",
-                    (_, ferrofmm_fmm::SurfaceTerm::Vacuum) => "vacuum",
+                {
+                    use ferrofmm_fmm::periodic::LatticeSum;
+                    match (ferrofmm_fmm::periodic::lattice_sum(&kernel), c.surface()) {
+                        (Some(LatticeSum::Yukawa { .. }), _) => "screened, absolutely convergent",
+                        (Some(LatticeSum::Stokes { .. }), _) => {
+                            "Hasimoto: zero mean velocity, net force balanced by pressure"
+                        }
+                        (_, ferrofmm_fmm::SurfaceTerm::TinFoil) => "tin-foil",
+                        (_, ferrofmm_fmm::SurfaceTerm::Vacuum) => "vacuum",
+                    }
                 },
                 c.origin()
             )

@@ -93,25 +93,23 @@
 //! tin-foil Laplace sum.
 //!
 //! # Layout
-//! * `parameters.rs`: the cell, the options and the choice of `alpha`,
-//!   `r_c`, `k_c`;
-//! * `real_space.rs`: the cell list and the real-space sum;
-//! * `reciprocal.rs`: the reciprocal lattice, structure factors and their
-//!   evaluation at targets;
+//! * the crate's `lattice/` (shared with the Stokes sum): the cell, the
+//!   options and the choice of `alpha`, `r_c`, `k_c`; the cell list; the
+//!   reciprocal lattice, structure factors and their evaluation at
+//!   targets;
+//! * `real_space.rs`: the real-space sum;
 //! * `screening.rs`: the split of `e^{-kappa r} / r` (Laplace's at
 //!   `kappa = 0`) into short- and long-range parts;
 //! * `sum.rs`: [`EwaldSum`];
 //! * `green.rs`: [`PeriodicGreen`].
 
-pub(crate) mod green;
-pub(crate) mod parameters;
-pub(crate) mod real_space;
-pub(crate) mod reciprocal;
-pub(crate) mod screening;
-pub(crate) mod sum;
+mod green;
+mod real_space;
+mod screening;
+mod sum;
 
+pub use crate::lattice::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub use green::PeriodicGreen;
-pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub use sum::EwaldSum;
 
 /// `2 / sqrt(pi)`.

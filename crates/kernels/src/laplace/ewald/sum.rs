@@ -1,10 +1,11 @@
 //! [`EwaldSum`]: the periodic potentials (and gradients) of a set of
 //! charges, the reference of the periodic FMM.
 
-use super::parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 use super::real_space::ShortRange;
-use super::reciprocal::ReciprocalLattice;
 use super::screening::Split;
+use crate::lattice::{
+    EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_points,
+};
 use crate::{EvalMode, INV_4PI, KernelError};
 use rayon::prelude::*;
 
@@ -137,7 +138,9 @@ impl EwaldSum {
             .map(|p| cell.wrap_relative([p[0], p[1], p[2]]))
             .collect();
         let cells = ShortRange::new(cell.lengths(), &positions, charges, params.r_cut, split);
-        let lattice = ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, &split);
+        let lattice = ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, |k2| {
+            split.fourier(k2)
+        });
         let (b_re, b_im) = lattice.coefficients(&positions, charges);
         Ok(Self {
             cell,
@@ -280,20 +283,6 @@ fn check_mode(mode: EvalMode) -> Result<(), KernelError> {
             kind: "charge",
             mode: mode.name(),
         });
-    }
-    Ok(())
-}
-
-/// Interleaved points: a multiple of 3, all finite.
-pub(crate) fn check_points(what: &'static str, points: &[f64]) -> Result<(), KernelError> {
-    if !points.len().is_multiple_of(3) {
-        return Err(KernelError::NotMultipleOf3 {
-            what,
-            len: points.len(),
-        });
-    }
-    if let Some((index, &value)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-        return Err(KernelError::NonFinite { what, index, value });
     }
     Ok(())
 }

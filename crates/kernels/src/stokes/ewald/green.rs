@@ -3,11 +3,8 @@
 
 use super::split::{Block, HasimotoSplit};
 use super::sum::TOLERANCE_MARGIN;
-use crate::laplace::ewald::green::for_images;
-use crate::laplace::ewald::parameters::reduced_cutoff;
-use crate::laplace::ewald::reciprocal::phase_table;
-use crate::laplace::ewald::sum::check_points;
-use crate::{KernelError, PeriodicCell};
+use crate::KernelError;
+use crate::lattice::{PeriodicCell, check_points, for_images, phase_table, reduced_cutoff};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 

@@ -50,8 +50,8 @@
 //!
 //! # Layout
 //! * `split.rs`: `S_R`, `S_L` and the Fourier weight;
-//! * `sum.rs`: [`StokesEwaldSum`], over a cell list and the structure
-//!   factors of Laplace's Ewald sum;
+//! * `sum.rs`: [`StokesEwaldSum`], over the cell list and the structure
+//!   factors of the crate's shared `lattice/` module;
 //! * `green.rs`: [`PeriodicStokeslet`].
 
 mod green;

@@ -2,11 +2,10 @@
 //! point forces, the reference of the periodic Stokes FMM.
 
 use super::split::HasimotoSplit;
-use crate::laplace::ewald::real_space::CellList;
-use crate::laplace::ewald::reciprocal::ReciprocalLattice;
-use crate::laplace::ewald::screening::Split;
-use crate::laplace::ewald::sum::check_points;
-use crate::{EvalMode, EwaldOptions, EwaldParameters, KernelError, PeriodicCell};
+use crate::lattice::{
+    CellList, EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_points,
+};
+use crate::{EvalMode, KernelError};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -155,12 +154,8 @@ impl StokesEwaldSum {
             forces.chunks_exact(3).map(|f| [f[0], f[1], f[2]]).collect();
         let cells = CellList::new(cell.lengths(), &positions, params.r_cut);
         let sorted = cells.sorted(&per_source);
-        let lattice = ReciprocalLattice::new(
-            cell.lengths(),
-            params.kmax,
-            params.k_cut,
-            &Split::new(params.alpha, 0.0),
-        );
+        // The coefficients are made below from the structure factors.
+        let lattice = ReciprocalLattice::new(cell.lengths(), params.kmax, params.k_cut, |_| 0.0);
         let factors: Vec<(Vec<f64>, Vec<f64>)> = (0..3)
             .into_par_iter()
             .map(|j| {

@@ -4,7 +4,6 @@
 //! y))` at targets, all through phase tables `exp(i m k0_d y_d)` built by
 //! recurrence per axis.
 
-use super::screening::Split;
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -51,10 +50,13 @@ struct Column {
 /// Half of the reciprocal lattice within `|k| <= k_c` (`m_x > 0`, or `m_x
 /// = 0, m_y > 0`, or `m_x = m_y = 0, m_z > 0`; the other half is the
 /// complex conjugate), in columns along `m_z`, with the coefficients `a_k =
-/// (2 / V) exp(-(k^2 + kappa^2) / (4 alpha^2)) / (k^2 + kappa^2)` (the `1/(4
-/// pi)` of the kernel, the `4 pi / V` of the sum and the factor 2 of the
-/// half lattice; [`Split::fourier`]). The `k = 0` term is a constant, added
-/// by the caller ([`Split::k_zero`]).
+/// (2 / V) weight(k^2)` of a scalar kernel (for Laplace and Yukawa,
+/// `weight = exp(-(k^2 + kappa^2) / (4 alpha^2)) / (k^2 + kappa^2)`: the
+/// `1/(4 pi)` of the kernel, the `4 pi / V` of the sum and the factor 2 of
+/// the half lattice). The `k = 0` term, a constant, is the caller's; a
+/// vector kernel (Stokes) takes the [structure
+/// factors](ReciprocalLattice::structure_factors) and makes its own
+/// coefficients.
 #[derive(Clone, Debug)]
 pub(crate) struct ReciprocalLattice {
     k0: [f64; 3],
@@ -80,8 +82,13 @@ pub(crate) struct Scratch {
 
 impl ReciprocalLattice {
     /// The wave vectors of `lengths` within `k_cut`, with at most `kmax[d]`
-    /// per axis, for the split `split`.
-    pub(crate) fn new(lengths: [f64; 3], kmax: [usize; 3], k_cut: f64, split: &Split) -> Self {
+    /// per axis, with the coefficient `a_k = (2 / V) weight(k^2)`.
+    pub(crate) fn new(
+        lengths: [f64; 3],
+        kmax: [usize; 3],
+        k_cut: f64,
+        weight: impl Fn(f64) -> f64,
+    ) -> Self {
         let k0 = [0, 1, 2].map(|d| 2.0 * PI / lengths[d]);
         let volume = lengths[0] * lengths[1] * lengths[2];
         let kc2 = k_cut * k_cut;
@@ -113,7 +120,7 @@ impl ReciprocalLattice {
                 for mz in lo..=hi {
                     let kz = mz as f64 * k0[2];
                     let k2 = kx * kx + ky * ky + kz * kz;
-                    coef.push(2.0 / volume * split.fourier(k2));
+                    coef.push(2.0 / volume * weight(k2));
                 }
             }
             groups.push(columns.len());

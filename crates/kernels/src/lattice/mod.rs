@@ -1,0 +1,35 @@
+//! What every Ewald sum here shares, whatever its kernel: the periodic
+//! cell and the choice of the splitting parameter and cut-offs
+//! ([`PeriodicCell`], [`EwaldOptions`], [`EwaldParameters`]), the cell list
+//! that visits the sources within the real-space cut-off, the reciprocal
+//! lattice with its structure factors and phase tables, and the loops over
+//! images. The kernels' own splits and sums live with them:
+//! `laplace/ewald/` (Laplace and Yukawa) and `stokes/ewald/` (Hasimoto's
+//! Stokes sum).
+
+mod cell_list;
+mod images;
+mod parameters;
+mod reciprocal;
+
+pub(crate) use cell_list::CellList;
+pub(crate) use images::{for_images, near_images, norm};
+pub(crate) use parameters::reduced_cutoff;
+pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
+pub(crate) use reciprocal::{ReciprocalLattice, phase_table};
+
+use crate::KernelError;
+
+/// Interleaved points: a multiple of 3, all finite.
+pub(crate) fn check_points(what: &'static str, points: &[f64]) -> Result<(), KernelError> {
+    if !points.len().is_multiple_of(3) {
+        return Err(KernelError::NotMultipleOf3 {
+            what,
+            len: points.len(),
+        });
+    }
+    if let Some((index, &value)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        return Err(KernelError::NonFinite { what, index, value });
+    }
+    Ok(())
+}
