@@ -61,7 +61,7 @@ pub enum CliError {
     #[error(
         "tolerance {tolerance:e} not met: the error measured on sampled targets is \
          {measured:.2e} after {attempts} attempt(s) (last order {order}); no output written \
-         (ask for a larger tolerance{}, or --verify off to take the unchecked result)",
+         (ask for a larger tolerance{}, or --verify off to take the unchecked result){why}",
         if *precision == "f32" { ", use --precision f64" } else { "" }
     )]
     ToleranceNotMet {
@@ -75,6 +75,8 @@ pub enum CliError {
         order: usize,
         /// `"f32"` or `"f64"`.
         precision: &'static str,
+        /// Why the problem reaches less than usual (`"; ..."`), or empty.
+        why: String,
     },
     /// A child run of a sweep failed.
     #[error("sweep configuration {config} failed: {message}")]

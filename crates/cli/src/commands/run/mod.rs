@@ -254,7 +254,11 @@ impl<T: Real> BuildScheme<T> for FftM2l<T> {
 /// A tolerance checked after evaluating and missed (even at the raised
 /// orders) fails the command before anything is written: exit status 1,
 /// never a result less accurate than asked with status 0.
-fn require_met(verification: Option<&Verification>, precision: Precision) -> Result<()> {
+fn require_met(
+    verification: Option<&Verification>,
+    precision: Precision,
+    why: String,
+) -> Result<()> {
     match verification.filter(|v| !v.met) {
         None => Ok(()),
         Some(v) => Err(CliError::ToleranceNotMet {
@@ -263,8 +267,46 @@ fn require_met(verification: Option<&Verification>, precision: Precision) -> Res
             attempts: v.attempts.len(),
             order: v.last().order,
             precision: precision.name(),
+            why,
         }),
     }
+}
+
+/// Why a periodic Stokes run with a net force reaches less than zero-sum
+/// forces: its velocities are a small difference of large terms (the
+/// images' mean flow against the back pressure), which costs about
+/// `sqrt(N) |mean f| / rms(f)` in relative accuracy (docs/periodic.md).
+/// A sentence for [`CliError::ToleranceNotMet`] when that factor exceeds
+/// 3; empty otherwise.
+fn net_force_reason<T: Real, K: Kernel>(kernel: &K, periodic: bool, forces: &[T]) -> String {
+    let stokes = matches!(
+        ferrofmm_fmm::periodic::lattice_sum(kernel),
+        Some(ferrofmm_fmm::periodic::LatticeSum::Stokes { .. })
+    );
+    let n = forces.len() / 3;
+    if !(periodic && stokes) || n == 0 {
+        return String::new();
+    }
+    let mean: [f64; 3] = std::array::from_fn(|c| {
+        forces
+            .iter()
+            .skip(c)
+            .step_by(3)
+            .map(|f| f.to_f64())
+            .sum::<f64>()
+            / n as f64
+    });
+    let rms = (forces.iter().map(|f| f.to_f64().powi(2)).sum::<f64>() / n as f64).sqrt();
+    let mean = (mean[0] * mean[0] + mean[1] * mean[1] + mean[2] * mean[2]).sqrt();
+    let factor = (n as f64).sqrt() * mean / rms.max(f64::MIN_POSITIVE);
+    if factor <= 3.0 {
+        return String::new();
+    }
+    format!(
+        "; these forces have a net force, which makes a periodic Stokes run's velocities a small \
+         difference of large terms, about {factor:.0}x less accurate than zero-sum forces at the \
+         same order (docs/periodic.md)"
+    )
 }
 
 /// [`run`] for float type `T`, M2L scheme `S` and kernel `K`.
@@ -419,7 +461,11 @@ where
         }
         values = v;
     }
-    require_met(verification.as_ref(), T::PRECISION)?;
+    require_met(
+        verification.as_ref(),
+        T::PRECISION,
+        net_force_reason(&kernel, settings.periodic.is_some(), &q),
+    )?;
     let best = best.unwrap_or_default();
     totals.sort_by(f64::total_cmp);
     let median = if repeats % 2 == 1 {
@@ -604,11 +650,35 @@ mod tests {
         }
     }
 
+    /// Equal forces in a periodic Stokes cell explain a missed tolerance;
+    /// zero-sum forces, free space and other kernels add nothing.
+    #[test]
+    fn a_net_force_explains_a_periodic_stokes_shortfall() {
+        let stokes = ferrofmm_kernels::Stokes3d::default();
+        let equal: Vec<f64> = (0..400).flat_map(|_| [0.0, 0.0, -1.0]).collect();
+        let why = net_force_reason(&stokes, true, &equal);
+        assert!(why.contains("net force") && why.contains("20x"), "{why}");
+        assert!(net_force_reason(&stokes, false, &equal).is_empty());
+        let zero_sum: Vec<f64> = (0..400)
+            .flat_map(|i| {
+                if i % 2 == 0 {
+                    [1.0, 0.0, 0.0]
+                } else {
+                    [-1.0, 0.0, 0.0]
+                }
+            })
+            .collect();
+        assert!(net_force_reason(&stokes, true, &zero_sum).is_empty());
+        assert!(net_force_reason(&ferrofmm_kernels::Laplace3d, true, &equal).is_empty());
+        let e = require_met(Some(&verification(false)), Precision::F64, why).unwrap_err();
+        assert!(e.to_string().ends_with("(docs/periodic.md)"), "{e}");
+    }
+
     #[test]
     fn a_missed_tolerance_fails_the_command() {
-        assert!(require_met(None, Precision::F64).is_ok());
-        assert!(require_met(Some(&verification(true)), Precision::F64).is_ok());
-        let e = require_met(Some(&verification(false)), Precision::F32).unwrap_err();
+        assert!(require_met(None, Precision::F64, String::new()).is_ok());
+        assert!(require_met(Some(&verification(true)), Precision::F64, String::new()).is_ok());
+        let e = require_met(Some(&verification(false)), Precision::F32, String::new()).unwrap_err();
         let m = e.to_string();
         assert!(
             m.contains("tolerance 1e-6 not met") && m.contains("2.00e-6") && m.contains("order 8"),
