@@ -189,8 +189,9 @@ impl FarImages {
     /// `(-Delta + kappa^2) u = 0` in the root, kept exactly by the local
     /// expansion: no projection, `C = 0`. Stokes' are a smooth Stokes flow
     /// there (the uniform force that balances the cell's is taken by the
-    /// pressure); its constant velocity `C` comes from the second moments
-    /// of the forces, as Laplace's from those of the charges.
+    /// pressure); `C` is zero in exact arithmetic, and the constant part of
+    /// the expansion's error is estimated from the second moments of the
+    /// forces and of `u` (see the [module docs](super)).
     pub(crate) fn root_check<T: Real>(
         &self,
         root: &[T],
