@@ -312,3 +312,33 @@ fn hasimotos_constant_and_f32() {
     let (ep, eg) = errors(&out, &truth);
     assert!(ep <= bound(6) && eg <= bound(6), "f32: {ep:e} {eg:e}");
 }
+
+/// Points on the cell's faces, edges and corners (at `0` and at `L`, which
+/// wraps to `0`) are summed as any others. `(0, 0, 0)` and `(1, 1, 1)` are
+/// the same point once wrapped: coincident points skip each other's direct
+/// term (and keep its images) in the FMM and in Hasimoto's sum alike.
+#[test]
+fn stokes_points_on_faces_and_corners() {
+    let n = 400;
+    let (mut points, _) = random_box(n, 1.0, [0.0; 3], false, 15);
+    for (i, p) in [
+        [0.0, 0.0, 0.0],
+        [1.0, 0.5, 0.25],
+        [0.3, 1.0, 0.0],
+        [1.0, 1.0, 1.0],
+        [0.5, 0.0, 0.75],
+        [0.0, 0.2, 1.0],
+    ]
+    .iter()
+    .enumerate()
+    {
+        points[3 * i..3 * i + 3].copy_from_slice(p);
+    }
+    let f = forces(n, false, 16);
+    let truth = ewald(&points, &f, Periodic::cube(1.0), 1.0);
+    let out = run(&points, &f, Periodic::cube(1.0), 1.0, 8, 16);
+    let (ep, eg) = errors(&out, &truth);
+    let b = (n as f64).sqrt() * bound(8);
+    assert!(ep <= b && eg <= b, "{ep:e} {eg:e}");
+    assert!(out[..6 * 12].iter().all(|v| v.is_finite()));
+}
