@@ -275,10 +275,11 @@ impl FarImages {
             .collect()
     }
 
-    /// Adds the constant `constant` and, in vacuum, the dipole term to the
-    /// values `out` (`w` per target: potential, then gradient) at the wrapped targets `y` for the
-    /// wrapped sources `x` with charges `q` (all relative to the frame in
-    /// which the cell's centre is `centre`).
+    /// Adds the constant `constant` (Laplace: the potential's, its first
+    /// entry; Stokes: the velocity's three) and, in vacuum, the dipole term
+    /// to the values `out` (`w` per target: potential, then gradient) at
+    /// the wrapped targets `y` for the wrapped sources `x` with charges `q`
+    /// (all relative to the frame in which the cell's centre is `centre`).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn add_terms<T: Real>(
         &self,
