@@ -160,13 +160,21 @@ pub struct HelmholtzModel {
 pub const HELMHOLTZ_P2P_FACTOR: f64 = 5.8;
 
 /// P2P cost of the Stokeslet relative to Laplace's (a 3 x 3 block per
-/// pair), measured as [`HELMHOLTZ_P2P_FACTOR`]: 131 and 45 million pairs
-/// per second (velocity).
-pub const STOKES_P2P_FACTOR: f64 = 6.4;
+/// pair): the FMM's P2P pass with the lane engine (issue 34), 1e5 uniform
+/// cube, order 7, leaf 256 (the same tree for both), 2 threads, release,
+/// best of two: 191 ms against Laplace's 90 ms (`ferrofmm eval --sources
+/// x.npy --charges q.npy|f.npy --kernel laplace|stokes --order 7
+/// --leaf-size 256 --scheme fft`). It was 6.4 (131 against 844 million
+/// pairs per second) before the lane engine.
+pub const STOKES_P2P_FACTOR: f64 = 2.1;
 
-/// As [`STOKES_P2P_FACTOR`] with velocity gradients: 45 against 757
-/// million pairs per second.
-pub const STOKES_GRADIENT_P2P_FACTOR: f64 = 17.0;
+/// As [`STOKES_P2P_FACTOR`] with velocity gradients (`--gradients`): 456
+/// against 147 ms, best of two (526 against 149 ms in the other run). It
+/// was 17 (45 against 757 million pairs per second, before the lane
+/// engine), which steered the chooser to leaves of 48 points whose M2L
+/// cost 3.6x the whole run at leaf 256 (1e5 points, order 7: 3.54 s
+/// against 0.97 s).
+pub const STOKES_GRADIENT_P2P_FACTOR: f64 = 3.3;
 
 /// Factor on the Laplace error table of order `order` for the Helmholtz
 /// kernel at `k W = k_width`: 1 up to `k W = 10`, then the measured worst
