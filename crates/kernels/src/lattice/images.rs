@@ -1,5 +1,26 @@
 //! Loops over the periodic images of a displacement.
 
+/// Integer image ranges per axis covering every `n` with `|r + n∘L| <
+/// r_cut` in a cell of sides `l`, and `{-1, 0, 1}` when `near`.
+pub(crate) fn image_range(
+    l: [f64; 3],
+    r_cut: f64,
+    r: [f64; 3],
+    near: bool,
+) -> ([i64; 3], [i64; 3]) {
+    let mut lo = [0i64; 3];
+    let mut hi = [0i64; 3];
+    for d in 0..3 {
+        lo[d] = ((-r[d] - r_cut) / l[d]).floor() as i64;
+        hi[d] = ((-r[d] + r_cut) / l[d]).ceil() as i64;
+        if near {
+            lo[d] = lo[d].min(-1);
+            hi[d] = hi[d].max(1);
+        }
+    }
+    (lo, hi)
+}
+
 /// `{-1, 0, 1}^3`.
 pub(crate) fn near_images() -> impl Iterator<Item = [i64; 3]> {
     (0..27).map(|i| [i % 3 - 1, (i / 3) % 3 - 1, i / 9 - 1])

@@ -13,7 +13,7 @@ mod parameters;
 mod reciprocal;
 
 pub(crate) use cell_list::CellList;
-pub(crate) use images::{for_images, near_images, norm};
+pub(crate) use images::{for_images, image_range, near_images, norm};
 pub(crate) use parameters::reduced_cutoff;
 pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub(crate) use reciprocal::{ReciprocalLattice, phase_table};

@@ -3,7 +3,8 @@
 
 use super::screening::Split;
 use crate::lattice::{
-    PeriodicCell, check_points, for_images, near_images, norm, phase_table, reduced_cutoff,
+    PeriodicCell, check_points, for_images, image_range, near_images, norm, phase_table,
+    reduced_cutoff,
 };
 use crate::{INV_4PI, KernelError};
 use rayon::prelude::*;
@@ -271,21 +272,9 @@ impl PeriodicGreen {
         Ok(out)
     }
 
-    /// Integer image ranges per axis covering every `n` with `|r + n∘L| <
-    /// r_c`, and `{-1, 0, 1}` when `near`.
+    /// [`image_range`] for this cell and cut-off.
     fn image_range(&self, r: [f64; 3], near: bool) -> ([i64; 3], [i64; 3]) {
-        let l = self.cell.lengths();
-        let mut lo = [0i64; 3];
-        let mut hi = [0i64; 3];
-        for d in 0..3 {
-            lo[d] = ((-r[d] - self.r_cut) / l[d]).floor() as i64;
-            hi[d] = ((-r[d] + self.r_cut) / l[d]).ceil() as i64;
-            if near {
-                lo[d] = lo[d].min(-1);
-                hi[d] = hi[d].max(1);
-            }
-        }
-        (lo, hi)
+        image_range(self.cell.lengths(), self.r_cut, r, near)
     }
 
     /// `sum_{m in octant} c_m cos(k_x r_x) cos(k_y r_y) cos(k_z r_z)`.

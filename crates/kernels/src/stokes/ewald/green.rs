@@ -4,7 +4,9 @@
 use super::split::{Block, HasimotoSplit};
 use super::sum::TOLERANCE_MARGIN;
 use crate::KernelError;
-use crate::lattice::{PeriodicCell, check_points, for_images, phase_table, reduced_cutoff};
+use crate::lattice::{
+    PeriodicCell, check_points, for_images, image_range, phase_table, reduced_cutoff,
+};
 use rayon::prelude::*;
 use std::f64::consts::PI;
 
@@ -226,21 +228,9 @@ impl PeriodicStokeslet {
         out
     }
 
-    /// Integer image ranges per axis covering every `n` with `|r + n∘L| <
-    /// r_c`, and `{-1, 0, 1}` when `near`.
+    /// [`image_range`] for this cell and cut-off.
     fn image_range(&self, r: [f64; 3], near: bool) -> ([i64; 3], [i64; 3]) {
-        let l = self.cell.lengths();
-        let mut lo = [0i64; 3];
-        let mut hi = [0i64; 3];
-        for d in 0..3 {
-            lo[d] = ((-r[d] - self.r_cut) / l[d]).floor() as i64;
-            hi[d] = ((-r[d] + self.r_cut) / l[d]).ceil() as i64;
-            if near {
-                lo[d] = lo[d].min(-1);
-                hi[d] = hi[d].max(1);
-            }
-        }
-        (lo, hi)
+        image_range(self.cell.lengths(), self.r_cut, r, near)
     }
 
     /// The Fourier part of `G_per(r)`, folded onto the octant.
