@@ -9,11 +9,13 @@
 
 mod cell_list;
 mod images;
+mod octant;
 mod parameters;
 mod reciprocal;
 
 pub(crate) use cell_list::CellList;
 pub(crate) use images::{for_images, image_range, near_images, norm};
+pub(crate) use octant::Octant;
 pub(crate) use parameters::reduced_cutoff;
 pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub(crate) use reciprocal::{ReciprocalLattice, phase_table};

@@ -3,12 +3,11 @@
 
 use super::screening::Split;
 use crate::lattice::{
-    PeriodicCell, check_points, for_images, image_range, near_images, norm, phase_table,
+    Octant, PeriodicCell, check_points, for_images, image_range, near_images, norm, phase_table,
     reduced_cutoff,
 };
 use crate::{INV_4PI, KernelError};
 use rayon::prelude::*;
-use std::f64::consts::PI;
 
 /// `alpha V^(1/3)` of a [`PeriodicGreen`]: the balance of ~30-60 images
 /// in real space (`erf`/`erfc` each) against ~1,200 wave vectors of the
@@ -96,10 +95,8 @@ pub struct PeriodicGreen {
     alpha: f64,
     split: Split,
     r_cut: f64,
-    k0: [f64; 3],
-    kmax: [usize; 3],
-    /// `(m_x, m_y, offset, len)`: `coef[offset + m_z]` for `m_z < len`.
-    columns: Vec<(usize, usize, usize, usize)>,
+    /// The wave vectors, `coef[offset + m_z]` for a column's `m_z < len`.
+    octant: Octant,
     coef: Vec<f64>,
     background: f64,
     self_potential: f64,
@@ -130,43 +127,22 @@ impl PeriodicGreen {
         let alpha = GREEN_ALPHA_SCALE / volume.cbrt();
         let split = Split::new(alpha, kappa);
         let l = cell.lengths();
-        let k0 = [0, 1, 2].map(|d| 2.0 * PI / l[d]);
-        let k_cut = 2.0 * alpha * s;
-        let kmax = [0, 1, 2].map(|d| (k_cut / k0[d]).floor() as usize);
-        let kc2 = k_cut * k_cut;
-        let mut columns = Vec::new();
+        let octant = Octant::new(l, 2.0 * alpha * s);
         let mut coef = Vec::new();
-        for mx in 0..=kmax[0] {
-            let kx = mx as f64 * k0[0];
-            for my in 0..=kmax[1] {
-                let ky = my as f64 * k0[1];
-                let rem = kc2 - kx * kx - ky * ky;
-                if rem < 0.0 {
-                    continue;
-                }
-                let len = ((rem.sqrt() / k0[2]).floor() as usize).min(kmax[2]) + 1;
-                columns.push((mx, my, coef.len(), len));
-                for mz in 0..len {
-                    let kz = mz as f64 * k0[2];
-                    let k2 = kx * kx + ky * ky + kz * kz;
-                    if k2 == 0.0 {
-                        coef.push(0.0);
-                        continue;
-                    }
-                    let nz = (mx > 0) as i32 + (my > 0) as i32 + (mz > 0) as i32;
-                    let mult = f64::from(1 << nz);
-                    coef.push(mult / volume * split.fourier(k2));
-                }
-            }
-        }
+        octant.for_each(|k, mult| {
+            let k2 = k[0] * k[0] + k[1] * k[1] + k[2] * k[2];
+            coef.push(if k2 == 0.0 {
+                0.0
+            } else {
+                mult / volume * split.fourier(k2)
+            });
+        });
         let mut g = Self {
             cell,
             alpha,
             split,
             r_cut: s / alpha,
-            k0,
-            kmax,
-            columns,
+            octant,
             coef,
             background: split.k_zero(volume),
             self_potential: 0.0,
@@ -280,27 +256,27 @@ impl PeriodicGreen {
     /// `sum_{m in octant} c_m cos(k_x r_x) cos(k_y r_y) cos(k_z r_z)`.
     fn reciprocal(&self, r: [f64; 3]) -> f64 {
         const STACK: usize = 64;
-        let [mx, my, mz] = self.kmax;
+        let [mx, my, mz] = self.octant.kmax;
         if mx.max(my).max(mz) >= STACK {
             let mut c = [vec![0.0; mx + 1], vec![0.0; my + 1], vec![0.0; mz + 1]];
             let mut s = [vec![0.0; mx + 1], vec![0.0; my + 1], vec![0.0; mz + 1]];
             for d in 0..3 {
-                phase_table(self.k0[d] * r[d], &mut c[d], &mut s[d]);
+                phase_table(self.octant.k0[d] * r[d], &mut c[d], &mut s[d]);
             }
             return self.octant_sum(&c[0], &c[1], &c[2]);
         }
         let mut c = [[0.0; STACK]; 3];
         let mut s = [0.0; STACK];
         for d in 0..3 {
-            let m = self.kmax[d] + 1;
-            phase_table(self.k0[d] * r[d], &mut c[d][..m], &mut s[..m]);
+            let m = self.octant.kmax[d] + 1;
+            phase_table(self.octant.k0[d] * r[d], &mut c[d][..m], &mut s[..m]);
         }
         self.octant_sum(&c[0][..=mx], &c[1][..=my], &c[2][..=mz])
     }
 
     fn octant_sum(&self, cx: &[f64], cy: &[f64], cz: &[f64]) -> f64 {
         let mut total = 0.0;
-        for &(mx, my, offset, len) in &self.columns {
+        for &(mx, my, offset, len) in &self.octant.columns {
             let c = &self.coef[offset..offset + len];
             let z = &cz[..len];
             let mut t = 0.0;

@@ -5,7 +5,7 @@ use super::split::{Block, HasimotoSplit};
 use super::sum::TOLERANCE_MARGIN;
 use crate::KernelError;
 use crate::lattice::{
-    PeriodicCell, check_points, for_images, image_range, phase_table, reduced_cutoff,
+    Octant, PeriodicCell, check_points, for_images, image_range, phase_table, reduced_cutoff,
 };
 use rayon::prelude::*;
 use std::f64::consts::PI;
@@ -51,11 +51,9 @@ pub struct PeriodicStokeslet {
     viscosity: f64,
     split: HasimotoSplit,
     r_cut: f64,
-    k0: [f64; 3],
-    kmax: [usize; 3],
-    /// `(m_x, m_y, offset, len)`: wave vectors `m_z < len` at
+    /// The wave vectors: a column's `m_z < len` at
     /// `weights[WEIGHTS * (offset + m_z)..]`.
-    columns: Vec<(usize, usize, usize, usize)>,
+    octant: Octant,
     weights: Vec<f64>,
 }
 
@@ -74,54 +72,33 @@ impl PeriodicStokeslet {
         let volume = cell.volume();
         let alpha = GREEN_ALPHA_SCALE / volume.cbrt();
         let split = HasimotoSplit::new(alpha);
-        let l = cell.lengths();
-        let k0 = [0, 1, 2].map(|d| 2.0 * PI / l[d]);
-        let k_cut = 2.0 * alpha * s;
-        let kmax = [0, 1, 2].map(|d| (k_cut / k0[d]).floor() as usize);
-        let kc2 = k_cut * k_cut;
+        let octant = Octant::new(cell.lengths(), 2.0 * alpha * s);
         let scale = 1.0 / (8.0 * PI * viscosity * volume);
-        let mut columns = Vec::new();
         let mut weights = Vec::new();
-        for mx in 0..=kmax[0] {
-            let kx = mx as f64 * k0[0];
-            for my in 0..=kmax[1] {
-                let ky = my as f64 * k0[1];
-                let rem = kc2 - kx * kx - ky * ky;
-                if rem < 0.0 {
-                    continue;
-                }
-                let len = ((rem.sqrt() / k0[2]).floor() as usize).min(kmax[2]) + 1;
-                columns.push((mx, my, weights.len() / WEIGHTS, len));
-                for mz in 0..len {
-                    let kz = mz as f64 * k0[2];
-                    let k2 = kx * kx + ky * ky + kz * kz;
-                    if k2 == 0.0 {
-                        weights.extend([0.0; WEIGHTS]);
-                        continue;
-                    }
-                    let nz = (mx > 0) as i32 + (my > 0) as i32 + (mz > 0) as i32;
-                    let w = f64::from(1 << nz) * scale * split.fourier(k2);
-                    let u = w / k2;
-                    weights.extend([
-                        w,
-                        u * kx * kx,
-                        u * ky * ky,
-                        u * kz * kz,
-                        u * kx * ky,
-                        u * kx * kz,
-                        u * ky * kz,
-                    ]);
-                }
+        octant.for_each(|[kx, ky, kz], mult| {
+            let k2 = kx * kx + ky * ky + kz * kz;
+            if k2 == 0.0 {
+                weights.extend([0.0; WEIGHTS]);
+                return;
             }
-        }
+            let w = mult * scale * split.fourier(k2);
+            let u = w / k2;
+            weights.extend([
+                w,
+                u * kx * kx,
+                u * ky * ky,
+                u * kz * kz,
+                u * kx * ky,
+                u * kx * kz,
+                u * ky * kz,
+            ]);
+        });
         Ok(Self {
             cell,
             viscosity,
             split,
             r_cut: s / alpha,
-            k0,
-            kmax,
-            columns,
+            octant,
             weights,
         })
     }
@@ -235,15 +212,15 @@ impl PeriodicStokeslet {
 
     /// The Fourier part of `G_per(r)`, folded onto the octant.
     fn fourier(&self, r: [f64; 3]) -> [[f64; 3]; 3] {
-        let [mx, my, mz] = self.kmax;
+        let [mx, my, mz] = self.octant.kmax;
         let mut cos = [vec![0.0; mx + 1], vec![0.0; my + 1], vec![0.0; mz + 1]];
         let mut sin = [vec![0.0; mx + 1], vec![0.0; my + 1], vec![0.0; mz + 1]];
         for d in 0..3 {
-            phase_table(self.k0[d] * r[d], &mut cos[d], &mut sin[d]);
+            phase_table(self.octant.k0[d] * r[d], &mut cos[d], &mut sin[d]);
         }
         // Diagonal: sum cx cy (t_w - t_aa); off-diagonal as in the docs.
         let mut acc = [0.0f64; 6];
-        for &(ix, iy, offset, len) in &self.columns {
+        for &(ix, iy, offset, len) in &self.octant.columns {
             let w = &self.weights[WEIGHTS * offset..WEIGHTS * (offset + len)];
             let (cz, sz) = (&cos[2][..len], &sin[2][..len]);
             let mut t = [0.0f64; WEIGHTS];
