@@ -20,7 +20,7 @@ pub(crate) use parameters::reduced_cutoff;
 pub use parameters::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub(crate) use reciprocal::{ReciprocalLattice, phase_table};
 
-use crate::KernelError;
+use crate::{EvalMode, KernelError};
 
 /// Interleaved points: a multiple of 3, all finite.
 pub(crate) fn check_points(what: &'static str, points: &[f64]) -> Result<(), KernelError> {
@@ -32,6 +32,26 @@ pub(crate) fn check_points(what: &'static str, points: &[f64]) -> Result<(), Ker
     }
     if let Some((index, &value)) = points.iter().enumerate().find(|(_, v)| !v.is_finite()) {
         return Err(KernelError::NonFinite { what, index, value });
+    }
+    Ok(())
+}
+
+/// Source indices below `n_sources`.
+pub(crate) fn check_indices(indices: &[usize], n_sources: usize) -> Result<(), KernelError> {
+    match indices.iter().find(|&&i| i >= n_sources) {
+        Some(&index) => Err(KernelError::SourceIndex { index, n_sources }),
+        None => Ok(()),
+    }
+}
+
+/// An Ewald sum gives potentials and gradients, not Hessians.
+pub(crate) fn check_no_hessian(mode: EvalMode, sum: &str) -> Result<(), KernelError> {
+    if mode.has_hessian() {
+        return Err(KernelError::Unsupported {
+            kernel: sum.to_string(),
+            kind: "charge",
+            mode: mode.name(),
+        });
     }
     Ok(())
 }

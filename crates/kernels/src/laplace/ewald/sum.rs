@@ -4,10 +4,14 @@
 use super::real_space::ShortRange;
 use super::screening::Split;
 use crate::lattice::{
-    EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_points,
+    EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_indices,
+    check_no_hessian, check_points,
 };
 use crate::{EvalMode, INV_4PI, KernelError};
 use rayon::prelude::*;
+
+/// The name errors give [`EwaldSum`].
+const NAME: &str = "Ewald sum";
 
 /// The Ewald sum of charges in a periodic cell, for the Laplace kernel with
 /// conducting ("tin-foil") surroundings or the screened (Yukawa) kernel
@@ -196,14 +200,8 @@ impl EwaldSum {
     /// [`KernelError::SourceIndex`] for an index out of range,
     /// [`KernelError::Unsupported`] for Hessians.
     pub fn at_sources(&self, indices: &[usize], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
-        let n = self.n_sources();
-        if let Some(&index) = indices.iter().find(|&&i| i >= n) {
-            return Err(KernelError::SourceIndex {
-                index,
-                n_sources: n,
-            });
-        }
+        check_no_hessian(mode, NAME)?;
+        check_indices(indices, self.n_sources())?;
         Ok(self.evaluate(indices.len(), |k| self.positions[indices[k]], mode))
     }
 
@@ -215,7 +213,7 @@ impl EwaldSum {
     /// [`KernelError::NotMultipleOf3`] or [`KernelError::NonFinite`] for
     /// bad targets, [`KernelError::Unsupported`] for Hessians.
     pub fn at_points(&self, targets: &[f64], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
+        check_no_hessian(mode, NAME)?;
         check_points("targets", targets)?;
         Ok(self.evaluate(
             targets.len() / 3,
@@ -232,7 +230,7 @@ impl EwaldSum {
     /// # Errors
     /// [`KernelError::Unsupported`] for Hessians.
     pub fn all(&self, mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
+        check_no_hessian(mode, NAME)?;
         Ok(self.evaluate(self.n_sources(), |k| self.positions[k], mode))
     }
 
@@ -273,16 +271,4 @@ impl EwaldSum {
         );
         out
     }
-}
-
-/// Hessians are not supported.
-fn check_mode(mode: EvalMode) -> Result<(), KernelError> {
-    if mode.has_hessian() {
-        return Err(KernelError::Unsupported {
-            kernel: "Ewald sum".to_string(),
-            kind: "charge",
-            mode: mode.name(),
-        });
-    }
-    Ok(())
 }

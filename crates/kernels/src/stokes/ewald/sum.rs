@@ -3,10 +3,14 @@
 
 use super::split::HasimotoSplit;
 use crate::lattice::{
-    CellList, EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_points,
+    CellList, EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_indices,
+    check_no_hessian, check_points,
 };
 use crate::{EvalMode, KernelError};
 use rayon::prelude::*;
+
+/// The name errors give [`StokesEwaldSum`].
+const NAME: &str = "Stokes Ewald sum";
 use std::f64::consts::PI;
 
 /// How much tighter than asked the cut-offs are set: the Stokes terms carry
@@ -225,14 +229,8 @@ impl StokesEwaldSum {
     /// [`KernelError::SourceIndex`] for an index out of range,
     /// [`KernelError::Unsupported`] for Hessians.
     pub fn at_sources(&self, indices: &[usize], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
-        let n = self.n_sources();
-        if let Some(&index) = indices.iter().find(|&&i| i >= n) {
-            return Err(KernelError::SourceIndex {
-                index,
-                n_sources: n,
-            });
-        }
+        check_no_hessian(mode, NAME)?;
+        check_indices(indices, self.n_sources())?;
         Ok(self.evaluate(indices.len(), |k| self.positions[indices[k]], mode))
     }
 
@@ -244,7 +242,7 @@ impl StokesEwaldSum {
     /// [`KernelError::NotMultipleOf3`] or [`KernelError::NonFinite`] for
     /// bad targets, [`KernelError::Unsupported`] for Hessians.
     pub fn at_points(&self, targets: &[f64], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
+        check_no_hessian(mode, NAME)?;
         check_points("targets", targets)?;
         Ok(self.evaluate(
             targets.len() / 3,
@@ -261,7 +259,7 @@ impl StokesEwaldSum {
     /// # Errors
     /// [`KernelError::Unsupported`] for Hessians.
     pub fn all(&self, mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        check_mode(mode)?;
+        check_no_hessian(mode, NAME)?;
         Ok(self.evaluate(self.n_sources(), |k| self.positions[k], mode))
     }
 
@@ -314,16 +312,4 @@ impl StokesEwaldSum {
         );
         out
     }
-}
-
-/// Hessians are not supported.
-fn check_mode(mode: EvalMode) -> Result<(), KernelError> {
-    if mode.has_hessian() {
-        return Err(KernelError::Unsupported {
-            kernel: "Stokes Ewald sum".to_string(),
-            kind: "charge",
-            mode: mode.name(),
-        });
-    }
-    Ok(())
 }
