@@ -42,18 +42,21 @@ pub(crate) fn ewald_sum<'py>(
     threads: Option<usize>,
     k: f64,
 ) -> PyResult<(Bound<'py, PyAny>, Option<f64>, String)> {
-    let cell = cell(&lengths, origin)?;
     let threads = Threads::new(py, threads)?;
-    let sources = Floats::from_numpy("sources", sources)?.into_f64();
-    let charges = Floats::from_numpy("charges", charges)?.into_f64();
-    let targets = targets
-        .map(|t| Floats::from_numpy("targets", t).map(Floats::into_f64))
-        .transpose()?;
-    let mode = if gradient {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
+    let Inputs {
+        cell,
+        sources,
+        densities: charges,
+        targets,
+        mode,
+    } = Inputs::read(
+        &lengths,
+        origin,
+        sources,
+        ("charges", charges),
+        targets,
+        gradient,
+    )?;
     let result = interruptible(py, &threads, None, move || {
         let start = Instant::now();
         let n = sources.len() / 3;
@@ -124,18 +127,21 @@ pub(crate) fn stokes_ewald_sum<'py>(
     eps: f64,
     threads: Option<usize>,
 ) -> PyResult<(Bound<'py, PyAny>, String)> {
-    let cell = cell(&lengths, origin)?;
     let threads = Threads::new(py, threads)?;
-    let sources = Floats::from_numpy("sources", sources)?.into_f64();
-    let forces = Floats::from_numpy("forces", forces)?.into_f64();
-    let targets = targets
-        .map(|t| Floats::from_numpy("targets", t).map(Floats::into_f64))
-        .transpose()?;
-    let mode = if gradient {
-        EvalMode::PotentialGradient
-    } else {
-        EvalMode::Potential
-    };
+    let Inputs {
+        cell,
+        sources,
+        densities: forces,
+        targets,
+        mode,
+    } = Inputs::read(
+        &lengths,
+        origin,
+        sources,
+        ("forces", forces),
+        targets,
+        gradient,
+    )?;
     let result = interruptible(py, &threads, None, move || {
         let start = Instant::now();
         let n = sources.len() / 3;
@@ -176,6 +182,42 @@ pub(crate) fn stokes_ewald_sum<'py>(
     })?;
     let (values, info) = result.map_err(kernel_error)?;
     Ok((PyArray1::from_vec(py, values).into_any(), info))
+}
+
+/// The arguments both sums read: the cell, the points and densities (as
+/// `f64`), the targets and the outputs asked for.
+struct Inputs {
+    cell: PeriodicCell,
+    sources: Vec<f64>,
+    densities: Vec<f64>,
+    targets: Option<Vec<f64>>,
+    mode: EvalMode,
+}
+
+impl Inputs {
+    /// The inputs, or the ValueError that names the bad one.
+    fn read(
+        lengths: &[f64],
+        origin: Vec<f64>,
+        sources: &Bound<'_, PyAny>,
+        (name, densities): (&'static str, &Bound<'_, PyAny>),
+        targets: Option<&Bound<'_, PyAny>>,
+        gradient: bool,
+    ) -> PyResult<Self> {
+        Ok(Self {
+            cell: cell(lengths, origin)?,
+            sources: Floats::from_numpy("sources", sources)?.into_f64(),
+            densities: Floats::from_numpy(name, densities)?.into_f64(),
+            targets: targets
+                .map(|t| Floats::from_numpy("targets", t).map(Floats::into_f64))
+                .transpose()?,
+            mode: if gradient {
+                EvalMode::PotentialGradient
+            } else {
+                EvalMode::Potential
+            },
+        })
+    }
 }
 
 /// The cell `origin + [0, lengths)` of the `box` and `box_origin`
