@@ -239,8 +239,8 @@ fn a_tight_cluster_in_a_large_cell_is_free_space_and_one_image_force() {
         })
         .collect();
     // The images' variation over the cluster is `O(a / L)` of their value.
-    // Measured 1.3e-6; without the image term the difference is about
-    // 4e-3 (an image term of 4.5 on velocities of about 1e3).
+    // Measured 1.3e-6; without the image term the difference would be
+    // about 4e-3 (estimated: an image term of 4.5 on velocities of 1e3).
     let d = rel_l2(&periodic, &expected);
     assert!(d <= 1e-4, "{d:e}");
 }
