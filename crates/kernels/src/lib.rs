@@ -106,7 +106,9 @@ pub use error::KernelError;
 pub use helmholtz::Helmholtz3d;
 pub use kernel::{EvalMode, Kernel, SourceKind};
 pub use laplace::ewald;
-pub use laplace::ewald::{EwaldOptions, EwaldParameters, EwaldSum, PeriodicCell, PeriodicGreen};
+pub use laplace::ewald::{
+    EwaldOptions, EwaldParameters, EwaldSum, PeriodicCell, PeriodicGreen, RodGreen, SlabGreen,
+};
 pub use laplace::{INV_4PI, Laplace3d, laplace_assemble_with, laplace_p2p, laplace_p2p_with};
 pub use modified_helmholtz::{ModifiedHelmholtz3d, modified_helmholtz_p2p_with};
 pub use real::{Precision, Real};

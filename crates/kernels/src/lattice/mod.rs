@@ -12,6 +12,7 @@ mod images;
 mod octant;
 mod parameters;
 mod reciprocal;
+pub(crate) mod special;
 
 pub(crate) use cell_list::CellList;
 pub(crate) use images::{for_images, image_range, near_images, norm};

@@ -9,6 +9,7 @@ mod components;
 mod direct;
 mod ewald;
 mod ewald_screened;
+mod ewald_slab_rod;
 mod ewald_stokes;
 mod gradients;
 mod helmholtz;

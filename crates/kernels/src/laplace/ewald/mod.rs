@@ -101,15 +101,24 @@
 //! * `screening.rs`: the split of `e^{-kappa r} / r` (Laplace's at
 //!   `kappa = 0`) into short- and long-range parts;
 //! * `sum.rs`: [`EwaldSum`];
-//! * `green.rs`: [`PeriodicGreen`].
+//! * `green.rs`: [`PeriodicGreen`];
+//! * `slab.rs` and `rod.rs`: [`SlabGreen`] and [`RodGreen`], the Green's
+//!   functions of cells that repeat along two axes or one (Parry's sum and
+//!   its one-dimensional analogue), pair by pair;
+//! * `pairwise.rs`: their sums over charges pair by pair.
 
 mod green;
+mod pairwise;
 mod real_space;
+mod rod;
 mod screening;
+mod slab;
 mod sum;
 
 pub use crate::lattice::{EwaldOptions, EwaldParameters, PeriodicCell};
 pub use green::PeriodicGreen;
+pub use rod::RodGreen;
+pub use slab::SlabGreen;
 pub use sum::EwaldSum;
 
 /// `2 / sqrt(pi)`.

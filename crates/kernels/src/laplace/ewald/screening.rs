@@ -191,7 +191,7 @@ impl Split {
 /// the product is taken through logarithms (it is then tiny, `e` being an
 /// `erfc` far in its tail).
 #[inline]
-fn grow(x: f64, e: f64) -> f64 {
+pub(crate) fn grow(x: f64, e: f64) -> f64 {
     if x < 700.0 {
         x.exp() * e
     } else if e > 0.0 {
