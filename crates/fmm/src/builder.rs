@@ -533,12 +533,17 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// need not be, and takes no vacuum surface term (its sum converges
     /// absolutely); Stokes takes any forces, with Hasimoto's convention
     /// (zero mean velocity, a net force balanced by a uniform pressure
-    /// gradient). Other kernels, dipoles, slabs, rods, non-cubic boxes
-    /// and a [`FmmBuilder::domain`] beside the cell are refused when
-    /// building. A tolerance is chosen and verified as in free space, the
-    /// verification's truth being an Ewald sum
+    /// gradient). Laplace and Yukawa also run in slabs (`x` and `y`
+    /// repeat, [`crate::PeriodicAxes::Xy`]) and rods (`x` repeats,
+    /// [`crate::PeriodicAxes::X`]), whose points must lie within the cell
+    /// along the open axes. Other kernels, dipoles, Stokes slabs and rods,
+    /// non-cubic boxes and a [`FmmBuilder::domain`] beside the cell are
+    /// refused when building. A tolerance is chosen and verified as in
+    /// free space, the verification's truth being an Ewald sum
     /// ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa;
-    /// [`ferrofmm_kernels::StokesEwaldSum`] for Stokes).
+    /// [`ferrofmm_kernels::StokesEwaldSum`] for Stokes;
+    /// [`ferrofmm_kernels::SlabGreen`] and [`ferrofmm_kernels::RodGreen`]
+    /// pair by pair for slabs and rods).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Periodic};
@@ -678,6 +683,15 @@ fn check_periodic_problem<K: Kernel>(
                  (zero mean velocity, the net force balanced by a uniform pressure gradient) \
                  and has none: leave the surface term at its default",
                 name()
+            )));
+        }
+        Some(LatticeSum::Stokes { .. }) if cell.axes() != crate::PeriodicAxes::Xyz => {
+            return Err(FmmError::InvalidParameter(format!(
+                "{} runs fully periodic (\"xyz\") cells only in this release, not a {}: the \
+                 Stokeslet's lattice sum over a plane or a line of cells diverges unless the \
+                 net force vanishes, and that sum is not built here",
+                name(),
+                cell.axes().kind()
             )));
         }
         Some(_) => {}

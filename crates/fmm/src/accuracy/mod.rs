@@ -204,6 +204,10 @@ enum LatticeTruth {
     Scalar(ferrofmm_kernels::EwaldSum),
     /// Hasimoto's Stokes sum.
     Stokes(ferrofmm_kernels::StokesEwaldSum),
+    /// Laplace or Yukawa in a slab, pair by pair.
+    Slab(ferrofmm_kernels::SlabGreen, Vec<f64>, Vec<f64>),
+    /// Laplace or Yukawa in a rod, pair by pair.
+    Rod(ferrofmm_kernels::RodGreen, Vec<f64>, Vec<f64>),
 }
 
 impl LatticeTruth {
@@ -211,6 +215,8 @@ impl LatticeTruth {
         match self {
             LatticeTruth::Scalar(s) => s.at_points(at, mode),
             LatticeTruth::Stokes(s) => s.at_points(at, mode),
+            LatticeTruth::Slab(g, x, q) => g.sum_at_points(x, q, at, mode),
+            LatticeTruth::Rod(g, x, q) => g.sum_at_points(x, q, at, mode),
         }
     }
 
@@ -218,6 +224,8 @@ impl LatticeTruth {
         match self {
             LatticeTruth::Scalar(s) => s.at_sources(sample, mode),
             LatticeTruth::Stokes(s) => s.at_sources(sample, mode),
+            LatticeTruth::Slab(g, x, q) => g.sum_at_sources(x, q, sample, mode),
+            LatticeTruth::Rod(g, x, q) => g.sum_at_sources(x, q, sample, mode),
         }
     }
 }
@@ -238,7 +246,34 @@ impl<'a> PeriodicTruth<'a> {
     ) -> Result<Self, crate::FmmError> {
         use crate::periodic::LatticeSum;
         let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
+        let axes = cell.axes();
         let cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
+        if axes != crate::PeriodicAxes::Xyz {
+            let kappa = match lattice {
+                LatticeSum::Laplace => 0.0,
+                LatticeSum::Yukawa { kappa } => kappa,
+                LatticeSum::Stokes { .. } => {
+                    return Err(crate::FmmError::InvalidParameter(format!(
+                        "no Stokes lattice sum for a {}",
+                        axes.kind()
+                    )));
+                }
+            };
+            let x = sources.to_vec();
+            let sum = match axes {
+                crate::PeriodicAxes::Xy => LatticeTruth::Slab(
+                    ferrofmm_kernels::SlabGreen::screened(cell, kappa, tolerance)?,
+                    x,
+                    q,
+                ),
+                _ => LatticeTruth::Rod(
+                    ferrofmm_kernels::RodGreen::screened(cell, kappa, tolerance)?,
+                    x,
+                    q,
+                ),
+            };
+            return Ok(PeriodicTruth { sum, targets, mode });
+        }
         let options = ferrofmm_kernels::EwaldOptions::new(tolerance).expected_targets(expected);
         let sum = match lattice {
             LatticeSum::Stokes { viscosity } => {

@@ -62,6 +62,10 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         if let Some(cell) = &b.periodic {
             src64 = Cow::Owned(cell.wrap_all(&src64));
             tgt64 = tgt64.map(|t| Cow::Owned(cell.wrap_all(&t)));
+            cell.check_open_axes("source", &src64)?;
+            if let Some(t) = &tgt64 {
+                cell.check_open_axes("target", t)?;
+            }
             b.domain = Some(cell.domain()?);
         }
         let clusters = clusters_of(&src64, tgt64.as_deref(), b.domain.is_some());

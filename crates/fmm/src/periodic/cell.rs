@@ -8,10 +8,9 @@ use ferrofmm_tree::Domain;
 
 use crate::FmmError;
 
-/// Which axes repeat.
-///
-/// Only [`PeriodicAxes::Xyz`] runs in this release; slabs and rods are
-/// refused by [`Periodic::validate`] with a clear error.
+/// Which axes repeat: all three (bulk), `x` and `y` (a slab) or `x` (a
+/// rod). In a slab or rod the other axes are free space, and the points
+/// must lie within the cell along them (the octree's root is the cell).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum PeriodicAxes {
     /// Fully periodic: `x`, `y` and `z` (bulk systems).
@@ -30,6 +29,15 @@ impl PeriodicAxes {
             PeriodicAxes::Xyz => [true; 3],
             PeriodicAxes::Xy => [true, true, false],
             PeriodicAxes::X => [true, false, false],
+        }
+    }
+
+    /// `"bulk"`, `"slab"` or `"rod"`.
+    pub fn kind(self) -> &'static str {
+        match self {
+            PeriodicAxes::Xyz => "bulk",
+            PeriodicAxes::Xy => "slab",
+            PeriodicAxes::X => "rod",
         }
     }
 
@@ -194,7 +202,8 @@ impl Periodic {
     /// # Errors
     /// [`FmmError::InvalidParameter`] for a side that is not finite and
     /// positive, an origin that is not finite, a box that is not a cube,
-    /// or axes other than `xyz` (slabs and rods are not supported yet).
+    /// or the vacuum surface term with a slab or rod (their lattice sums
+    /// converge without one).
     pub fn validate(&self) -> Result<(), FmmError> {
         if let Some(l) = self.lengths.iter().find(|l| !(l.is_finite() && **l > 0.0)) {
             return Err(FmmError::InvalidParameter(format!(
@@ -213,12 +222,40 @@ impl Periodic {
                  root is the cell); give one side, or scale the coordinates to a cube"
             )));
         }
-        if self.axes != PeriodicAxes::Xyz {
+        if self.axes != PeriodicAxes::Xyz && self.surface == SurfaceTerm::Vacuum {
             return Err(FmmError::InvalidParameter(format!(
-                "periodic axes \"{}\": slab and rod periodicity are not supported yet, only \
-                 \"xyz\"",
-                self.axes
+                "the vacuum surface term closes the conditionally convergent bulk (\"xyz\") \
+                 lattice sum; a {}'s converges without one: leave the surface term at its \
+                 default",
+                self.axes.kind()
             )));
+        }
+        Ok(())
+    }
+
+    /// Refuse points outside the cell along the axes that do not repeat
+    /// (interleaved, already wrapped along those that do).
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] naming the first such point.
+    pub fn check_open_axes(&self, what: &str, points: &[f64]) -> Result<(), FmmError> {
+        let mask = self.axes.mask();
+        for (i, p) in points.chunks_exact(3).enumerate() {
+            for a in (0..3).filter(|&a| !mask[a]) {
+                let (lo, hi) = (self.origin[a], self.origin[a] + self.lengths[a]);
+                if !(p[a] >= lo && p[a] < hi) {
+                    return Err(FmmError::InvalidParameter(format!(
+                        "{what} point {i} has {} = {}, outside the {} cell [{lo}, {hi}) along \
+                         its open axis: a {}'s points must lie within the cell along the axes \
+                         that do not repeat (the octree's root is the cell); give a larger \
+                         box or another origin",
+                        ["x", "y", "z"][a],
+                        p[a],
+                        self.axes.kind(),
+                        self.axes.kind()
+                    )));
+                }
+            }
         }
         Ok(())
     }
@@ -298,6 +335,13 @@ mod tests {
         assert!(
             Periodic::cube(1.0)
                 .with_axes(PeriodicAxes::Xy)
+                .validate()
+                .is_ok()
+        );
+        assert!(
+            Periodic::cube(1.0)
+                .with_axes(PeriodicAxes::X)
+                .with_surface(SurfaceTerm::Vacuum)
                 .validate()
                 .is_err()
         );

@@ -6,10 +6,10 @@
 use ferrofmm_field::surface_points;
 use ferrofmm_kernels::{
     Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen, PeriodicStokeslet, Real,
-    Stokes3d,
+    RodGreen, SlabGreen, Stokes3d,
 };
 
-use super::{Periodic, SurfaceTerm};
+use super::{Periodic, PeriodicAxes, SurfaceTerm};
 use crate::FmmError;
 
 /// Accuracy asked of the Ewald sums that build `P`: far below what any
@@ -145,17 +145,27 @@ impl FarImages {
         let green_cell = PeriodicCell::new([0.0; 3], cell.lengths())?;
         // `far_images(r)` depends on differences only: the cell's origin
         // does not matter, the points are relative to its centre.
-        let operator = match lattice {
-            LatticeSum::Laplace => PeriodicGreen::new(green_cell, GREEN_TOLERANCE)?
-                .far_images_matrix(&check, &equivalent)?,
-            LatticeSum::Yukawa { kappa } => {
-                PeriodicGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
-                    .far_images_matrix(&check, &equivalent)?
-            }
-            LatticeSum::Stokes { viscosity } => {
+        let kappa = match lattice {
+            LatticeSum::Yukawa { kappa } => kappa,
+            _ => 0.0,
+        };
+        let operator = match (lattice, cell.axes()) {
+            (LatticeSum::Stokes { viscosity }, PeriodicAxes::Xyz) => {
                 PeriodicStokeslet::new(green_cell, viscosity, GREEN_TOLERANCE)?
                     .far_images_matrix(&check, &equivalent)?
             }
+            (LatticeSum::Stokes { .. }, axes) => {
+                return Err(FmmError::InvalidParameter(format!(
+                    "no Stokes lattice sum for a {}",
+                    axes.kind()
+                )));
+            }
+            (_, PeriodicAxes::Xyz) => PeriodicGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
+                .far_images_matrix(&check, &equivalent)?,
+            (_, PeriodicAxes::Xy) => SlabGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
+                .far_images_matrix(&check, &equivalent)?,
+            (_, PeriodicAxes::X) => RodGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
+                .far_images_matrix(&check, &equivalent)?,
         };
         Ok(FarImages {
             cell,
@@ -211,6 +221,11 @@ impl FarImages {
                 let mean = u.iter().sum::<f64>() / n as f64;
                 u.iter_mut().for_each(|v| *v -= mean);
                 let check = self.apply(&u);
+                if self.cell.axes() != PeriodicAxes::Xyz {
+                    // A slab's or rod's far images are harmonic in the
+                    // root (no background): no constant.
+                    return (check, [0.0; 3]);
+                }
                 // Second moments `sum w |p - c|^2` of the charges and of `u`.
                 let charges: f64 = x
                     .chunks_exact(3)

@@ -579,10 +579,16 @@ where
         hessians: mode.has_hessian(),
         kernel: settings.kernel.name(),
         periodic: settings.periodic.map(|c| {
+            use ferrofmm_fmm::PeriodicAxes;
             format!(
-                "box {} ({}, {}), origin {:?}",
+                "box {} ({}{}, {}), origin {:?}",
                 c.width(),
                 c.axes(),
+                match c.axes() {
+                    PeriodicAxes::Xyz => "",
+                    PeriodicAxes::Xy => ": slab, z free space",
+                    PeriodicAxes::X => ": rod, y and z free space",
+                },
                 {
                     use ferrofmm_fmm::periodic::LatticeSum;
                     match (ferrofmm_fmm::periodic::lattice_sum(&kernel), c.surface()) {
@@ -590,6 +596,7 @@ where
                         (Some(LatticeSum::Stokes { .. }), _) => {
                             "Hasimoto: zero mean velocity, net force balanced by pressure"
                         }
+                        _ if c.axes() != PeriodicAxes::Xyz => "neutral, no surface term",
                         (_, ferrofmm_fmm::SurfaceTerm::TinFoil) => "tin-foil",
                         (_, ferrofmm_fmm::SurfaceTerm::Vacuum) => "vacuum",
                     }

@@ -105,9 +105,12 @@
 //! * `slab.rs` and `rod.rs`: [`SlabGreen`] and [`RodGreen`], the Green's
 //!   functions of cells that repeat along two axes or one (Parry's sum and
 //!   its one-dimensional analogue), pair by pair;
-//! * `pairwise.rs`: their sums over charges pair by pair.
+//! * `pairwise.rs`: their sums over charges pair by pair, and
+//!   `interpolated.rs` the same for many sources: the nearest images
+//!   directly, the rest through a Chebyshev grid.
 
 mod green;
+mod interpolated;
 mod pairwise;
 mod real_space;
 mod rod;

@@ -1,11 +1,12 @@
 //! Lattice sums pair by pair, for Green's functions evaluated one
 //! displacement at a time (slabs and rods, whose reciprocal sums do not
 //! factor into structure factors): `sum_j q_j G(t - x_j)` at targets or at
-//! sources, and the far-image matrix of the periodisation operator.
+//! sources, and the far-image matrix of the periodisation operator. Many
+//! sources within a cell's extent go through `interpolated.rs` instead.
 
 use rayon::prelude::*;
 
-use crate::lattice::{check_indices, check_no_hessian, check_points};
+use crate::lattice::{PeriodicCell, check_indices, check_no_hessian, check_points};
 use crate::{EvalMode, KernelError};
 
 /// A Green's function summed pair by pair.
@@ -17,6 +18,13 @@ pub(crate) trait PairGreen: Sync {
     fn self_potential(&self) -> f64;
     /// The sum's name, for errors.
     fn name(&self) -> &'static str;
+    /// `[G, grad G]` without the images `|n_a| <= 2` along the repeating
+    /// axes.
+    fn far2(&self, r: [f64; 3]) -> [f64; 4];
+    /// The screening `kappa` of the kernel `e^{-kappa r} / (4 pi r)`.
+    fn kappa(&self) -> f64;
+    /// The cell, which axes repeat, and the tolerance.
+    fn cell(&self) -> (&PeriodicCell, [bool; 3], f64);
 }
 
 /// `M[i * n_s + j] = far(t_i - s_j)`, row-major, parallel over rows.
@@ -109,6 +117,9 @@ fn sum(
     mode: EvalMode,
 ) -> Vec<f64> {
     let w = if mode.has_gradient() { 4 } else { 1 };
+    if let Some(out) = super::interpolated::sum(green, sources, charges, targets, own, w) {
+        return out;
+    }
     let mut out = vec![0.0; w * targets.len()];
     out.par_chunks_mut(w).enumerate().for_each(|(i, o)| {
         let t = targets[i];

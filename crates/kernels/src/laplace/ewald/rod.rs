@@ -69,6 +69,8 @@ const ROD_ALPHA_SCALE: f64 = 1.0;
 /// ```
 #[derive(Clone, Debug)]
 pub struct RodGreen {
+    cell: PeriodicCell,
+    tolerance: f64,
     length: f64,
     alpha: f64,
     split: Split,
@@ -130,6 +132,8 @@ impl RodGreen {
             .take_while(|&(_, a)| a <= a_cut)
             .collect();
         let mut g = RodGreen {
+            cell,
+            tolerance,
             length,
             alpha,
             split: Split::new(alpha, kappa),
@@ -160,7 +164,7 @@ impl RodGreen {
         let r = [r[0] - l * (r[0] / l).round(), r[1], r[2]];
         let mut out = self.smooth(r);
         let mut hit = false;
-        self.for_images(r, false, |_, d, rho| {
+        self.for_images(r, None, |_, d, rho| {
             if rho == 0.0 {
                 hit = true;
             } else if rho < self.r_cut {
@@ -180,15 +184,36 @@ impl RodGreen {
     /// `G(r)` without the 3 nearest images of the source (`r` as given,
     /// not wrapped; smooth for `|r_x| < 1.5 L`, any `y`, `z`).
     pub fn far_images(&self, r: [f64; 3]) -> f64 {
-        let mut real = 0.0;
-        self.for_images(r, true, |near, _, rho| {
-            if near {
-                real -= self.split.long(rho);
+        self.far_with(r, 1, false)[0]
+    }
+
+    /// `G(r)` and its gradient without the images `|n_a| <= m` along the
+    /// repeating axes (the gradient only when `grad`).
+    fn far_with(&self, r: [f64; 3], m: i64, grad: bool) -> [f64; 4] {
+        let mut out = self.smooth(r);
+        let mut real = [0.0; 4];
+        self.for_images(r, Some(m), |near, d, rho| {
+            let (v, g) = if near {
+                let g = if grad {
+                    self.split.long_gradient(rho)
+                } else {
+                    0.0
+                };
+                (-self.split.long(rho), -g)
             } else if rho < self.r_cut {
-                real += self.split.short(rho, false).0;
+                self.split.short(rho, grad)
+            } else {
+                return;
+            };
+            real[0] += v;
+            for a in 0..3 {
+                real[1 + a] -= g * d[a];
             }
         });
-        self.smooth(r)[0] + INV_4PI * real
+        for a in 0..4 {
+            out[a] += INV_4PI * real[a];
+        }
+        out
     }
 
     /// `lim_{r -> 0} (G(r) - K(r))`: the potential at a unit source of its
@@ -245,18 +270,18 @@ impl RodGreen {
 
     /// Calls `f(near, d, |d|)` for the images `d = r + (n L, 0, 0)` within
     /// the cut-off, and for the 3 nearest (`near`) when `with_near`.
-    fn for_images(&self, r: [f64; 3], with_near: bool, mut f: impl FnMut(bool, [f64; 3], f64)) {
+    fn for_images(&self, r: [f64; 3], near: Option<i64>, mut f: impl FnMut(bool, [f64; 3], f64)) {
         let l = self.length;
         let mut lo = ((-r[0] - self.r_cut) / l).floor() as i64;
         let mut hi = ((-r[0] + self.r_cut) / l).ceil() as i64;
-        if with_near {
-            lo = lo.min(-1);
-            hi = hi.max(1);
+        if let Some(m) = near {
+            lo = lo.min(-m);
+            hi = hi.max(m);
         }
         for n in lo..=hi {
             let d = [r[0] + n as f64 * l, r[1], r[2]];
             let rho = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-            f(with_near && n.abs() <= 1, d, rho);
+            f(near.is_some_and(|m| n.abs() <= m), d, rho);
         }
     }
 
@@ -301,6 +326,18 @@ impl RodGreen {
 impl PairGreen for RodGreen {
     fn value(&self, r: [f64; 3]) -> [f64; 4] {
         self.potential(r)
+    }
+
+    fn far2(&self, r: [f64; 3]) -> [f64; 4] {
+        self.far_with(r, 2, true)
+    }
+
+    fn kappa(&self) -> f64 {
+        self.split.kappa()
+    }
+
+    fn cell(&self) -> (&PeriodicCell, [bool; 3], f64) {
+        (&self.cell, [true, false, false], self.tolerance)
     }
 
     fn self_potential(&self) -> f64 {

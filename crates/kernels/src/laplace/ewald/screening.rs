@@ -166,6 +166,34 @@ impl Split {
         (backward - forward) / (2.0 * r)
     }
 
+    /// `-l'(r) / r` for `r >= 0` (so that the gradient of `l(|d|)` with
+    /// respect to the target is `-that * d`), from series near zero where
+    /// the closed form cancels.
+    #[inline]
+    pub(crate) fn long_gradient(&self, r: f64) -> f64 {
+        if self.kappa == 0.0 {
+            let ar = self.alpha * r;
+            if ar < 0.05 {
+                // erf(x)/x = (2/sqrt(pi)) (1 - x^2/3 + x^4/10 - x^6/42 + ...).
+                let x2 = ar * ar;
+                let a3 = self.alpha * self.alpha * self.alpha;
+                return -TWO_OVER_SQRT_PI * a3 * (-2.0 / 3.0 + x2 * (0.4 - x2 / 7.0));
+            }
+            // l = erf(ar)/r: l' = 2 alpha e^{-a^2 r^2} / (sqrt(pi) r) - l / r.
+            let l = libm::erf(ar) / r;
+            let dl = TWO_OVER_SQRT_PI * self.alpha * (-ar * ar).exp() / r - l / r;
+            return -dl / r;
+        }
+        if r * self.scale < SERIES_BELOW {
+            return -(2.0 * self.series[1] + 4.0 * self.series[2] * r * r);
+        }
+        // l = K - psi with K = e^{-kappa r} / r.
+        let k = (-self.kappa * r).exp() / r;
+        let dk = -k * (self.kappa + 1.0 / r);
+        let (_, g) = self.short(r, true);
+        -dk / r - g
+    }
+
     /// The Fourier coefficient's factor `e^{-(k^2 + kappa^2) / (4 alpha^2)}
     /// / (k^2 + kappa^2)` (times `4 pi / V` in a sum) at `k^2 > 0`.
     #[inline]

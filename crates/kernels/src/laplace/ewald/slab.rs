@@ -84,6 +84,8 @@ struct Mode {
 /// ```
 #[derive(Clone, Debug)]
 pub struct SlabGreen {
+    cell: PeriodicCell,
+    tolerance: f64,
     lengths: [f64; 2],
     alpha: f64,
     split: Split,
@@ -166,6 +168,8 @@ impl SlabGreen {
             }
         }
         let mut g = SlabGreen {
+            cell,
+            tolerance,
             lengths: [lx, ly],
             alpha,
             split,
@@ -204,7 +208,7 @@ impl SlabGreen {
         let r = self.nearest(r);
         let mut out = self.smooth(r);
         let mut hit = false;
-        self.for_images(r, false, |_, d, rho| {
+        self.for_images(r, None, |_, d, rho| {
             if rho == 0.0 {
                 hit = true;
             } else if rho < self.r_cut {
@@ -221,17 +225,36 @@ impl SlabGreen {
     /// not wrapped; smooth for `|r_x| < 1.5 L_x`, `|r_y| < 1.5 L_y`, any
     /// `z`).
     pub fn far_images(&self, r: [f64; 3]) -> f64 {
+        self.far_with(r, 1, false)[0]
+    }
+
+    /// `G(r)` and its gradient without the images `|n_a| <= m` along the
+    /// repeating axes (the gradient only when `grad`).
+    fn far_with(&self, r: [f64; 3], m: i64, grad: bool) -> [f64; 4] {
         let mut out = self.smooth(r);
-        let mut real = 0.0;
-        self.for_images(r, true, |near, _, rho| {
-            if near {
-                real -= self.split.long(rho);
+        let mut real = [0.0; 4];
+        self.for_images(r, Some(m), |near, d, rho| {
+            let (v, g) = if near {
+                let g = if grad {
+                    self.split.long_gradient(rho)
+                } else {
+                    0.0
+                };
+                (-self.split.long(rho), -g)
             } else if rho < self.r_cut {
-                real += self.split.short(rho, false).0;
+                self.split.short(rho, grad)
+            } else {
+                return;
+            };
+            real[0] += v;
+            for a in 0..3 {
+                real[1 + a] -= g * d[a];
             }
         });
-        out[0] += INV_4PI * real;
-        out[0]
+        for a in 0..4 {
+            out[a] += INV_4PI * real[a];
+        }
+        out
     }
 
     /// `lim_{r -> 0} (G(r) - K(r))`: the potential at a unit source of its
@@ -299,14 +322,14 @@ impl SlabGreen {
 
     /// Calls `f(near, d, |d|)` for the in-plane images `d = r + n` within
     /// the cut-off, and for the 9 nearest (`near`) when `with_near`.
-    fn for_images(&self, r: [f64; 3], with_near: bool, mut f: impl FnMut(bool, [f64; 3], f64)) {
+    fn for_images(&self, r: [f64; 3], near: Option<i64>, mut f: impl FnMut(bool, [f64; 3], f64)) {
         let [lx, ly] = self.lengths;
         let range = |x: f64, l: f64| {
             let mut lo = ((-x - self.r_cut) / l).floor() as i64;
             let mut hi = ((-x + self.r_cut) / l).ceil() as i64;
-            if with_near {
-                lo = lo.min(-1);
-                hi = hi.max(1);
+            if let Some(m) = near {
+                lo = lo.min(-m);
+                hi = hi.max(m);
             }
             (lo, hi)
         };
@@ -316,7 +339,7 @@ impl SlabGreen {
             for nx in x0..=x1 {
                 let d = [r[0] + nx as f64 * lx, r[1] + ny as f64 * ly, r[2]];
                 let rho = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
-                f(with_near && nx.abs() <= 1 && ny.abs() <= 1, d, rho);
+                f(near.is_some_and(|m| nx.abs() <= m && ny.abs() <= m), d, rho);
             }
         }
     }
@@ -384,6 +407,18 @@ fn add_short(split: &Split, d: [f64; 3], rho: f64, out: &mut [f64; 4]) {
 impl PairGreen for SlabGreen {
     fn value(&self, r: [f64; 3]) -> [f64; 4] {
         self.potential(r)
+    }
+
+    fn far2(&self, r: [f64; 3]) -> [f64; 4] {
+        self.far_with(r, 2, true)
+    }
+
+    fn kappa(&self) -> f64 {
+        self.split.kappa()
+    }
+
+    fn cell(&self) -> (&PeriodicCell, [bool; 3], f64) {
+        (&self.cell, [true, true, false], self.tolerance)
     }
 
     fn self_potential(&self) -> f64 {
