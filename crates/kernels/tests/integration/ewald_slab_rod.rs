@@ -282,6 +282,7 @@ fn many_sources_agree_with_pairs() {
             };
             type Sum<'a> = &'a dyn Fn(&[usize]) -> Vec<f64>;
             type At<'a> = &'a dyn Fn(&[f64]) -> Vec<f64>;
+            type Green<'a> = &'a dyn Fn([f64; 3]) -> [f64; 4];
             let slab_src = |s: &[usize]| {
                 slab.sum_at_sources(pos, &q, s, EvalMode::PotentialGradient)
                     .unwrap()
@@ -298,7 +299,7 @@ fn many_sources_agree_with_pairs() {
                 rod.sum_at_points(pos, &q, t, EvalMode::PotentialGradient)
                     .unwrap()
             };
-            let cases: [(Sum, At, &dyn Fn([f64; 3]) -> [f64; 4], f64); 2] = [
+            let cases: [(Sum, At, Green, f64); 2] = [
                 (
                     &slab_src,
                     &slab_at,

@@ -18,9 +18,9 @@ pub(crate) trait PairGreen: Sync {
     fn self_potential(&self) -> f64;
     /// The sum's name, for errors.
     fn name(&self) -> &'static str;
-    /// `[G, grad G]` without the images `|n_a| <= 2` along the repeating
+    /// `[G, grad G]` without the images `|n_a| <= m` along the repeating
     /// axes.
-    fn far2(&self, r: [f64; 3]) -> [f64; 4];
+    fn far(&self, r: [f64; 3], m: i64) -> [f64; 4];
     /// The screening `kappa` of the kernel `e^{-kappa r} / (4 pi r)`.
     fn kappa(&self) -> f64;
     /// The cell, which axes repeat, and the tolerance.
@@ -117,7 +117,7 @@ fn sum(
     mode: EvalMode,
 ) -> Vec<f64> {
     let w = if mode.has_gradient() { 4 } else { 1 };
-    if let Some(out) = super::interpolated::sum(green, sources, charges, targets, own, w) {
+    if let Some(out) = super::interpolated::sum(green, sources, charges, targets, w) {
         return out;
     }
     let mut out = vec![0.0; w * targets.len()];

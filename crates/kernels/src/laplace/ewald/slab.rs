@@ -409,8 +409,8 @@ impl PairGreen for SlabGreen {
         self.potential(r)
     }
 
-    fn far2(&self, r: [f64; 3]) -> [f64; 4] {
-        self.far_with(r, 2, true)
+    fn far(&self, r: [f64; 3], m: i64) -> [f64; 4] {
+        self.far_with(r, m, true)
     }
 
     fn kappa(&self) -> f64 {
