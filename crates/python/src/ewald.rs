@@ -5,7 +5,8 @@
 use std::time::Instant;
 
 use ferrofmm_kernels::{
-    EvalMode, EwaldOptions, EwaldSum, KernelError, PeriodicCell, StokesEwaldSum,
+    EvalMode, EwaldOptions, EwaldSum, KernelError, PeriodicCell, RodGreen, SlabGreen,
+    StokesEwaldSum,
 };
 use numpy::PyArray1;
 use pyo3::exceptions::PyValueError;
@@ -26,9 +27,10 @@ fn kernel_error(e: KernelError) -> PyErr {
 /// `targets` (flat, interleaved `x, y, z`), to relative tolerance `eps`.
 /// Returns the flat values (`phi` or `phi, gx, gy, gz` per target,
 /// float64), the energy `1/2 sum q phi` (at the sources only) and a JSON
-/// report.
+/// report. `periodic` `"xy"` (a slab) or `"x"` (a rod) sums the images
+/// along those axes only ([`SlabGreen`], [`RodGreen`], pair by pair).
 #[pyfunction]
-#[pyo3(signature = (sources, charges, lengths, origin, targets, gradient, eps, threads=None, k=0.0))]
+#[pyo3(signature = (sources, charges, lengths, origin, targets, gradient, eps, threads=None, k=0.0, periodic="xyz"))]
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn ewald_sum<'py>(
     py: Python<'py>,
@@ -41,8 +43,12 @@ pub(crate) fn ewald_sum<'py>(
     eps: f64,
     threads: Option<usize>,
     k: f64,
+    periodic: &str,
 ) -> PyResult<(Bound<'py, PyAny>, Option<f64>, String)> {
     let threads = Threads::new(py, threads)?;
+    let axes: ferrofmm_fmm::PeriodicAxes = periodic
+        .parse()
+        .map_err(|e: ferrofmm_fmm::FmmError| PyValueError::new_err(e.to_string()))?;
     let Inputs {
         cell,
         sources,
@@ -63,6 +69,47 @@ pub(crate) fn ewald_sum<'py>(
         let mut options = EwaldOptions::new(eps).screening(k);
         if let Some(t) = &targets {
             options = options.expected_targets(t.len() / 3);
+        }
+        if axes != ferrofmm_fmm::PeriodicAxes::Xyz {
+            let all: Vec<usize> = (0..n).collect();
+            let values = match (axes, &targets) {
+                (ferrofmm_fmm::PeriodicAxes::Xy, Some(t)) => SlabGreen::screened(cell, k, eps)?
+                    .sum_at_points(&sources, &charges, t, mode)?,
+                (ferrofmm_fmm::PeriodicAxes::Xy, None) => SlabGreen::screened(cell, k, eps)?
+                    .sum_at_sources(&sources, &charges, &all, mode)?,
+                (_, Some(t)) => {
+                    RodGreen::screened(cell, k, eps)?.sum_at_points(&sources, &charges, t, mode)?
+                }
+                (_, None) => RodGreen::screened(cell, k, eps)?
+                    .sum_at_sources(&sources, &charges, &all, mode)?,
+            };
+            let energy = targets.is_none().then(|| {
+                let w = mode.values_per_target();
+                0.5 * charges
+                    .iter()
+                    .zip(values.chunks_exact(w))
+                    .map(|(q, v)| q * v[0])
+                    .sum::<f64>()
+            });
+            let info = json!({
+                "kernel": if k > 0.0 { "yukawa" } else { "laplace" },
+                "k": k,
+                "method": if axes == ferrofmm_fmm::PeriodicAxes::Xy { "ewald (slab, Parry)" } else { "ewald (rod)" },
+                "dtype": "float64",
+                "eps": eps,
+                "n_sources": n,
+                "n_targets": targets.as_ref().map_or(n, |t| t.len() / 3),
+                "total_charge": charges.iter().sum::<f64>(),
+                "threads": rayon::current_num_threads(),
+                "periodic": {
+                    "box": cell.lengths(),
+                    "origin": cell.origin(),
+                    "axes": axes.name(),
+                    "surface": "none",
+                },
+                "timings": {"total": start.elapsed().as_secs_f64()},
+            });
+            return Ok((values, energy, info.to_string()));
         }
         let sum = EwaldSum::with_options(cell, &sources, &charges, options)?;
         let values = match &targets {

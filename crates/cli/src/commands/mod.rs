@@ -235,8 +235,10 @@ pub struct FmmArgs {
     /// The periodic cell's lower corner (default 0,0,0).
     #[arg(long, value_name = "X,Y,Z", requires = "periodic_box")]
     pub box_origin: Option<String>,
-    /// Which axes repeat: xyz (the default with --box), xy (a slab) or x
-    /// (a rod); only xyz runs in this release.
+    /// Which axes repeat: xyz (the default with --box), xy (a slab: z is
+    /// free space) or x (a rod: y and z are). Slabs and rods run Laplace
+    /// (neutral, no surface term) and Yukawa; their points must lie within
+    /// the cell along the open axes.
     #[arg(long, value_name = "xyz|xy|x", requires = "periodic_box")]
     pub periodic: Option<String>,
     /// How the periodic Laplace sum is closed: tin-foil (conducting

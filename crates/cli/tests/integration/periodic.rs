@@ -34,6 +34,19 @@ fn a_periodic_demo_meets_its_tolerance_against_ewald() {
     assert!(v["energy"].as_f64().expect("an energy").is_finite());
 }
 
+/// A slab and a rod, checked against their pairwise sums.
+#[test]
+fn slab_and_rod_demos_meet_their_tolerance() {
+    for (axes, kind) in [("xy", "slab"), ("x", "rod")] {
+        let v = periodic_demo(&["--periodic", axes], "1e-6");
+        let periodic = v["periodic"].as_str().expect("a periodic row");
+        assert!(
+            periodic.contains(kind) && periodic.contains("no surface term"),
+            "{periodic}"
+        );
+    }
+}
+
 /// Yukawa in a periodic cell with positive (not neutral) charges, checked
 /// against the screened Ewald sum.
 #[test]
@@ -58,7 +71,31 @@ fn bad_boxes_and_charged_cells_are_refused() {
         vec!["demo", "--n", "100", "--box", "1,2,1"],
         vec!["demo", "--n", "100", "--box", "0"],
         vec!["demo", "--n", "100", "--box", "x"],
-        vec!["demo", "--n", "100", "--box", "1", "--periodic", "xy"],
+        vec![
+            "demo",
+            "--n",
+            "100",
+            "--box",
+            "1",
+            "--periodic",
+            "xy",
+            "--surface",
+            "vacuum",
+        ],
+        vec![
+            "demo",
+            "--n",
+            "100",
+            "--box",
+            "1",
+            "--periodic",
+            "x",
+            "--kernel",
+            "stokes",
+        ],
+        // The demo's points fill [0, 1)^3: outside a cell of side 0.5
+        // along the open axis z.
+        vec!["demo", "--n", "100", "--box", "0.5", "--periodic", "xy"],
         vec!["demo", "--n", "100", "--periodic", "xyz"],
         vec!["demo", "--n", "100", "--box", "1", "--surface", "metal"],
         vec![

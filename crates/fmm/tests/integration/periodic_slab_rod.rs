@@ -104,7 +104,7 @@ fn a_tolerance_is_met_and_verified() {
                 .periodic(cell)
                 .mode(EvalMode::PotentialGradient)
                 .tolerance(eps)
-                .build_svd()
+                .build_with::<FftM2l<f64>>(Default::default())
                 .unwrap();
             let out = fmm.evaluate_verified(&q).unwrap();
             let (ep, eg) = errors(&out.values, &truth);
@@ -116,7 +116,7 @@ fn a_tolerance_is_met_and_verified() {
 }
 
 /// The square lattice of alternating charges (a slab of one layer) and
-/// the alternating chain (a rod), through the FMM at order 12.
+/// the alternating chain (a rod), through the FMM at order 10.
 #[test]
 fn madelung_constants_of_a_layer_and_a_chain() {
     const SQUARE: f64 = 1.615_542_626_712_824_7;
@@ -139,14 +139,14 @@ fn madelung_constants_of_a_layer_and_a_chain() {
         let phi = FmmBuilder::new(points)
             .periodic(Periodic::cube(1.0).with_axes(axes))
             .mode(EvalMode::Potential)
-            .order(12)
+            .order(10)
             .leaf_size(4)
-            .build_svd()
+            .build_with::<FftM2l<f64>>(Default::default())
             .unwrap()
             .evaluate(q)
             .unwrap();
         let m = -phi[0] / INV_4PI * 0.5;
-        assert!((m - want).abs() < 1e-9 * want, "{axes}: {m} against {want}");
+        assert!((m - want).abs() < 1e-8 * want, "{axes}: {m} against {want}");
     }
 }
 

@@ -13,6 +13,13 @@ from ._checks import _bool, _cell, _check_densities, _flat, _points, _positive_i
 from ._fmm import FmmResult
 
 
+def _axes(periodic: Any) -> str:
+    """``periodic=`` as the library reads it (a ValueError names a bad one)."""
+    if not isinstance(periodic, str):
+        raise TypeError(f"periodic must be a str (\"xyz\", \"xy\" or \"x\"), got {periodic!r}")
+    return periodic
+
+
 def ewald(
     points: Any,
     charges: Any,
@@ -24,6 +31,7 @@ def ewald(
     eps: float = 1e-12,
     threads: Optional[int] = None,
     k: float = 0.0,
+    periodic: str = "xyz",
 ) -> FmmResult:
     """The Ewald sum of charges in a periodic cell: the reference of ``laplace(..., box=)``
     and ``yukawa(..., box=)``.
@@ -64,6 +72,15 @@ def ewald(
     k : float
         The Yukawa screening wavenumber ``k >= 0`` (inverse length); ``0``
         (the default) is Laplace.
+    periodic : str
+        The axes that repeat: ``"xyz"`` (default), ``"xy"`` (a slab: Parry's
+        two-dimensional Ewald sum, ``z`` free space) or ``"x"`` (a rod: the
+        one-dimensional sum, ``y`` and ``z`` free space). A slab or rod has
+        no surface term; a Laplace one must be neutral for the sum to mean
+        anything (its divergent constant is dropped). Summed pair by pair,
+        the nearest images directly and the rest through a Chebyshev grid
+        for many points: the reference of ``laplace(..., box=,
+        periodic="xy")``.
 
     Returns
     -------
@@ -110,6 +127,7 @@ def ewald(
         eps_value,
         threads,
         k_value,
+        _axes(periodic),
     )
     info = json.loads(info_json)
     info["kernel_name"] = "yukawa" if k_value > 0.0 else "laplace"
