@@ -72,17 +72,17 @@ pub(crate) fn ewald_sum<'py>(
         }
         if axes != ferrofmm_fmm::PeriodicAxes::Xyz {
             let all: Vec<usize> = (0..n).collect();
-            let values = match (axes, &targets) {
-                (ferrofmm_fmm::PeriodicAxes::Xy, Some(t)) => SlabGreen::screened(cell, k, eps)?
-                    .sum_at_points(&sources, &charges, t, mode)?,
-                (ferrofmm_fmm::PeriodicAxes::Xy, None) => SlabGreen::screened(cell, k, eps)?
-                    .sum_at_sources(&sources, &charges, &all, mode)?,
-                (_, Some(t)) => {
-                    RodGreen::screened(cell, k, eps)?.sum_at_points(&sources, &charges, t, mode)?
-                }
-                (_, None) => RodGreen::screened(cell, k, eps)?
-                    .sum_at_sources(&sources, &charges, &all, mode)?,
-            };
+            let values =
+                match (axes, &targets) {
+                    (ferrofmm_fmm::PeriodicAxes::Xy, Some(t)) => SlabGreen::screened(cell, k, eps)?
+                        .sum_at_points(&sources, &charges, t, mode)?,
+                    (ferrofmm_fmm::PeriodicAxes::Xy, None) => SlabGreen::screened(cell, k, eps)?
+                        .sum_at_sources(&sources, &charges, &all, mode)?,
+                    (_, Some(t)) => RodGreen::screened(cell, k, eps)?
+                        .sum_at_points(&sources, &charges, t, mode)?,
+                    (_, None) => RodGreen::screened(cell, k, eps)?
+                        .sum_at_sources(&sources, &charges, &all, mode)?,
+                };
             let energy = targets.is_none().then(|| {
                 let w = mode.values_per_target();
                 0.5 * charges
