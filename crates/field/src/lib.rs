@@ -100,7 +100,7 @@ mod sysmem;
 mod threads;
 mod usage;
 
-pub use cache::{CACHE_FORMAT_VERSION, CacheStatus};
+pub use cache::{CACHE_FORMAT_VERSION, CacheStatus, cached_values};
 pub use cache_location::{
     CACHE_ENV, CACHE_SIZE_ENV, CacheLocation, CacheOff, CacheOrigin, CacheSetting,
     DEFAULT_CACHE_SIZE, parse_cache_size,

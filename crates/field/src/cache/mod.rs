@@ -49,10 +49,12 @@ mod evict;
 mod file;
 mod payload;
 mod status;
+mod values;
 mod xxh64;
 
 pub(crate) use payload::{CachePayload, FlatStore, StoreLayout, ValueReader};
 pub use status::CacheStatus;
+pub use values::cached_values;
 
 use evict::evict;
 use file::{file_path, invalid, read, touch, write};

@@ -257,7 +257,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         let periodic = match &b.periodic {
             Some(cell) => {
                 let t = Instant::now();
-                let far = far_images(cell, &b.kernel, b.order, &parts)?;
+                let far = far_images(cell, &b.kernel, &params, &parts)?;
                 setup.operators += t.elapsed();
                 Some(far)
             }
@@ -329,12 +329,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         self.unit_surface = surface_points::<f64>(chosen.order, [0.0; 3], 1.0, 1.0);
         if let Some(far) = &self.periodic {
             let t = Instant::now();
-            self.periodic = Some(far_images(
-                &far.cell,
-                &self.kernel,
-                chosen.order,
-                &self.parts,
-            )?);
+            self.periodic = Some(far_images(&far.cell, &self.kernel, &params, &self.parts)?);
             setup.operators += t.elapsed();
             self.setup.operators = setup.operators;
         }
@@ -356,7 +351,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
 fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
     cell: &crate::periodic::Periodic,
     kernel: &K,
-    order: usize,
+    params: &ferrofmm_field::OperatorParams,
     parts: &[Part<T, S>],
 ) -> Result<FarImages, FmmError> {
     let lattice = crate::periodic::required_lattice(kernel)?;
@@ -365,11 +360,13 @@ fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
         .expect("a periodic run has one tree")
         .operators
         .radii();
-    FarImages::new(
+    let (far, _) = FarImages::new(
         *cell,
         lattice,
-        order,
+        kernel,
+        params,
         radii.upward_equivalent,
         radii.downward_check,
-    )
+    )?;
+    Ok(far)
 }

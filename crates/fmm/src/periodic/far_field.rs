@@ -132,16 +132,65 @@ impl FarImages {
     /// `P` for `cell` at `order`, for the lattice sum `lattice`
     /// ([`lattice_sum`]), with the root surfaces of radii
     /// `upward_equivalent` and `downward_check` half-widths.
-    pub(crate) fn new(
+    ///
+    /// `P` is kept in the operator cache of `params` (keyed by the kernel,
+    /// the order, the cell's sides and axes and the surfaces), so a second
+    /// run of the same cell reads it instead of summing it again.
+    pub(crate) fn new<K: Kernel>(
         cell: Periodic,
         lattice: LatticeSum,
-        order: usize,
+        kernel: &K,
+        params: &ferrofmm_field::OperatorParams,
         upward_equivalent: f64,
         downward_check: f64,
-    ) -> Result<Self, FmmError> {
+    ) -> Result<(Self, ferrofmm_field::CacheStatus), FmmError> {
+        let order = params.order;
         let half = 0.5 * cell.width();
         let equivalent = surface_points::<f64>(order, [0.0; 3], half, upward_equivalent);
         let check = surface_points::<f64>(order, [0.0; 3], half, downward_check);
+        let c = lattice.components();
+        let len = (c * check.len() / 3) * (c * equivalent.len() / 3);
+        let description = format!(
+            "periodisation: {lattice:?}, sides {:?}, axes {}, surfaces {upward_equivalent} -> \
+             {downward_check}, tolerance {GREEN_TOLERANCE:e}",
+            cell.lengths(),
+            cell.axes()
+        );
+        let mut failure = None;
+        let (operator, status) = ferrofmm_field::cached_values(
+            params,
+            kernel,
+            "periodisation",
+            &description,
+            len,
+            || {
+                Self::operator(cell, lattice, &check, &equivalent).map_err(|e| {
+                    let text = e.to_string();
+                    failure = Some(e);
+                    ferrofmm_field::FieldError::InvalidParams(text)
+                })
+            },
+        )
+        .map_err(|e| failure.take().unwrap_or(FmmError::from(e)))?;
+        Ok((
+            FarImages {
+                cell,
+                lattice,
+                operator,
+                equivalent,
+            },
+            status,
+        ))
+    }
+
+    /// `P` between the `check` and `equivalent` points (relative to the
+    /// cell's centre).
+    fn operator(
+        cell: Periodic,
+        lattice: LatticeSum,
+        check: &[f64],
+        equivalent: &[f64],
+    ) -> Result<Vec<f64>, FmmError> {
         let green_cell = PeriodicCell::new([0.0; 3], cell.lengths())?;
         // `far_images(r)` depends on differences only: the cell's origin
         // does not matter, the points are relative to its centre.
@@ -149,6 +198,7 @@ impl FarImages {
             LatticeSum::Yukawa { kappa } => kappa,
             _ => 0.0,
         };
+        let (check, equivalent) = (check.to_vec(), equivalent.to_vec());
         let operator = match (lattice, cell.axes()) {
             (LatticeSum::Stokes { viscosity }, PeriodicAxes::Xyz) => {
                 PeriodicStokeslet::new(green_cell, viscosity, GREEN_TOLERANCE)?
@@ -167,12 +217,7 @@ impl FarImages {
             (_, PeriodicAxes::X) => RodGreen::screened(green_cell, kappa, GREEN_TOLERANCE)?
                 .far_images_matrix(&check, &equivalent)?,
         };
-        Ok(FarImages {
-            cell,
-            lattice,
-            operator,
-            equivalent,
-        })
+        Ok(operator)
     }
 
     /// The lattice sum.

@@ -242,3 +242,34 @@ fn slabs_and_rods_refuse_what_they_cannot_sum() {
         Err(FmmError::NotNeutral { .. })
     ));
 }
+
+/// The periodisation operator is kept in the operator cache: one file for
+/// the cell, read back by a second run with the same values bit for bit.
+#[test]
+fn the_periodisation_operator_is_cached() {
+    let dir = ferrofmm_testing::TempDir::new("periodisation");
+    let (points, q) = random_box(300, 1.0, [0.0; 3], false, 16);
+    let cell = Periodic::cube(1.0).with_axes(PeriodicAxes::Xy);
+    let run = || {
+        FmmBuilder::new(&points)
+            .periodic(cell)
+            .order(6)
+            .leaf_size(24)
+            .cache_dir(dir.path())
+            .build_with::<FftM2l<f64>>(Default::default())
+            .unwrap()
+            .evaluate(&q)
+            .unwrap()
+    };
+    let first = run();
+    let entries = || -> Vec<String> {
+        std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("periodisation"))
+            .collect()
+    };
+    assert_eq!(entries().len(), 1, "{:?}", entries());
+    assert_eq!(run(), first);
+    assert_eq!(entries().len(), 1);
+}
