@@ -450,7 +450,11 @@ fn what_periodic_runs_refuse() {
         FmmBuilder::new(&points).periodic(Periodic::with_lengths([1.0, 2.0, 1.0]))
     ));
     assert!(refused(
-        FmmBuilder::new(&points).periodic(Periodic::cube(1.0).with_axes(PeriodicAxes::Xy))
+        FmmBuilder::new(&points).periodic(
+            Periodic::cube(1.0)
+                .with_axes(PeriodicAxes::Xy)
+                .with_surface(SurfaceTerm::Vacuum)
+        )
     ));
     assert!(refused(
         FmmBuilder::new(&points)

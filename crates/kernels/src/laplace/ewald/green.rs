@@ -3,11 +3,9 @@
 
 use super::screening::Split;
 use crate::lattice::{
-    Octant, PeriodicCell, check_points, for_images, image_range, near_images, norm, phase_table,
-    reduced_cutoff,
+    Octant, PeriodicCell, for_images, image_range, near_images, norm, phase_table, reduced_cutoff,
 };
 use crate::{INV_4PI, KernelError};
-use rayon::prelude::*;
 
 /// `alpha V^(1/3)` of a [`PeriodicGreen`]: the balance of ~30-60 images
 /// in real space (`erf`/`erfc` each) against ~1,200 wave vectors of the
@@ -232,20 +230,7 @@ impl PeriodicGreen {
         targets: &[f64],
         sources: &[f64],
     ) -> Result<Vec<f64>, KernelError> {
-        check_points("targets", targets)?;
-        check_points("sources", sources)?;
-        let ns = sources.len() / 3;
-        let mut out = vec![0.0; targets.len() / 3 * ns];
-        if ns == 0 {
-            return Ok(out);
-        }
-        out.par_chunks_mut(ns).enumerate().for_each(|(i, row)| {
-            let t = &targets[3 * i..3 * i + 3];
-            for (v, s) in row.iter_mut().zip(sources.chunks_exact(3)) {
-                *v = self.far_images([t[0] - s[0], t[1] - s[1], t[2] - s[2]]);
-            }
-        });
-        Ok(out)
+        super::pairwise::far_matrix(targets, sources, |r| self.far_images(r))
     }
 
     /// [`image_range`] for this cell and cut-off.

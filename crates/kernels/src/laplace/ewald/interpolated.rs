@@ -17,9 +17,12 @@
 //! sum_j q_j F_m(t - x_j) ~ sum_c W_c F_m(t - y_c),   W_c = sum_j q_j l_c(x_j)
 //! ```
 //!
-//! The error falls as `rho_m^{-g}` with `g` points an axis (the Bernstein
-//! ellipse through the nearest singularity: `rho_1 = 5.8`, `rho_2 = 8` for
-//! a cell-wide interval); `g = ceil(log_rho(10 / tol)) + 1`. Per target
+//! The error falls as `rho_m^{-g}` with `g` points an axis, `rho_m` the
+//! Bernstein ellipse through the nearest singularity for an interval a
+//! cell wide: along a repeating axis the singularity is `m` cells beyond
+//! the cell (`rho = 2m + 1 + sqrt((2m + 1)^2 - 1)`: 5.8, 9.9), along an
+//! open one `m` cells off the real line (`rho = 2m + sqrt(4m^2 + 1)`: 4.2,
+//! 8.1), so `rho_1 = 4.2`, `rho_2 = 8`; `g = ceil(log_rho(10 / tol)) + 1`. Per target
 //! the grid costs `g^3` evaluations of `F_m` and the near images `(2m +
 //! 1)^d N` kernel evaluations: `m` is the cheaper of 1 and 2 for the
 //! number of sources. Pairs at zero distance are left out of `N_m`: a
@@ -137,7 +140,7 @@ pub(crate) fn sum(
             1000.0 * g.powi(3) + ((2 * m + 1) as f64).powi(periodic) * n as f64,
         )
     };
-    let ((g, _), m) = [(cost(1, 5.8), 1i64), (cost(2, 8.0), 2)]
+    let ((g, _), m) = [(cost(1, 4.2), 1i64), (cost(2, 8.0), 2)]
         .into_iter()
         .min_by(|a, b| a.0.1.total_cmp(&b.0.1))
         .expect("two radii");

@@ -6,8 +6,9 @@
 
 use rayon::prelude::*;
 
+use super::screening::Split;
 use crate::lattice::{PeriodicCell, check_indices, check_no_hessian, check_points};
-use crate::{EvalMode, KernelError};
+use crate::{EvalMode, INV_4PI, KernelError};
 
 /// A Green's function summed pair by pair.
 pub(crate) trait PairGreen: Sync {
@@ -25,6 +26,35 @@ pub(crate) trait PairGreen: Sync {
     fn kappa(&self) -> f64;
     /// The cell, which axes repeat, and the tolerance.
     fn cell(&self) -> (&PeriodicCell, [bool; 3], f64);
+}
+
+/// The real-space part of a Green's function without its near images,
+/// with its gradient when `grad`: over the images `(near, d, |d|)` that
+/// `images` visits, `-l(|d|)` for the near ones (their long-range part,
+/// which the reciprocal sum holds) and `psi(|d|)` for the others within
+/// `r_cut`, times `1 / (4 pi)`.
+pub(crate) fn far_real(
+    split: &Split,
+    r_cut: f64,
+    grad: bool,
+    images: impl FnOnce(&mut dyn FnMut(bool, [f64; 3], f64)),
+) -> [f64; 4] {
+    let mut real = [0.0; 4];
+    images(&mut |near, d, rho| {
+        let (v, g) = if near {
+            let g = if grad { split.long_gradient(rho) } else { 0.0 };
+            (-split.long(rho), -g)
+        } else if rho < r_cut {
+            split.short(rho, grad)
+        } else {
+            return;
+        };
+        real[0] += v;
+        for a in 0..3 {
+            real[1 + a] -= g * d[a];
+        }
+    });
+    real.map(|v| INV_4PI * v)
 }
 
 /// `M[i * n_s + j] = far(t_i - s_j)`, row-major, parallel over rows.

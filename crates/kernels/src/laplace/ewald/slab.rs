@@ -231,28 +231,12 @@ impl SlabGreen {
     /// `G(r)` and its gradient without the images `|n_a| <= m` along the
     /// repeating axes (the gradient only when `grad`).
     fn far_with(&self, r: [f64; 3], m: i64, grad: bool) -> [f64; 4] {
-        let mut out = self.smooth(r);
-        let mut real = [0.0; 4];
-        self.for_images(r, Some(m), |near, d, rho| {
-            let (v, g) = if near {
-                let g = if grad {
-                    self.split.long_gradient(rho)
-                } else {
-                    0.0
-                };
-                (-self.split.long(rho), -g)
-            } else if rho < self.r_cut {
-                self.split.short(rho, grad)
-            } else {
-                return;
-            };
-            real[0] += v;
-            for a in 0..3 {
-                real[1 + a] -= g * d[a];
-            }
+        let real = super::pairwise::far_real(&self.split, self.r_cut, grad, |f| {
+            self.for_images(r, Some(m), f)
         });
+        let mut out = self.smooth(r);
         for a in 0..4 {
-            out[a] += INV_4PI * real[a];
+            out[a] += real[a];
         }
         out
     }
