@@ -16,6 +16,16 @@ use serde_json::json;
 use crate::engine::Floats;
 use crate::run::{Threads, interruptible};
 
+/// `1/2 sum q phi` of values at the sources (`mode`'s values per source).
+fn energy(charges: &[f64], values: &[f64], mode: EvalMode) -> f64 {
+    let w = mode.values_per_target();
+    0.5 * charges
+        .iter()
+        .zip(values.chunks_exact(w))
+        .map(|(q, v)| q * v[0])
+        .sum::<f64>()
+}
+
 fn kernel_error(e: KernelError) -> PyErr {
     PyValueError::new_err(e.to_string())
 }
@@ -83,14 +93,7 @@ pub(crate) fn ewald_sum<'py>(
                     (_, None) => RodGreen::screened(cell, k, eps)?
                         .sum_at_sources(&sources, &charges, &all, mode)?,
                 };
-            let energy = targets.is_none().then(|| {
-                let w = mode.values_per_target();
-                0.5 * charges
-                    .iter()
-                    .zip(values.chunks_exact(w))
-                    .map(|(q, v)| q * v[0])
-                    .sum::<f64>()
-            });
+            let energy = targets.is_none().then(|| energy(&charges, &values, mode));
             let info = json!({
                 "kernel": if k > 0.0 { "yukawa" } else { "laplace" },
                 "k": k,
@@ -116,14 +119,7 @@ pub(crate) fn ewald_sum<'py>(
             Some(t) => sum.at_points(t, mode)?,
             None => sum.all(mode)?,
         };
-        let energy = targets.is_none().then(|| {
-            let w = mode.values_per_target();
-            0.5 * charges
-                .iter()
-                .zip(values.chunks_exact(w))
-                .map(|(q, v)| q * v[0])
-                .sum::<f64>()
-        });
+        let energy = targets.is_none().then(|| energy(&charges, &values, mode));
         let p = sum.parameters();
         let info = json!({
             "kernel": if k > 0.0 { "yukawa" } else { "laplace" },

@@ -37,6 +37,27 @@ pub(crate) fn check_points(what: &'static str, points: &[f64]) -> Result<(), Ker
     Ok(())
 }
 
+/// Interleaved `sources` and one finite charge for each: the number of
+/// sources.
+pub(crate) fn check_charges(sources: &[f64], charges: &[f64]) -> Result<usize, KernelError> {
+    check_points("sources", sources)?;
+    let n = sources.len() / 3;
+    if charges.len() != n {
+        return Err(KernelError::ChargesLength {
+            n_sources: n,
+            n_charges: charges.len(),
+        });
+    }
+    if let Some((index, &value)) = charges.iter().enumerate().find(|(_, q)| !q.is_finite()) {
+        return Err(KernelError::NonFinite {
+            what: "charges",
+            index,
+            value,
+        });
+    }
+    Ok(n)
+}
+
 /// Source indices below `n_sources`.
 pub(crate) fn check_indices(indices: &[usize], n_sources: usize) -> Result<(), KernelError> {
     match indices.iter().find(|&&i| i >= n_sources) {

@@ -36,6 +36,7 @@ use rayon::prelude::*;
 
 use super::pairwise::PairGreen;
 use crate::INV_4PI;
+use crate::lattice::PeriodicCell;
 
 /// Fewest sources for which the grid pays.
 const MIN_SOURCES: usize = 2000;
@@ -84,10 +85,16 @@ impl Axis {
     }
 }
 
-/// `x` wrapped into `[o, o + l)`.
-fn wrap(x: f64, o: f64, l: f64) -> f64 {
-    let t = (x - o).rem_euclid(l);
-    if t >= l { o } else { o + t }
+/// `p` wrapped into the cell along the repeating axes `mask`.
+fn place(cell: &PeriodicCell, mask: [bool; 3], p: [f64; 3]) -> [f64; 3] {
+    let (o, l) = (cell.origin(), cell.lengths());
+    std::array::from_fn(|a| {
+        if !mask[a] {
+            return p[a];
+        }
+        let t = (p[a] - o[a]).rem_euclid(l[a]);
+        if t >= l[a] { o[a] } else { o[a] + t }
+    })
 }
 
 /// The sum of [`super::pairwise`] through the grid, or `None` where the
@@ -105,16 +112,8 @@ pub(crate) fn sum(
         return None;
     }
     let (cell, mask, tol) = green.cell();
-    let (o, l) = (cell.origin(), cell.lengths());
-    let place = |p: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|a| {
-            if mask[a] {
-                wrap(p[a], o[a], l[a])
-            } else {
-                p[a]
-            }
-        })
-    };
+    let l = cell.lengths();
+    let place = |p| place(cell, mask, p);
     let x: Vec<[f64; 3]> = sources
         .chunks_exact(3)
         .map(|p| place([p[0], p[1], p[2]]))
@@ -170,16 +169,8 @@ fn sum_with(
     g: usize,
 ) -> Vec<f64> {
     let (cell, mask, _) = green.cell();
-    let (o, l) = (cell.origin(), cell.lengths());
-    let place = |p: [f64; 3]| -> [f64; 3] {
-        std::array::from_fn(|a| {
-            if mask[a] {
-                wrap(p[a], o[a], l[a])
-            } else {
-                p[a]
-            }
-        })
-    };
+    let l = cell.lengths();
+    let place = |p| place(cell, mask, p);
     let axes: [Axis; 3] = std::array::from_fn(|a| Axis::new(lo[a], hi[a], g));
     let dims = axes.each_ref().map(|a| a.nodes.len());
     let cells = dims[0] * dims[1] * dims[2];

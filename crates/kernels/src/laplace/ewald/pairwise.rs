@@ -7,7 +7,7 @@
 use rayon::prelude::*;
 
 use super::screening::Split;
-use crate::lattice::{PeriodicCell, check_indices, check_no_hessian, check_points};
+use crate::lattice::{PeriodicCell, check_charges, check_indices, check_no_hessian, check_points};
 use crate::{EvalMode, INV_4PI, KernelError};
 
 /// A Green's function summed pair by pair.
@@ -86,22 +86,7 @@ fn check(
     mode: EvalMode,
 ) -> Result<usize, KernelError> {
     check_no_hessian(mode, green.name())?;
-    check_points("sources", sources)?;
-    let n = sources.len() / 3;
-    if charges.len() != n {
-        return Err(KernelError::ChargesLength {
-            n_sources: n,
-            n_charges: charges.len(),
-        });
-    }
-    if let Some((index, &value)) = charges.iter().enumerate().find(|(_, q)| !q.is_finite()) {
-        return Err(KernelError::NonFinite {
-            what: "charges",
-            index,
-            value,
-        });
-    }
-    Ok(n)
+    check_charges(sources, charges)
 }
 
 /// `sum_j q_j G(t - x_j)` (and the gradient) at every target.

@@ -4,7 +4,7 @@
 use super::real_space::ShortRange;
 use super::screening::Split;
 use crate::lattice::{
-    EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_indices,
+    EwaldOptions, EwaldParameters, PeriodicCell, ReciprocalLattice, check_charges, check_indices,
     check_no_hessian, check_points,
 };
 use crate::{EvalMode, INV_4PI, KernelError};
@@ -111,21 +111,7 @@ impl EwaldSum {
         charges: &[f64],
         options: EwaldOptions,
     ) -> Result<Self, KernelError> {
-        check_points("sources", sources)?;
-        let n = sources.len() / 3;
-        if charges.len() != n {
-            return Err(KernelError::ChargesLength {
-                n_sources: n,
-                n_charges: charges.len(),
-            });
-        }
-        if let Some((index, &value)) = charges.iter().enumerate().find(|(_, q)| !q.is_finite()) {
-            return Err(KernelError::NonFinite {
-                what: "charges",
-                index,
-                value,
-            });
-        }
+        let n = check_charges(sources, charges)?;
         let kappa = crate::error::check_wavenumber(options.screening)?;
         let params = match options.alpha {
             Some(alpha) => EwaldParameters::with_alpha(&cell, options.tolerance, alpha)?,
