@@ -18,9 +18,31 @@
 //! FMM3D's `stfmm3d` uses the same normalisation with `mu = 1`, and its
 //! `grad[i, j] = d_i u_j` is the storage order below.
 //!
+//! # Force dipoles
+//! A source may also carry a force dipole, a `3 x 3` tensor `D_kc`
+//! (direction `k`, force component `c`): the limit of forces `D_k. / h` at
+//! `x + h e_k` and `-D_k. / h` at `x`, the kernel's generic
+//! [dipole](SourceKind::Dipole) `u_a = sum_kc D_kc d_{x_k} G_ac`. With
+//! `A = D^T - D`, `tr = tr D` and `Q = d . D d`,
+//!
+//! ```text
+//! u_a     = [ (A d)_a - tr d_a + 3 d_a Q / r^2 ] / (8 pi mu r^3)
+//! d_m u_a = [ A_am - 3 (A d)_a d_m / r^2 - tr (delta_am - 3 d_a d_m / r^2)
+//!             + 3 (delta_am Q + d_a ((D + D^T) d)_m - 5 d_a d_m Q / r^2) / r^2 ] / (8 pi mu r^3)
+//! ```
+//!
+//! The symmetric part is a stresslet without its trace, the antisymmetric
+//! part a rotlet; `D = I` gives no flow (the Stokeslet is divergence
+//! free). FMM3D's stresslet `3 d (d . mu)(d . nu) / (4 pi r^5)` (its
+//! `strslet` `mu` and `strsvec` `nu`) is the dipole `D = mu nu^T + nu mu^T`
+//! at `mu = 1` plus the point-source flow `(mu . nu) d / (4 pi r^3)`, which
+//! no Stokeslet carries (it has a net flux): a Laplace field
+//! (`ferrofmm_fmm::stokes` composes the two).
+//!
 //! # Layout
 //! Three [components](Kernel::components): forces `[f0x, f0y, f0z, f1x, ...]`
-//! per source; per target `[u_x, u_y, u_z]`, then for gradients
+//! per source (force dipoles: `[D_xx, D_xy, D_xz, D_yx, ..., D_zz]`, nine
+//! values, after the force with [`SourceKind::ChargeDipole`]); per target `[u_x, u_y, u_z]`, then for gradients
 //! `[d_x u_x, d_x u_y, d_x u_z, d_y u_x, ..., d_z u_z]` (derivative-major,
 //! as every kernel's outputs: the quantity, then its components).
 
@@ -35,7 +57,8 @@ use crate::{EvalMode, Kernel, KernelError, Real, SourceKind};
 /// * [`Kernel::components`] is 3;
 /// * homogeneous of degree `-1`, so the FMM computes operators once and
 ///   rescales them per level;
-/// * point forces (no stresslets) with potentials or gradients.
+/// * point forces, force dipoles or both (the module's "Force dipoles"),
+///   with potentials or gradients; no Hessians.
 ///
 /// ```
 /// use ferrofmm_kernels::{EvalMode, Kernel, Stokes3d};
@@ -83,7 +106,7 @@ impl Stokes3d {
         targets: &[T],
         out: &mut [T],
     ) {
-        assert_evaluation(mode, sources, charges, targets, out);
+        assert_evaluation(SourceKind::Charge, mode, sources, charges, targets, out);
         let scale = T::from_f64(self.scale());
         let three = T::from_f64(3.0);
         let w = 3 * mode.values_per_target();
@@ -119,6 +142,82 @@ impl Stokes3d {
             }
             for (o, a) in o.iter_mut().zip(acc) {
                 *o += a;
+            }
+        }
+    }
+
+    /// The scalar pairwise loop for any [`SourceKind`] (forces, force
+    /// dipoles or both; the module's formulas written out), the reference
+    /// the vectorised [`Kernel::evaluate_sources`] is tested against. Same
+    /// layout and panics.
+    ///
+    /// # Panics
+    /// When lengths are inconsistent or `mode` asks for Hessians.
+    pub fn evaluate_sources_pairwise<T: Real>(
+        &self,
+        kind: SourceKind,
+        mode: EvalMode,
+        sources: &[T],
+        densities: &[T],
+        targets: &[T],
+        out: &mut [T],
+    ) {
+        assert_evaluation(kind, mode, sources, densities, targets, out);
+        let per = 3 * kind.values_per_source();
+        let with_forces = kind != SourceKind::Dipole;
+        let n = sources.len() / 3;
+        let mut forces = Vec::with_capacity(if with_forces { 3 * n } else { 0 });
+        if with_forces {
+            for q in densities.chunks_exact(per) {
+                forces.extend_from_slice(&q[..3]);
+            }
+            self.evaluate_pairwise(mode, sources, &forces, targets, out);
+        }
+        if !kind.has_dipoles() {
+            return;
+        }
+        let scale = self.scale();
+        let w = 3 * mode.values_per_target();
+        for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
+            let mut acc = [0.0f64; 12];
+            for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(per)) {
+                let d: [f64; 3] = std::array::from_fn(|a| (y[a] - x[a]).to_f64());
+                let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if r2 == 0.0 {
+                    continue;
+                }
+                let dm = |k: usize, c: usize| q[per - 9 + 3 * k + c].to_f64();
+                let r = r2.sqrt();
+                let s3 = scale / (r * r2);
+                let tr = dm(0, 0) + dm(1, 1) + dm(2, 2);
+                // (A d)_a with A = D^T - D, Q = d . D d, g = (D + D^T) d.
+                let ad: [f64; 3] =
+                    std::array::from_fn(|a| (0..3).map(|k| (dm(k, a) - dm(a, k)) * d[k]).sum());
+                let q2: f64 = (0..3)
+                    .flat_map(|k| (0..3).map(move |c| (k, c)))
+                    .map(|(k, c)| d[k] * dm(k, c) * d[c])
+                    .sum();
+                let g: [f64; 3] =
+                    std::array::from_fn(|m| (0..3).map(|c| (dm(m, c) + dm(c, m)) * d[c]).sum());
+                for a in 0..3 {
+                    acc[a] += s3 * (ad[a] - tr * d[a] + 3.0 * d[a] * q2 / r2);
+                }
+                if mode.has_gradient() {
+                    for m in 0..3 {
+                        for a in 0..3 {
+                            let delta = if a == m { 1.0 } else { 0.0 };
+                            let v = (dm(m, a) - dm(a, m))
+                                - 3.0 * ad[a] * d[m] / r2
+                                - tr * (delta - 3.0 * d[a] * d[m] / r2)
+                                + 3.0 * (delta * q2 + d[a] * g[m] - 5.0 * d[a] * d[m] * q2 / r2)
+                                    / r2;
+                            acc[3 + 3 * m + a] += s3 * v;
+                        }
+                    }
+                }
+            }
+            for (o, a) in o.iter_mut().zip(acc) {
+                *o += T::from_f64(a);
             }
         }
     }
@@ -207,9 +306,9 @@ impl Kernel for Stokes3d {
 
     crate::lanes::kernel_entry_points!();
 
-    /// Point forces with potentials or gradients.
-    fn supports(&self, kind: SourceKind, mode: EvalMode) -> bool {
-        kind == SourceKind::Charge && !mode.has_hessian()
+    /// Point forces, force dipoles or both, with potentials or gradients.
+    fn supports(&self, _kind: SourceKind, mode: EvalMode) -> bool {
+        !mode.has_hessian()
     }
 
     /// The `3 x 3` blocks `G_ab(y_j - x_i)` (`3 n_targets x 3 n_sources`,
@@ -242,19 +341,20 @@ impl Kernel for Stokes3d {
 }
 
 /// The contract of every Stokes evaluation: consistent lengths (three
-/// values per force and per output quantity) and no Hessians.
+/// values per force and per output quantity, nine per force dipole) and no
+/// Hessians.
 ///
 /// # Panics
 /// When it is broken.
 fn assert_evaluation<T: Real>(
+    kind: SourceKind,
     mode: EvalMode,
     sources: &[T],
-    forces: &[T],
+    densities: &[T],
     targets: &[T],
     out: &[T],
 ) {
-    if let Err(e) =
-        crate::direct::check_lengths(3, SourceKind::Charge, mode, [sources, forces, targets, out])
+    if let Err(e) = crate::direct::check_lengths(3, kind, mode, [sources, densities, targets, out])
     {
         panic!("stokes3d: {e}");
     }

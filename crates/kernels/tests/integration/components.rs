@@ -341,6 +341,7 @@ fn single_precision_follows_double() {
     }
     check(&Helmholtz3d::new(5.0).unwrap(), SourceKind::ChargeDipole);
     check(&Stokes3d::default(), SourceKind::Charge);
+    check(&Stokes3d::default(), SourceKind::ChargeDipole);
 }
 
 /// Helmholtz Hessians in `f32` follow `f64`, every source kind, at every
@@ -428,20 +429,27 @@ fn bad_input_is_refused_with_the_component_count() {
         err,
         Err(KernelError::OutputLength { expected: 2, .. })
     ));
-    // Stokes takes forces only, and has no Hessians; Helmholtz Hessians
-    // need 20 values per target.
+    // A Stokes force dipole takes nine values, not three; Stokes has no
+    // Hessians; Helmholtz Hessians need 20 values per target.
     let mut out = [0.0; 3];
     let err = direct_sum_sources_checked(
         &Stokes3d::default(),
         SourceKind::Dipole,
         EvalMode::Potential,
         &s,
-        &[1.0; 18],
+        &[1.0; 6],
         &t,
         &mut out,
     );
     assert!(
-        matches!(err, Err(KernelError::Unsupported { .. })),
+        matches!(
+            err,
+            Err(KernelError::DensitiesLength {
+                per_source: 9,
+                found: 6,
+                ..
+            })
+        ),
         "{err:?}"
     );
     let mut out = [0.0; 30];
@@ -521,19 +529,121 @@ fn helmholtz_vector_loop_matches_the_pairwise_loop_at_every_level() {
 fn stokes_vector_loop_matches_the_pairwise_loop_at_every_level() {
     let k = Stokes3d::new(0.5).unwrap();
     let s = uniform_cube(53, -1.0, 2.0, 71);
-    let mut rng = SplitMix64(72);
-    let f: Vec<f64> = (0..3 * 53).map(|_| rng.range(-1.0, 1.0)).collect();
     let mut t = uniform_cube(37, -1.0, 2.0, 73);
     t[6..9].copy_from_slice(&s[0..3]);
-    for mode in [EvalMode::Potential, EvalMode::PotentialGradient] {
-        let mut want = vec![0.0; k.values_per_target(mode) * 37];
-        k.evaluate_pairwise(mode, &s, &f, &t, &mut want);
-        for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
-            let mut got = vec![0.0; want.len()];
-            lanes::evaluate_sources_with(level, &k, SourceKind::Charge, mode, &s, &f, &t, &mut got);
-            assert!(got.iter().all(|v| v.is_finite()));
-            let err = relative_l2(&got, &want);
-            assert!(err < 1e-14, "{mode:?} {level:?}: {err:e}");
+    for kind in [
+        SourceKind::Charge,
+        SourceKind::Dipole,
+        SourceKind::ChargeDipole,
+    ] {
+        let mut rng = SplitMix64(72);
+        let f: Vec<f64> = (0..k.values_per_source(kind) * 53)
+            .map(|_| rng.range(-1.0, 1.0))
+            .collect();
+        for mode in [EvalMode::Potential, EvalMode::PotentialGradient] {
+            let mut want = vec![0.0; k.values_per_target(mode) * 37];
+            k.evaluate_sources_pairwise(kind, mode, &s, &f, &t, &mut want);
+            for level in [SimdLevel::Scalar, SimdLevel::Avx2, SimdLevel::Avx512] {
+                let mut got = vec![0.0; want.len()];
+                lanes::evaluate_sources_with(level, &k, kind, mode, &s, &f, &t, &mut got);
+                assert!(got.iter().all(|v| v.is_finite()));
+                let err = relative_l2(&got, &want);
+                assert!(err < 1e-14, "{kind:?} {mode:?} {level:?}: {err:e}");
+            }
         }
     }
+}
+
+/// A force dipole `D` is the limit of opposite forces: `sum_k D_k.` at
+/// `x + h e_k` minus at `x - h e_k`, over `2 h` (central differences in the
+/// source position), velocities and gradients; its velocity is divergence
+/// free, and `D = I` gives no flow.
+#[test]
+fn stokes_force_dipoles_are_source_derivatives_of_forces() {
+    let k = Stokes3d::new(1.3).unwrap();
+    let (s, d, t) = separated(&k, SourceKind::Dipole, 31);
+    let mode = EvalMode::PotentialGradient;
+    let got = eval(&k, SourceKind::Dipole, mode, &s, &d, &t);
+    let h = 1e-5;
+    let mut want = vec![0.0; got.len()];
+    for i in 0..s.len() / 3 {
+        for m in 0..3 {
+            let mut sp = s[3 * i..3 * i + 3].to_vec();
+            let mut sm = sp.clone();
+            sp[m] += h;
+            sm[m] -= h;
+            let f = &d[9 * i + 3 * m..9 * i + 3 * m + 3];
+            let up = eval(&k, SourceKind::Charge, mode, &sp, f, &t);
+            let um = eval(&k, SourceKind::Charge, mode, &sm, f, &t);
+            for (w, (a, b)) in want.iter_mut().zip(up.iter().zip(&um)) {
+                *w += (a - b) / (2.0 * h);
+            }
+        }
+    }
+    let err = relative_l2(&got, &want);
+    assert!(err < 1e-7, "force dipoles vs source differences: {err:e}");
+    check_gradient(&k, SourceKind::Dipole, 32);
+    check_gradient(&k, SourceKind::ChargeDipole, 33);
+    for o in got.chunks_exact(12) {
+        let div = o[3] + o[7] + o[11];
+        let scale: f64 = o[3..].iter().map(|v| v.abs()).sum();
+        assert!(div.abs() <= 1e-13 * scale, "div u = {div:e}");
+    }
+    let identity: Vec<f64> = (0..s.len() / 3)
+        .flat_map(|_| [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0])
+        .collect();
+    let none = eval(&k, SourceKind::Dipole, mode, &s, &identity, &t);
+    let size: f64 = got.iter().map(|v| v.abs()).fold(0.0, f64::max);
+    assert!(none.iter().all(|v| v.abs() <= 1e-15 * size), "{none:?}");
+}
+
+/// FMM3D's stresslet `3 d (d . mu)(d . nu) / (4 pi r^5)` (viscosity 1) is
+/// the force dipole `mu nu^T + nu mu^T` plus the point-source flow
+/// `(mu . nu) d / (4 pi r^3)`, which is minus the gradient of the Laplace
+/// potential of charges `mu . nu`.
+#[test]
+fn the_stresslet_is_a_symmetric_force_dipole_plus_a_laplace_source() {
+    let k = Stokes3d::default();
+    let mut rng = SplitMix64(41);
+    let s = uniform_cube(17, -1.0, 2.0, 42);
+    let t = uniform_cube(9, 2.0, 1.0, 43);
+    let mu: Vec<f64> = (0..51).map(|_| rng.range(-1.0, 1.0)).collect();
+    let nu: Vec<f64> = (0..51).map(|_| rng.range(-1.0, 1.0)).collect();
+    let mut dip = Vec::new();
+    let mut dots = Vec::new();
+    for (m, n) in mu.chunks_exact(3).zip(nu.chunks_exact(3)) {
+        for a in 0..3 {
+            for c in 0..3 {
+                dip.push(m[a] * n[c] + n[a] * m[c]);
+            }
+        }
+        dots.push(m[0] * n[0] + m[1] * n[1] + m[2] * n[2]);
+    }
+    let mode = EvalMode::PotentialGradient;
+    let mut got = eval(&k, SourceKind::Dipole, mode, &s, &dip, &t);
+    let lap = eval(&Laplace3d, SourceKind::Charge, mode, &s, &dots, &t);
+    for (o, l) in got.chunks_exact_mut(12).zip(lap.chunks_exact(4)) {
+        for a in 0..3 {
+            o[a] -= l[1 + a];
+        }
+    }
+    let mut want = vec![0.0; got.len()];
+    for (j, y) in t.chunks_exact(3).enumerate() {
+        for (i, x) in s.chunks_exact(3).enumerate() {
+            let d: Vec<f64> = (0..3).map(|a| y[a] - x[a]).collect();
+            let r = d.iter().map(|v| v * v).sum::<f64>().sqrt();
+            let dm: f64 = (0..3).map(|a| d[a] * mu[3 * i + a]).sum();
+            let dn: f64 = (0..3).map(|a| d[a] * nu[3 * i + a]).sum();
+            for a in 0..3 {
+                want[12 * j + a] += 3.0 * d[a] * dm * dn / (4.0 * std::f64::consts::PI * r.powi(5));
+            }
+        }
+    }
+    let velocity: Vec<f64> = got.chunks_exact(12).flat_map(|o| o[..3].to_vec()).collect();
+    let want: Vec<f64> = want
+        .chunks_exact(12)
+        .flat_map(|o| o[..3].to_vec())
+        .collect();
+    let err = relative_l2(&velocity, &want);
+    assert!(err < 1e-14, "stresslet: {err:e}");
 }
