@@ -28,6 +28,7 @@
 
 pub mod accuracy;
 mod batch;
+mod build_scheme;
 mod builder;
 mod coordinates;
 mod coupling;
@@ -42,6 +43,7 @@ pub mod periodic;
 mod precompute;
 mod progress;
 mod scheme_choice;
+pub mod stokes_layers;
 mod timings;
 mod tree_fmm;
 pub mod tuning;
@@ -52,6 +54,7 @@ pub use accuracy::{
     ErrorReport, estimate_errors, random_sample, relative_errors, relative_errors_periodic,
     relative_errors_sources, relative_errors_sources_with_progress, sample_indices,
 };
+pub use build_scheme::BuildScheme;
 pub use builder::{
     DEFAULT_F32_TOLERANCE, DEFAULT_LEAF_SIZE, DEFAULT_ORDER, DEFAULT_TOLERANCE, FmmBuilder,
     MAX_ORDER, MAX_WAVENUMBER_WIDTH, MIN_ORDER, default_tolerance, effective_tolerance,
@@ -68,6 +71,7 @@ pub use periodic::{Periodic, PeriodicAxes, SurfaceTerm};
 pub use precompute::{first_far_level, m2l_usage};
 pub use progress::{EvalProgress, ProgressFn};
 pub use scheme_choice::SchemeChoice;
+pub use stokes_layers::{StokesEvaluation, StokesLayers, StokesRequest, StokesValues};
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};
 pub use tuning::{ChosenParameters, f32_reaches};

@@ -25,6 +25,7 @@ mod stability_common;
 mod stability_geometry;
 mod stability_input;
 mod stability_numerics;
+mod stokes_layers;
 mod svd_truncation;
 mod tolerance;
 mod tree_fmm;

@@ -7,10 +7,10 @@
 use std::path::Path;
 use std::time::Instant;
 
-use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, M2lScheme, SvdM2l};
+use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
-    EvalTimings, Fmm, FmmBuilder, FmmError, effective_tolerance,
+    BuildScheme, EvalTimings, FmmBuilder, effective_tolerance,
     relative_errors_sources_with_progress, sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, MemoryReport, PrecomputeMonitor, Verification};
@@ -213,41 +213,6 @@ fn as_values<T: Real>(values: &[T]) -> Values<'_> {
         (Some(v), _) => Values::F64(v),
         (None, Some(v)) => Values::F32(v),
         (None, None) => unreachable!("Real is implemented for f32 and f64 only"),
-    }
-}
-
-/// How the command line builds each M2L scheme: through the builder's own
-/// method, so that with `--tolerance` the SVD scheme takes the SVD
-/// tolerance chosen for it (and keeps following it when verification
-/// raises the order).
-pub trait BuildScheme<T: Real>: M2lScheme<T> {
-    /// Build the FMM described by `builder` with this scheme.
-    fn build<K: Kernel>(
-        builder: FmmBuilder<'_, T, K>,
-    ) -> std::result::Result<Fmm<T, K, Self>, FmmError>;
-}
-
-impl<T: Real> BuildScheme<T> for SvdM2l<T> {
-    fn build<K: Kernel>(
-        builder: FmmBuilder<'_, T, K>,
-    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
-        builder.build_svd()
-    }
-}
-
-impl<T: Real> BuildScheme<T> for DenseM2l<T> {
-    fn build<K: Kernel>(
-        builder: FmmBuilder<'_, T, K>,
-    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
-        builder.build_dense()
-    }
-}
-
-impl<T: Real> BuildScheme<T> for FftM2l<T> {
-    fn build<K: Kernel>(
-        builder: FmmBuilder<'_, T, K>,
-    ) -> std::result::Result<Fmm<T, K, Self>, FmmError> {
-        builder.build_with(Default::default())
     }
 }
 

@@ -1,0 +1,452 @@
+//! Stokes double layers (stresslets) and the pressure, composed from the
+//! Stokeslet FMM and one Laplace FMM on the same points.
+//!
+//! # Maths
+//! With `d = y - x` (target minus source), `r = |d|` and viscosity `mu`,
+//! FMM3D's `stfmm3d` sums, at `mu = 1`,
+//!
+//! ```text
+//! velocity of a force f:                 u = (f / r + d (d . f) / r^3) / (8 pi mu)
+//! pressure of a force f:                 p = f . d / (4 pi r^3)
+//! velocity of a stresslet (m, n):        u = 3 d (d . m)(d . n) / (4 pi mu r^5)
+//! pressure of a stresslet (m, n):        p = (6 (d . m)(d . n) / r^5 - 2 (m . n) / r^3) / (4 pi)
+//! ```
+//!
+//! (`m` is FMM3D's `strslet`, `n` its `strsvec`, usually a surface normal).
+//! The stresslet is the [force dipole](ferrofmm_kernels::Stokes3d)
+//! `D = m n^T + n m^T` of the Stokeslet plus a point-source flow
+//!
+//! ```text
+//! u = Stokeslet dipole D (velocity, /mu)  +  (m . n) d / (4 pi mu r^3)
+//! ```
+//!
+//! The source flow carries a net flux no Stokeslet density can, so the
+//! KIFMM's Stokeslet expansions cannot hold it: it is `-grad` of the
+//! Laplace potential of charges `(m . n) / mu`. Every pressure is a
+//! Laplace field too: a force's is the Laplace dipole potential
+//! `n . d / (4 pi r^3)` with `n = f` (our Laplace dipole convention), and a
+//! force dipole's is `p = -sum_k d_k phi_k` with `phi_k` the Laplace dipole
+//! potential of the vectors `D_k.`. So one Laplace FMM with up to five
+//! density vectors completes the Stokes FMM:
+//!
+//! | vector | densities | gives |
+//! |---|---|---|
+//! | source | charges `(m . n) / mu` | `u -= grad phi`, `grad u -= hess phi` |
+//! | force pressure | dipoles `f` | `p += phi`, `grad p += grad phi` |
+//! | dipole pressure `k` | dipoles `D_k.` | `p -= d_k phi`, `d_j p -= hess_jk phi` |
+//!
+//! Velocity gradients of stresslets, and pressure gradients of stresslets,
+//! need the Laplace Hessian; pressure gradients of forces its gradient.
+//! The Stokes FMM sees forces and the force dipoles `D`
+//! ([`SourceKind::ChargeDipole`] when both).
+//!
+//! Both FMMs take the caller's builder settings (points, targets, order or
+//! tolerance, leaf size, cache, threads); each is verified on its own when
+//! a tolerance is given. Periodic cells are refused (the Laplace pieces
+//! would need their own lattice conventions).
+
+use ferrofmm_kernels::{EvalMode, Laplace3d, Real, SourceKind, Stokes3d};
+
+use crate::{BuildScheme, Fmm, FmmBuilder, FmmError, Verification};
+
+/// What a Stokes evaluation carries and computes beyond the velocity.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StokesRequest {
+    /// Point forces (Stokeslets), three values per source.
+    pub forces: bool,
+    /// Stresslets: a strength `m` and an orientation `n` per source.
+    pub stresslets: bool,
+    /// The pressure (and, with gradients, its gradient) at the targets.
+    pub pressure: bool,
+}
+
+/// The Laplace companion's shape: which vectors, which kind, which mode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct LaplacePlan {
+    kind: SourceKind,
+    mode: EvalMode,
+    /// Vector index of the stresslets' source flow.
+    source_flow: Option<usize>,
+    /// Vector index of the forces' pressure.
+    force_pressure: Option<usize>,
+    /// First of the three vectors of the force dipoles' pressure.
+    dipole_pressure: Option<usize>,
+    n_vectors: usize,
+}
+
+impl StokesRequest {
+    /// What the Stokes FMM's sources carry.
+    fn stokes_kind(&self) -> Result<SourceKind, FmmError> {
+        match (self.forces, self.stresslets) {
+            (true, false) => Ok(SourceKind::Charge),
+            (false, true) => Ok(SourceKind::Dipole),
+            (true, true) => Ok(SourceKind::ChargeDipole),
+            (false, false) => Err(FmmError::InvalidParameter(
+                "a Stokes evaluation needs forces, stresslets or both".into(),
+            )),
+        }
+    }
+
+    /// The Laplace FMM this request needs, if any (`gradient`: velocity
+    /// and pressure gradients are asked for).
+    fn laplace_plan(&self, gradient: bool) -> Option<LaplacePlan> {
+        let mut n_vectors = 0;
+        let mut next = |used: bool, width: usize| {
+            used.then(|| {
+                n_vectors += width;
+                n_vectors - width
+            })
+        };
+        let source_flow = next(self.stresslets, 1);
+        let force_pressure = next(self.pressure && self.forces, 1);
+        let dipole_pressure = next(self.pressure && self.stresslets, 3);
+        if n_vectors == 0 {
+            return None;
+        }
+        // Stresslets need derivatives of their Laplace fields; a force's
+        // pressure is a potential unless its gradient is asked for.
+        let mode = match (self.stresslets, gradient) {
+            (true, true) => EvalMode::PotentialGradientHessian,
+            (true, false) | (false, true) => EvalMode::PotentialGradient,
+            (false, false) => EvalMode::Potential,
+        };
+        let kind = match (source_flow.is_some(), self.pressure) {
+            (true, true) => SourceKind::ChargeDipole,
+            (true, false) => SourceKind::Charge,
+            (false, _) => SourceKind::Dipole,
+        };
+        Some(LaplacePlan {
+            kind,
+            mode,
+            source_flow,
+            force_pressure,
+            dipole_pressure,
+            n_vectors,
+        })
+    }
+}
+
+/// The results of one [`StokesLayers::evaluate`].
+#[derive(Clone, Debug, PartialEq)]
+pub struct StokesValues<T> {
+    /// Per target the velocity `[u_x, u_y, u_z]`, then with gradients
+    /// `d_c u_a` at `3 + 3 c + a` ([`Stokes3d`]'s layout): 3 or 12 values.
+    pub velocity: Vec<T>,
+    /// Per target `p`, then with gradients `[d_x p, d_y p, d_z p]`: 1 or 4
+    /// values; `None` unless [`StokesRequest::pressure`].
+    pub pressure: Option<Vec<T>>,
+}
+
+/// [`StokesValues`] with the verification of each FMM (the first
+/// evaluation of a tolerance; see [`Fmm::evaluate_verified`]).
+#[derive(Clone, Debug)]
+pub struct StokesEvaluation<T> {
+    /// The values.
+    pub values: StokesValues<T>,
+    /// The Stokes FMM's verification.
+    pub stokes: Option<Verification>,
+    /// The Laplace FMM's verification (when there is one).
+    pub laplace: Option<Verification>,
+}
+
+/// A Stokes FMM for forces and stresslets with the pressure: a
+/// [`Stokes3d`] FMM and, where the request needs one, a [`Laplace3d`] FMM
+/// (see the [module docs](self) for the maths).
+///
+/// ```
+/// use ferrofmm_field::FftM2l;
+/// use ferrofmm_fmm::{FmmBuilder, StokesLayers, StokesRequest};
+/// use ferrofmm_kernels::Stokes3d;
+/// let points: Vec<f64> = (0..1500).map(|i| (i as f64 * 0.618).fract()).collect();
+/// let m: Vec<f64> = (0..1500).map(|i| (i as f64 * 0.37).sin()).collect();
+/// let n: Vec<f64> = (0..1500).map(|i| (i as f64 * 0.91).cos()).collect();
+/// let builder = FmmBuilder::new(&points).kernel(Stokes3d::default()).tolerance(1e-6);
+/// let request = StokesRequest { forces: false, stresslets: true, pressure: true };
+/// let layers = StokesLayers::<f64, FftM2l<f64>>::build(builder, request).unwrap();
+/// let out = layers.evaluate(None, Some((&m, &n))).unwrap();
+/// assert_eq!(out.velocity.len(), 3 * 500);
+/// assert_eq!(out.pressure.unwrap().len(), 500);
+/// ```
+pub struct StokesLayers<T: Real, S: BuildScheme<T>> {
+    stokes: Fmm<T, Stokes3d, S>,
+    laplace: Option<Fmm<T, Laplace3d, S>>,
+    request: StokesRequest,
+    plan: Option<LaplacePlan>,
+    gradient: bool,
+}
+
+impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
+    /// Build from a [`Stokes3d`] builder (points, targets, mode
+    /// [`EvalMode::Potential`] or [`EvalMode::PotentialGradient`], order or
+    /// tolerance, cache, ...): its source kind is set from `request`; the
+    /// Laplace FMM, when needed, takes the same settings with its own
+    /// source kind and mode.
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] when the request carries nothing or
+    /// the builder is periodic or asks for Hessians; otherwise as the
+    /// builds.
+    pub fn build(
+        builder: FmmBuilder<'_, T, Stokes3d>,
+        request: StokesRequest,
+    ) -> Result<Self, FmmError> {
+        let kind = request.stokes_kind()?;
+        if builder.periodic.is_some() && (request.stresslets || request.pressure) {
+            return Err(FmmError::InvalidParameter(
+                "stresslets and the pressure run in free space only (no periodic cell)".into(),
+            ));
+        }
+        if builder.mode.has_hessian() {
+            return Err(FmmError::InvalidParameter(
+                "the Stokes kernel has no Hessians: use potentials or gradients".into(),
+            ));
+        }
+        let gradient = builder.mode.has_gradient();
+        let plan = request.laplace_plan(gradient);
+        let laplace = match plan {
+            None => None,
+            Some(plan) => {
+                let mut b = builder
+                    .clone()
+                    .kernel(Laplace3d)
+                    .source_kind(plan.kind)
+                    .mode(plan.mode);
+                // A model made for the Stokeslet does not describe Laplace.
+                b.tuning_model = None;
+                Some(S::build(b)?)
+            }
+        };
+        let stokes = S::build(builder.source_kind(kind))?;
+        Ok(StokesLayers {
+            stokes,
+            laplace,
+            request,
+            plan,
+            gradient,
+        })
+    }
+
+    /// The Stokes FMM.
+    pub fn stokes(&self) -> &Fmm<T, Stokes3d, S> {
+        &self.stokes
+    }
+
+    /// The Laplace FMM, when the request needs one.
+    pub fn laplace(&self) -> Option<&Fmm<T, Laplace3d, S>> {
+        self.laplace.as_ref()
+    }
+
+    /// What this evaluates.
+    pub fn request(&self) -> StokesRequest {
+        self.request
+    }
+
+    /// Velocities (and pressures) of `forces` (three values per source)
+    /// and stresslets `(m, n)` (three values each per source), as the
+    /// request says.
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] when a density the request needs is
+    /// missing or one it does not carry is given; [`FmmError::DensityCount`]
+    /// for a wrong length; otherwise as [`Fmm::evaluate`].
+    pub fn evaluate(
+        &self,
+        forces: Option<&[T]>,
+        stresslets: Option<(&[T], &[T])>,
+    ) -> Result<StokesValues<T>, FmmError> {
+        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let velocity = self.stokes.evaluate(&stokes_densities)?;
+        let laplace = match (&self.laplace, &self.plan) {
+            (Some(fmm), Some(plan)) => Some(fmm.evaluate_many(&laplace_densities, plan.n_vectors)?),
+            _ => None,
+        };
+        Ok(self.combine(velocity, laplace.as_deref()))
+    }
+
+    /// As [`StokesLayers::evaluate`], the first evaluation of a tolerance
+    /// verified (each FMM on its own, raising its order where it falls
+    /// short).
+    ///
+    /// # Errors
+    /// As [`StokesLayers::evaluate`].
+    pub fn evaluate_verified(
+        &mut self,
+        forces: Option<&[T]>,
+        stresslets: Option<(&[T], &[T])>,
+    ) -> Result<StokesEvaluation<T>, FmmError> {
+        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let stokes = self.stokes.evaluate_verified(&stokes_densities)?;
+        let (laplace, laplace_check) = match (&mut self.laplace, &self.plan) {
+            (Some(fmm), Some(plan)) => {
+                // The first vector is checked (it may raise the order);
+                // the others are evaluated at the order it settles on.
+                let per = fmm.n_sources() * plan.kind.values_per_source();
+                let first = fmm.evaluate_verified(&laplace_densities[..per])?;
+                let mut values = first.values;
+                if plan.n_vectors > 1 {
+                    values
+                        .extend(fmm.evaluate_many(&laplace_densities[per..], plan.n_vectors - 1)?);
+                }
+                (Some(values), first.verification)
+            }
+            _ => (None, None),
+        };
+        Ok(StokesEvaluation {
+            values: self.combine(stokes.values, laplace.as_deref()),
+            stokes: stokes.verification,
+            laplace: laplace_check,
+        })
+    }
+
+    /// The Stokes densities (forces, then `D = m n^T + n m^T`, per source)
+    /// and the Laplace vectors of the plan, one after another.
+    fn densities(
+        &self,
+        forces: Option<&[T]>,
+        stresslets: Option<(&[T], &[T])>,
+    ) -> Result<(Vec<T>, Vec<T>), FmmError> {
+        let n = self.stokes.n_sources();
+        let check = |what: &str, given: bool, wanted: bool| {
+            if given == wanted {
+                Ok(())
+            } else if wanted {
+                Err(FmmError::InvalidParameter(format!(
+                    "this Stokes FMM's sources carry {what}: give them"
+                )))
+            } else {
+                Err(FmmError::InvalidParameter(format!(
+                    "this Stokes FMM's sources carry no {what}: build it with them"
+                )))
+            }
+        };
+        check("forces", forces.is_some(), self.request.forces)?;
+        check("stresslets", stresslets.is_some(), self.request.stresslets)?;
+        let length = |got: usize| {
+            if got == 3 * n {
+                Ok(())
+            } else {
+                Err(FmmError::DensityCount {
+                    kind: "stokes",
+                    per_source: 3,
+                    expected: 3 * n,
+                    got,
+                })
+            }
+        };
+        if let Some(f) = forces {
+            length(f.len())?;
+        }
+        if let Some((m, v)) = stresslets {
+            length(m.len())?;
+            length(v.len())?;
+        }
+        let dipole = |i: usize| -> [T; 9] {
+            let (m, v) = stresslets.expect("checked above");
+            std::array::from_fn(|kc| {
+                let (k, c) = (kc / 3, kc % 3);
+                m[3 * i + k] * v[3 * i + c] + v[3 * i + k] * m[3 * i + c]
+            })
+        };
+        let per = 3 * self.stokes.source_kind().values_per_source();
+        let mut stokes = Vec::with_capacity(per * n);
+        for i in 0..n {
+            if let Some(f) = forces {
+                stokes.extend_from_slice(&f[3 * i..3 * i + 3]);
+            }
+            if stresslets.is_some() {
+                stokes.extend_from_slice(&dipole(i));
+            }
+        }
+        let Some(plan) = self.plan else {
+            return Ok((stokes, Vec::new()));
+        };
+        let width = plan.kind.values_per_source();
+        let mut laplace = vec![T::ZERO; plan.n_vectors * n * width];
+        let dipole_at = usize::from(plan.kind == SourceKind::ChargeDipole);
+        let inverse_viscosity = T::from_f64(1.0 / self.stokes.kernel().viscosity);
+        for i in 0..n {
+            let at = |vector: usize| (vector * n + i) * width;
+            if let (Some(v), Some((m, nu))) = (plan.source_flow, stresslets) {
+                let dot = m[3 * i] * nu[3 * i]
+                    + m[3 * i + 1] * nu[3 * i + 1]
+                    + m[3 * i + 2] * nu[3 * i + 2];
+                laplace[at(v)] = dot * inverse_viscosity;
+            }
+            if let (Some(v), Some(f)) = (plan.force_pressure, forces) {
+                let o = at(v) + dipole_at;
+                laplace[o..o + 3].copy_from_slice(&f[3 * i..3 * i + 3]);
+            }
+            if let Some(v0) = plan.dipole_pressure {
+                let d = dipole(i);
+                for k in 0..3 {
+                    let o = at(v0 + k) + dipole_at;
+                    laplace[o..o + 3].copy_from_slice(&d[3 * k..3 * k + 3]);
+                }
+            }
+        }
+        Ok((stokes, laplace))
+    }
+
+    /// Add the Laplace fields to the Stokes velocities and form the
+    /// pressure (module docs' table).
+    fn combine(&self, mut velocity: Vec<T>, laplace: Option<&[T]>) -> StokesValues<T> {
+        let (Some(plan), Some(lap)) = (self.plan, laplace) else {
+            return StokesValues {
+                velocity,
+                pressure: None,
+            };
+        };
+        let m = self.stokes.n_targets();
+        let w = plan.mode.values_per_target();
+        let field = |vector: usize, j: usize| &lap[(vector * m + j) * w..(vector * m + j + 1) * w];
+        // Hessian entry (a, b) in the order xx, yy, zz, xy, xz, yz.
+        let hess = |h: &[T], a: usize, b: usize| {
+            h[match (a.min(b), a.max(b)) {
+                (a, b) if a == b => 4 + a,
+                (0, 1) => 7,
+                (0, 2) => 8,
+                _ => 9,
+            }]
+        };
+        let wv = if self.gradient { 12 } else { 3 };
+        if let Some(v) = plan.source_flow {
+            for (j, u) in velocity.chunks_exact_mut(wv).enumerate() {
+                let phi = field(v, j);
+                for a in 0..3 {
+                    u[a] -= phi[1 + a];
+                }
+                if self.gradient {
+                    for c in 0..3 {
+                        for a in 0..3 {
+                            u[3 + 3 * c + a] -= hess(phi, a, c);
+                        }
+                    }
+                }
+            }
+        }
+        let pressure = self.request.pressure.then(|| {
+            let wp = if self.gradient { 4 } else { 1 };
+            let mut p = vec![T::ZERO; wp * m];
+            for (j, pj) in p.chunks_exact_mut(wp).enumerate() {
+                if let Some(v) = plan.force_pressure {
+                    for (o, x) in pj.iter_mut().zip(field(v, j)) {
+                        *o += *x;
+                    }
+                }
+                if let Some(v0) = plan.dipole_pressure {
+                    for k in 0..3 {
+                        let phi = field(v0 + k, j);
+                        pj[0] -= phi[1 + k];
+                        if self.gradient {
+                            for a in 0..3 {
+                                pj[1 + a] -= hess(phi, a, k);
+                            }
+                        }
+                    }
+                }
+            }
+            p
+        });
+        StokesValues { velocity, pressure }
+    }
+}
