@@ -15,7 +15,7 @@ use crate::{Fmm, FmmBuilder, FmmError};
 /// use ferrofmm_field::FftM2l;
 /// use ferrofmm_fmm::{BuildScheme, FmmBuilder};
 /// let points: Vec<f64> = (0..300).map(|i| (i as f64 * 0.618).fract()).collect();
-/// let fmm = FftM2l::<f64>::build(FmmBuilder::new(&points).order(4)).unwrap();
+/// let fmm = FftM2l::<f64>::build(FmmBuilder::new(&points).order(4).leaf_size(16)).unwrap();
 /// assert_eq!(fmm.order(), 4);
 /// ```
 pub trait BuildScheme<T: Real>: M2lScheme<T> {
