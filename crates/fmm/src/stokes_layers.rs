@@ -241,6 +241,20 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         self.request
     }
 
+    /// Whether velocity and pressure gradients are computed.
+    pub fn has_gradient(&self) -> bool {
+        self.gradient
+    }
+
+    /// Report the passes' progress of both FMMs to `f`
+    /// ([`Fmm::set_progress`]).
+    pub fn set_progress(&mut self, f: Option<std::sync::Arc<crate::ProgressFn>>) {
+        if let Some(laplace) = &mut self.laplace {
+            laplace.set_progress(f.clone());
+        }
+        self.stokes.set_progress(f);
+    }
+
     /// Velocities (and pressures) of `forces` (three values per source)
     /// and stresslets `(m, n)` (three values each per source), as the
     /// request says.

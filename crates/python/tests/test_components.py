@@ -110,8 +110,11 @@ def test_bad_input_is_a_value_error(rng):
         ferrofmm.helmholtz(x, np.ones(200), k=1e4, order=4)
     with pytest.raises(ValueError, match="not stokes"):
         ferrofmm.Fmm(x, kernel="stokes", k=1.0, order=4)
-    with pytest.raises(ValueError):
-        ferrofmm.Fmm(x, kernel="stokes", order=4, dipoles=True)
+    # Stokes dipoles are force dipoles, (n, 3, 3) (test_stokes_layers.py).
+    with pytest.raises(ValueError, match=r"\(n, 3, 3\)"):
+        ferrofmm.Fmm(x, kernel="stokes", order=4, charges=False, dipoles=True).evaluate(
+            dipoles=np.ones((200, 3))
+        )
     with pytest.raises(ValueError):
         ferrofmm.Fmm(x, kernel="stokes", order=4, hessian=True)
     with pytest.raises(ValueError, match=r"\(n, 3\)"):

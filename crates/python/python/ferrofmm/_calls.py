@@ -10,10 +10,19 @@ from ._fmm import Fmm, FmmResult, _check_progress
 
 
 def _one_call(
-    kernel: str, k: Optional[float], sources: Any, charges: Any, dipoles: Any, **kw: Any
+    kernel: str,
+    k: Optional[float],
+    sources: Any,
+    charges: Any,
+    dipoles: Any,
+    strslet: Any = None,
+    strsvec: Any = None,
+    **kw: Any,
 ) -> FmmResult:
-    if charges is None and dipoles is None:
+    if charges is None and dipoles is None and strslet is None:
         raise ValueError("give charges, dipoles or both")
+    if (strslet is None) != (strsvec is None):
+        raise ValueError("a stresslet needs both its strength strslet and orientation strsvec")
     progress = kw.pop("progress", None)
     _check_progress(progress)
     # Every argument's shape before any work (the build takes seconds).
@@ -21,13 +30,16 @@ def _one_call(
     names = {"charges": _kernel(kernel)["density_name"]}
     given = [
         (names.get(key, key), key, value)
-        for key, value in (("charges", charges), ("dipoles", dipoles))
+        for key, value in (
+            ("charges", charges), ("dipoles", dipoles), ("strslet", strslet),
+            ("strsvec", strsvec),
+        )
         if value is not None
     ]
     checked = _check_densities(kernel, n, given)
     fmm = Fmm(
         sources, kw.pop("targets"), kernel, k=k, charges=charges is not None,
-        dipoles=dipoles is not None, **kw,
+        dipoles=dipoles is not None, stresslets=strslet is not None, **kw,
     )
     return fmm._evaluate(*checked, stacklevel=4, progress=progress)
 
@@ -226,8 +238,11 @@ helmholtz = _with_wavenumber(
 
 def stokes(
     sources: Any,
-    forces: Any,
+    forces: Any = None,
     *,
+    strslet: Any = None,
+    strsvec: Any = None,
+    pressure: bool = False,
     targets: Any = None,
     eps: Optional[float] = None,
     order: Optional[int] = None,
@@ -244,16 +259,25 @@ def stokes(
     surface: Optional[str] = None,
     progress: Optional[Callable[[int, int], Any]] = None,
 ) -> FmmResult:
-    """Stokes flow of point forces: ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet.
+    """Stokes flow of point forces and stresslets, and its pressure (FMM3D's ``stfmm3d``).
 
+    ``u(y) = sum_i G(y - x_i) f_i`` with the Stokeslet
     ``G(d) = (I / r + d d^T / r^3) / (8 pi)`` (viscosity 1; for viscosity
-    ``mu`` divide the result by ``mu``; FMM3D's ``stfmm3d`` uses the same
-    normalisation). ``forces`` is ``(n, 3)`` or ``(k, n, 3)``; ``.potential`` is
-    the velocity ``(m, 3)``, ``.gradient`` the velocity gradient
-    ``(m, 3, 3)`` with ``[j, a, c] = d u_a / d x_c`` at target ``j``. No
-    dipoles (stresslets) and no Hessians. ``scheme="auto"`` is the FFT
-    scheme (as for :func:`helmholtz`). The other parameters are as for
-    :func:`laplace`.
+    ``mu`` divide the velocity by ``mu``; FMM3D's ``stfmm3d`` uses the same
+    normalisation), plus for stresslets (``strslet`` strengths ``m`` and
+    ``strsvec`` orientations ``n``, FMM3D's names) ``3 d (d . m)(d . n) /
+    (4 pi r^5)``, ``d`` the target minus the source. ``forces``, ``strslet``
+    and ``strsvec`` are ``(n, 3)`` or ``(k, n, 3)``; give forces,
+    stresslets or both. ``.potential`` is the velocity ``(m, 3)``,
+    ``.gradient`` the velocity gradient ``(m, 3, 3)`` with
+    ``[j, a, c] = d u_a / d x_c`` at target ``j``. With ``pressure=True``,
+    ``.pressure`` is the pressure ``(m,)`` (FMM3D's ``pre``: ``f . d / (4 pi
+    r^3)`` for a force, ``(6 (d . m)(d . n) / r^5 - 2 (m . n) / r^3) / (4
+    pi)`` for a stresslet) and, with ``gradient=True``,
+    ``.pressure_gradient`` its gradient ``(m, 3)``. Stresslets and the
+    pressure run one Laplace FMM beside the Stokes one, in free space only.
+    No Hessians. ``scheme="auto"`` is the FFT scheme (as for
+    :func:`helmholtz`). The other parameters are as for :func:`laplace`.
 
     Examples
     --------
@@ -262,11 +286,16 @@ def stokes(
     >>> r = ferrofmm.stokes(x, np.ones((2000, 3)), eps=1e-6, gradient=True)
     >>> r.potential.shape, r.gradient.shape
     ((2000, 3), (2000, 3, 3))
+    >>> normals = x - 0.5
+    >>> r = ferrofmm.stokes(x, strslet=np.ones((2000, 3)), strsvec=normals, pressure=True)
+    >>> r.potential.shape, r.pressure.shape
+    ((2000, 3), (2000,))
     """
-    if forces is None:
-        raise ValueError("give the forces, shape (n, 3)")
+    if forces is None and strslet is None:
+        raise ValueError("give the forces, shape (n, 3), or stresslets (strslet and strsvec)")
     return _one_call(
-        "stokes", None, sources, forces, None, targets=targets, eps=eps, order=order,
+        "stokes", None, sources, forces, None, strslet, strsvec, pressure=pressure,
+        targets=targets, eps=eps, order=order,
         gradient=gradient, dtype=dtype, threads=threads, leaf_size=leaf_size,
         scheme=scheme, verify=verify, at_sources=at_sources,
         box=box, box_origin=box_origin, periodic=periodic, surface=surface,

@@ -91,9 +91,13 @@ def _vector_valued(kernel: str) -> bool:
 
 def _density_tail(kernel: str, key: str) -> Tuple[int, ...]:
     """Trailing shape of one source's density: ``()`` for a charge of a scalar or complex kernel,
-    ``(c,)`` for a kernel with ``c`` real components (Stokes forces), ``(3,)`` for a dipole."""
-    if key == "dipoles":
+    ``(c,)`` for a kernel with ``c`` real components (Stokes forces), ``(3,)`` for a dipole of a
+    scalar or complex kernel and for a stresslet's strength or orientation, ``(3, c)`` for a
+    dipole of a kernel with ``c`` real components (a Stokes force dipole ``D[k, c]``)."""
+    if key in ("strslet", "strsvec"):
         return (3,)
+    if key == "dipoles":
+        return (3, _kernel(kernel)["components"]) if _vector_valued(kernel) else (3,)
     return (_kernel(kernel)["components"],) if _vector_valued(kernel) else ()
 
 
@@ -197,14 +201,16 @@ def _cache(cache: Any, cache_dir: Any) -> Tuple[Optional[str], bool]:
     return _cache_dir(cache, "cache"), True
 
 
-def _per_target(kernel: str, gradient: bool, hessian: bool) -> int:
-    """Values per target and vector: quantities times the kernel's components."""
-    return (10 if hessian else 4 if gradient else 1) * _kernel(kernel)["components"]
+def _per_target(kernel: str, gradient: bool, hessian: bool, pressure: bool = False) -> int:
+    """Values per target and vector: quantities times the kernel's components (and the Stokes
+    pressure, with its gradient, after the velocity)."""
+    quantities = 10 if hessian else 4 if gradient else 1
+    return quantities * (_kernel(kernel)["components"] + int(pressure))
 
 
-def _per_source(kernel: str, charges: bool, dipoles: bool) -> int:
-    """Values per source and vector."""
-    return (int(charges) + 3 * int(dipoles)) * _kernel(kernel)["components"]
+def _per_source(kernel: str, charges: bool, dipoles: bool, stresslets: bool = False) -> int:
+    """Values per source and vector (a stresslet: its strength and orientation, six)."""
+    return (int(charges) + 3 * int(dipoles)) * _kernel(kernel)["components"] + 6 * int(stresslets)
 
 
 def _check_float32_range(name: str, a: np.ndarray) -> None:
@@ -240,8 +246,8 @@ def _check_densities(
         else:
             a = _as_float_array(shown, value)
         tail = _density_tail(kernel, key)
-        one = "(n,)" if tail == () else "(n, 3)"
-        many = "(k, n)" if tail == () else "(k, n, 3)"
+        one = "(" + ", ".join(["n"] + [str(t) for t in tail]) + (",)" if tail == () else ")")
+        many = "(" + ", ".join(["k", "n"] + [str(t) for t in tail]) + ")"
         if a.ndim == 1 + len(tail):
             batched = False
         elif a.ndim == 2 + len(tail):
@@ -256,9 +262,10 @@ def _check_densities(
                 raise ValueError(
                     f"{shown} must have shape (k, {n}) (one row per charge vector), got {a.shape}"
                 )
+            dims = ", ".join(str(t) for t in tail)
             raise ValueError(
                 f"{shown} has shape {a.shape} but there are {n} sources: use "
-                f"({n}, 3) or (k, {n}, 3)"
+                f"({n}, {dims}) or (k, {n}, {dims})"
             )
         k = a.shape[0] if batched else 1
         if k == 0:

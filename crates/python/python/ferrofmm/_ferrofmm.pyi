@@ -99,12 +99,16 @@ class NativeFmm:
         cell_origin: Optional[List[float]] = ...,
         periodic: Optional[str] = ...,
         surface: Optional[str] = ...,
+        layers: Optional[Tuple[bool, bool, bool]] = ...,
     ) -> None:
         """``cell_lengths`` (one side or three), ``cell_origin``, ``periodic``
         (``"xyz"``, ``"xy"``, ``"x"``) and ``surface`` (``"tin-foil"``,
         ``"vacuum"``): the periodic cell of ``box=`` (``None``: free space).
         The JSON of ``evaluate`` then holds ``periodic`` (the cell) and
-        ``energy`` (per vector: ``1/2 sum q phi`` or ``null``)."""
+        ``energy`` (per vector: ``1/2 sum q phi`` or ``null``).
+        ``layers = (forces, stresslets, pressure)`` (``"stokes"`` only): the
+        densities per source are ``[f, m, n]`` (those carried, three values
+        each) and the values per target the velocity then the pressure."""
     def evaluate(
         self,
         charges: npt.NDArray[np.floating],
@@ -113,6 +117,8 @@ class NativeFmm:
     ) -> Tuple[npt.NDArray[np.floating], str]: ...
     def summary_json(self) -> str: ...
     def setup_timings_json(self) -> str: ...
+    @property
+    def values_per_target(self) -> int: ...
     @property
     def dtype(self) -> str: ...
     @property

@@ -76,6 +76,12 @@ class FmmResult:
         With ``at_sources=True`` and separate targets: the values at the
         sources (each excluding itself) from the same run, as an
         ``FmmResult`` of their own (FMM3D's ``pg`` with ``pgt``).
+    pressure : numpy.ndarray or None
+        Stokes with ``pressure=True``: the pressure, ``(m,)`` or ``(k, m)``
+        (FMM3D's ``pre``); else ``None``.
+    pressure_gradient : numpy.ndarray or None
+        Its gradient, ``(m, 3)`` or ``(k, m, 3)``, with ``pressure=True``
+        and ``gradient=True``; else ``None``.
     energy : float or numpy.ndarray or None
         ``E = 1/2 sum_i q_i phi_i`` when charges of a scalar kernel
         (Laplace, Yukawa) were evaluated at the sources themselves (no
@@ -94,7 +100,10 @@ class FmmResult:
         ``"tin-foil"`` or ``"vacuum"``).
     """
 
-    __slots__ = ("potential", "gradient", "hessian", "info", "at_sources", "energy")
+    __slots__ = (
+        "potential", "gradient", "hessian", "info", "at_sources", "energy", "pressure",
+        "pressure_gradient",
+    )
 
     def __init__(
         self,
@@ -110,13 +119,16 @@ class FmmResult:
         self.info = info
         self.at_sources: Optional["FmmResult"] = None
         self.energy = energy
+        self.pressure: Optional[np.ndarray] = None
+        self.pressure_gradient: Optional[np.ndarray] = None
 
     def __repr__(self) -> str:
         g = None if self.gradient is None else self.gradient.shape
         h = "" if self.hessian is None else f", hessian={self.hessian.shape}"
         e = "" if self.energy is None or np.ndim(self.energy) else f", energy={self.energy:.6g}"
+        p = "" if self.pressure is None else f", pressure={self.pressure.shape}"
         return (
-            f"FmmResult(potential={self.potential.shape}, gradient={g}{h}{e}, "
+            f"FmmResult(potential={self.potential.shape}, gradient={g}{h}{p}{e}, "
             f"order={self.info.get('order')}, dtype={self.info.get('dtype')})"
         )
 
@@ -165,6 +177,25 @@ class Fmm:
         The sources carry dipole vectors ``n`` (default ``False``): each
         adds ``n . grad_x K(x, y)``, a double-layer potential (FMM3D's
         ``dipvec``, same sign). With ``charges=False`` too, dipoles only.
+        For ``"stokes"`` a dipole is a force dipole ``D``, ``(n, 3, 3)``
+        with ``D[i, k, c]`` the derivative direction ``k`` of force
+        component ``c`` (a stresslet without its source flow plus a
+        rotlet); stresslets as FMM3D has them are ``stresslets=True``.
+    stresslets : bool
+        ``"stokes"`` only: the sources carry stresslets, a strength ``m``
+        and an orientation ``n`` per source (FMM3D's ``strslet`` and
+        ``strsvec``), velocity ``3 d (d . m)(d . n) / (4 pi r^5)`` with
+        ``d`` the target minus the source; ``evaluate`` takes them as
+        ``strslet=`` and ``strsvec=``. With ``charges=False``, stresslets
+        only.
+    pressure : bool
+        ``"stokes"`` only: also the pressure (with ``gradient=True`` its
+        gradient), as ``result.pressure`` and ``result.pressure_gradient``
+        (FMM3D's ``pre``): ``f . d / (4 pi r^3)`` for a force,
+        ``(6 (d . m)(d . n) / r^5 - 2 (m . n) / r^3) / (4 pi)`` for a
+        stresslet. Stresslets and the pressure add one Laplace FMM on the
+        same points (``info["laplace"]`` is not reported separately; the
+        check of a tolerance covers both), free space only.
     dtype : {None, "float32", "float64"}
         Float type of the run; ``None`` follows ``sources``.
     threads : int, optional
@@ -242,16 +273,36 @@ class Fmm:
         box_origin: Any = None,
         periodic: Optional[str] = None,
         surface: Optional[str] = None,
+        stresslets: bool = False,
+        pressure: bool = False,
     ) -> None:
         cell = _cell(box, box_origin, periodic, surface)
         charges, dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
         gradient, hessian = _bool("gradient", gradient), _bool("hessian", hessian)
         verify, at_sources = _bool("verify", verify), _bool("at_sources", at_sources)
-        if not (charges or dipoles):
+        stresslets, pressure = _bool("stresslets", stresslets), _bool("pressure", pressure)
+        if not (charges or dipoles or stresslets):
             raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
-        source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
-            (charges, dipoles)
-        ]
+        layered = stresslets or pressure
+        if layered and kernel != "stokes":
+            raise ValueError(
+                f"stresslets and pressure belong to the stokes kernel, not {kernel!r}"
+            )
+        if layered and dipoles:
+            raise ValueError(
+                "force dipoles (dipoles=True) do not combine with stresslets or the pressure: "
+                "give stresslets with stresslets=True"
+            )
+        if layered and box is not None:
+            raise ValueError("stresslets and the pressure run in free space only (no box)")
+        # Stresslets alone: the layers take what the sources carry from
+        # `layers`, the kind is a placeholder.
+        source = {
+            (True, False): "charge",
+            (False, True): "dipole",
+            (True, True): "charge+dipole",
+            (False, False): "charge",
+        }[(charges, dipoles)]
         src = _points("sources", sources)
         tgt = None if targets is None else _points("targets", targets)
         run = _float_dtype(dtype) or _native(src.dtype)
@@ -272,8 +323,8 @@ class Fmm:
         # Nothing copied yet: refuse a run that cannot fit first.
         _check_memory(
             f"an FMM of {len(src)} sources and {n_targets or len(src)} targets ({run})",
-            run, len(src), n_targets, _per_source(kernel, charges, dipoles),
-            _per_target(kernel, gradient, hessian), 1,
+            run, len(src), n_targets, _per_source(kernel, charges, dipoles, stresslets),
+            _per_target(kernel, gradient, hessian, pressure), 1,
         )
         if self._n_at_sources:
             tgt = np.concatenate([src, tgt])
@@ -299,6 +350,7 @@ class Fmm:
             str(run),
             default_cache,
             *cell,
+            (charges, stresslets, pressure) if layered else None,
         )
         self._dtype = run
         self._kernel = kernel
@@ -306,6 +358,8 @@ class Fmm:
         self._gradient = bool(gradient) or self._hessian
         self._charges = charges
         self._dipoles = dipoles
+        self._stresslets = stresslets
+        self._pressure = pressure
         self._last_info: Optional[Dict[str, Any]] = None
         self._accuracy_warned = False
 
@@ -329,15 +383,20 @@ class Fmm:
         charges: Any = None,
         dipoles: Any = None,
         *,
+        strslet: Any = None,
+        strsvec: Any = None,
         progress: Optional[Callable[[int, int], Any]] = None,
     ) -> FmmResult:
         """Potentials (and gradients, Hessians) at the targets.
 
         ``charges`` is ``(n,)`` (one value per source) or ``(k, n)`` for
         ``k`` charge vectors evaluated in one call; ``dipoles`` is
-        ``(n, 3)`` or ``(k, n, 3)``. Give what the sources were built to
-        carry (``charges=True`` / ``dipoles=True`` of :class:`Fmm`);
-        nothing is rebuilt.
+        ``(n, 3)`` or ``(k, n, 3)`` (``(n, 3, 3)`` force dipoles for
+        ``"stokes"``); ``strslet`` and ``strsvec`` are the stresslets'
+        strengths and orientations, ``(n, 3)`` or ``(k, n, 3)`` each. Give
+        what the sources were built to carry (``charges=True`` /
+        ``dipoles=True`` / ``stresslets=True`` of :class:`Fmm`); nothing
+        is rebuilt.
 
         ``progress``, when given, is called as ``progress(done, total)``
         while the FMM passes run: the work done and in all, in rough cost
@@ -352,13 +411,17 @@ class Fmm:
         for name, value, wanted, flag in (
             ("charges", charges, self._charges, "charges"),
             ("dipoles", dipoles, self._dipoles, "dipoles"),
+            ("strslet", strslet, self._stresslets, "stresslets"),
+            ("strsvec", strsvec, self._stresslets, "stresslets"),
         ):
             if value is None:
                 if wanted:
                     raise ValueError(f"this Fmm's sources carry {name}: give {name}")
                 continue
             if not wanted:
-                carried = "charges" if self._charges else "dipoles"
+                carried = (
+                    "charges" if self._charges else "dipoles" if self._dipoles else "stresslets"
+                )
                 raise ValueError(
                     f"this Fmm's sources carry no {name} (only {carried}): "
                     f"build it with {flag}=True"
@@ -413,29 +476,45 @@ class Fmm:
                 stacklevel=stacklevel,
             )
         m = self._native.n_targets
+        pressure: Optional[np.ndarray] = None
+        pressure_gradient: Optional[np.ndarray] = None
+        if self._pressure:
+            # [velocity, pressure] per target: the pressure's values last.
+            wp = 4 if self._gradient else 1
+            v = values.reshape(k, m, -1)
+            p = np.ascontiguousarray(v[:, :, -wp:])
+            values = np.ascontiguousarray(v[:, :, :-wp]).reshape(-1)
+            pressure = p[:, :, 0] if batched else p[0, :, 0]
+            if self._gradient:
+                pressure_gradient = p[:, :, 1:] if batched else p[0, :, 1:]
         potential, gradient, hessian = _shape_values(
             self._kernel, values, k, m, self._gradient, self._hessian, batched
         )
         ns = self._n_at_sources
-        if not ns:
-            return FmmResult(potential, gradient, info, hessian, energy)
 
-        # The target axis is the last of the potential's axes.
+        def result(part: Callable[[Optional[np.ndarray]], Optional[np.ndarray]]) -> FmmResult:
+            r = FmmResult(part(potential), part(gradient), info, part(hessian))
+            r.pressure, r.pressure_gradient = part(pressure), part(pressure_gradient)
+            return r
+
+        if not ns:
+            r = result(lambda a: a)
+            r.energy = energy
+            return r
+
+        # The target axis: 0 for one vector, 1 for a batch.
+        axis = 1 if batched else 0
+
         def split(a: Optional[np.ndarray], lo: int, hi: Optional[int]) -> Optional[np.ndarray]:
             if a is None:
                 return None
-            axis = potential.ndim - (2 if _vector_valued(self._kernel) else 1)
             index = [slice(None)] * a.ndim
             index[axis] = slice(lo, hi)
             return np.ascontiguousarray(a[tuple(index)])
 
-        result = FmmResult(
-            split(potential, ns, None), split(gradient, ns, None), info, split(hessian, ns, None)
-        )
-        result.at_sources = FmmResult(
-            split(potential, 0, ns), split(gradient, 0, ns), info, split(hessian, 0, ns)
-        )
-        return result
+        out = result(lambda a: split(a, ns, None))
+        out.at_sources = result(lambda a: split(a, 0, ns))
+        return out
 
     def summary(self) -> Dict[str, Any]:
         """Tree, operator and parameter figures (a dict; as the CLI's ``--json``)."""

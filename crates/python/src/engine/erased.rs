@@ -4,13 +4,13 @@
 use std::sync::Arc;
 
 use ferrofmm_field::{
-    CacheSetting, CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor,
+    CacheSetting, CacheStatus, DenseM2l, FftConfig, FftM2l, M2lScheme, PrecomputeMonitor, SvdM2l,
 };
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, Periodic, ProgressFn, SchemeChoice,
-    SetupTimings, Verification,
+    SetupTimings, StokesLayers, StokesRequest, Verification,
 };
-use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, SourceKind, Stokes3d};
 
 use super::floats::{Float, Floats};
 
@@ -156,6 +156,29 @@ pub(super) struct BuildOptions {
     /// `box=` (with `box_origin=`, `periodic=`, `surface=`): the periodic
     /// cell, `None` for free space.
     pub(super) periodic: Option<Periodic>,
+    /// Stokes with stresslets or the pressure ([`StokesLayers`]): what the
+    /// sources carry and whether the pressure is computed; `None` for one
+    /// FMM of the kernel with `source_kind`.
+    pub(super) layers: Option<StokesRequest>,
+}
+
+impl BuildOptions {
+    /// Values per source of one density vector.
+    pub(super) fn values_per_source(&self) -> usize {
+        match self.layers {
+            Some(r) => super::layers::values_per_source(r.forces, r.stresslets),
+            None => self.kernel.components() * self.source_kind.values_per_source(),
+        }
+    }
+
+    /// Values per target of one vector.
+    pub(super) fn values_per_target(&self) -> usize {
+        let base = self.kernel.components() * self.mode.values_per_target();
+        match self.layers {
+            Some(r) if r.pressure => base + self.mode.values_per_target(),
+            _ => base,
+        }
+    }
 }
 
 /// Build for float type `T` from points held in `f64`: they are rounded to
@@ -167,6 +190,9 @@ pub(super) fn build<T: Float>(
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
+    if let Some(request) = o.layers {
+        return build_layers::<T>(request, o, monitor, sources, targets);
+    }
     o.kernel.visit(BuildWith {
         o,
         monitor,
@@ -200,6 +226,40 @@ fn build_with<T: Float, K: Kernel>(
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
+    let b = configure(kernel, o, monitor, sources, targets);
+    Ok(match resolve_scheme::<T>(o, sources, targets)? {
+        SchemeChoice::Svd | SchemeChoice::Auto => Box::new(b.build_svd()?),
+        SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
+        SchemeChoice::Fft => Box::new(b.build_with::<FftM2l<T>>(FftConfig)?),
+    })
+}
+
+/// [`build`] of Stokes forces and stresslets with the pressure.
+fn build_layers<T: Float>(
+    request: StokesRequest,
+    o: &BuildOptions,
+    monitor: PrecomputeMonitor,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<Box<dyn Engine>, FmmError> {
+    let b = configure(Stokes3d::default(), o, monitor, sources, targets);
+    Ok(match resolve_scheme::<T>(o, sources, targets)? {
+        SchemeChoice::Svd | SchemeChoice::Auto => {
+            Box::new(StokesLayers::<T, SvdM2l<T>>::build(b, request)?)
+        }
+        SchemeChoice::Dense => Box::new(StokesLayers::<T, DenseM2l<T>>::build(b, request)?),
+        SchemeChoice::Fft => Box::new(StokesLayers::<T, FftM2l<T>>::build(b, request)?),
+    })
+}
+
+/// The builder the options describe, for `kernel`.
+fn configure<'a, T: Float, K: Kernel>(
+    kernel: K,
+    o: &BuildOptions,
+    monitor: PrecomputeMonitor,
+    sources: &'a [f64],
+    targets: Option<&'a [f64]>,
+) -> FmmBuilder<'a, T, K> {
     let mut b = FmmBuilder::<T, _>::from_f64(sources)
         .kernel(kernel)
         .mode(o.mode)
@@ -221,7 +281,15 @@ fn build_with<T: Float, K: Kernel>(
     if let Some(cell) = o.periodic {
         b = b.periodic(cell);
     }
-    b = b.cache(o.cache.clone());
+    b.cache(o.cache.clone())
+}
+
+/// The scheme the options ask for, `auto` resolved on these points.
+fn resolve_scheme<T: Float>(
+    o: &BuildOptions,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+) -> Result<SchemeChoice, FmmError> {
     // The SVD precomputation counts as free only with a folder the user
     // named (the default folder may be cold).
     let cached = matches!(o.cache, CacheSetting::Dir(_));
@@ -234,7 +302,7 @@ fn build_with<T: Float, K: Kernel>(
         Some((s, t)) => (s.as_slice(), t.as_deref()),
         None => (sources, targets),
     };
-    let scheme = o.scheme.resolve(
+    o.scheme.resolve(
         o.kernel,
         ferrofmm_fmm::effective_tolerance(o.eps, o.order, T::PRECISION),
         o.order,
@@ -242,10 +310,5 @@ fn build_with<T: Float, K: Kernel>(
         o.mode,
         T::PRECISION,
         cached,
-    )?;
-    Ok(match scheme {
-        SchemeChoice::Svd | SchemeChoice::Auto => Box::new(b.build_svd()?),
-        SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
-        SchemeChoice::Fft => Box::new(b.build_with::<FftM2l<T>>(FftConfig)?),
-    })
+    )
 }

@@ -19,6 +19,7 @@ use crate::run::{Threads, interruptible, interruptible_polling};
 mod arguments;
 mod erased;
 mod floats;
+mod layers;
 mod progress;
 mod report;
 
@@ -53,7 +54,7 @@ pub(crate) struct NativeFmm {
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true, cell_lengths=None, cell_origin=None, periodic=None, surface=None))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true, cell_lengths=None, cell_origin=None, periodic=None, surface=None, layers=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -77,10 +78,13 @@ impl NativeFmm {
         cell_origin: Option<Vec<f64>>,
         periodic: Option<&str>,
         surface: Option<&str>,
+        layers: Option<(bool, bool, bool)>,
     ) -> PyResult<Self> {
         let periodic = periodic_cell(cell_lengths, cell_origin, periodic, surface)?;
         let source_kind = source_kind(source)?;
+        let kernel_name = kernel;
         let kernel = kernel_choice(kernel, k)?;
+        let layers = stokes_layers(kernel_name, layers, source_kind, hessian)?;
         let scheme = SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?;
         parameters_given(eps, order, leaf_size)?;
         let options = BuildOptions {
@@ -104,6 +108,7 @@ impl NativeFmm {
                 (None, false) => CacheSetting::Off,
             },
             periodic,
+            layers,
         };
         // A folder the caller named must be usable; the default one may
         // not be (read-only home): the operators then stay in memory.
@@ -204,12 +209,16 @@ impl NativeFmm {
         };
         let charges = Floats::from_numpy("charges", charges)?;
         let n_sources = self.read().n_sources();
-        let per = self.options.kernel.components() * self.options.source_kind.values_per_source();
+        let per = self.options.values_per_source();
         if n_vectors == 0 || charges.len() != n_vectors * n_sources * per {
+            let kind = match self.options.layers {
+                Some(_) => "stokes force/stresslet",
+                None => self.options.source_kind.name(),
+            };
             return Err(PyValueError::new_err(format!(
                 "expected {} values ({n_vectors} vector(s) of {per} per source for {} sources, {n_sources} sources), got {}",
                 n_vectors * n_sources * per,
-                self.options.source_kind.name(),
+                kind,
                 charges.len()
             )));
         }
@@ -268,6 +277,13 @@ impl NativeFmm {
         Ok((evaluated.values.into_numpy(py), info.to_string()))
     }
 
+    /// Values per target of one vector (the pressure after the velocity
+    /// with `layers`).
+    #[getter]
+    fn values_per_target(&self) -> usize {
+        self.options.values_per_target()
+    }
+
     /// JSON of the tree, operator and parameter figures.
     fn summary_json(&self) -> String {
         let last = self.verification.lock().unwrap_or_else(|p| p.into_inner());
@@ -309,4 +325,42 @@ impl NativeFmm {
     fn threads(&self) -> usize {
         self.threads.count()
     }
+}
+
+/// `layers = (forces, stresslets, pressure)`: a Stokes run with stresslets
+/// or the pressure ([`ferrofmm_fmm::StokesLayers`]); `None` (or neither)
+/// is one FMM of the kernel.
+fn stokes_layers(
+    kernel: &str,
+    layers: Option<(bool, bool, bool)>,
+    source_kind: ferrofmm_kernels::SourceKind,
+    hessian: bool,
+) -> PyResult<Option<ferrofmm_fmm::StokesRequest>> {
+    let Some((forces, stresslets, pressure)) = layers.filter(|l| l.1 || l.2) else {
+        return Ok(None);
+    };
+    if kernel != "stokes" {
+        return Err(PyValueError::new_err(format!(
+            "stresslets and the pressure belong to the stokes kernel, not {kernel:?}"
+        )));
+    }
+    if source_kind.has_dipoles() {
+        return Err(PyValueError::new_err(
+            "force dipoles (dipoles=True) do not combine with stresslets or the pressure: \
+             give stresslets as strslet and strsvec",
+        ));
+    }
+    if hessian {
+        return Err(PyValueError::new_err("the stokes kernel has no Hessians"));
+    }
+    if !(forces || stresslets) {
+        return Err(PyValueError::new_err(
+            "the sources carry nothing: give forces, stresslets or both",
+        ));
+    }
+    Ok(Some(ferrofmm_fmm::StokesRequest {
+        forces,
+        stresslets,
+        pressure,
+    }))
 }
