@@ -485,12 +485,13 @@ impl BuiltinKernel for Stokes3d {
     const DESCRIPTION: KernelDescription = KernelDescription {
         name: "stokes",
         aliases: &[],
-        summary: "the Stokeslet, viscosity 1: forces fx, fy, fz in, velocities out",
+        summary: "the Stokeslet, viscosity 1: forces fx, fy, fz (and force dipoles D_kc, nine \
+                  per source) in, velocities out",
         title: "Stokeslet (viscosity 1), 3 components",
         parameter: None,
         component_names: &["x", "y", "z"],
         complex: false,
-        source_kinds: &[SourceKind::Charge],
+        source_kinds: ALL_SOURCES,
         density_name: "forces",
         auto_scheme: AutoScheme::Fft,
         tuning: TuningFamily::Stokes,
@@ -634,12 +635,8 @@ mod tests {
             assert_eq!(d.complex, d.component_names == ["re", "im"], "{name}");
             assert!(d.source_kinds.contains(&SourceKind::Charge), "{name}");
         }
-        assert!(
-            choice("stokes")
-                .check_dipoles()
-                .unwrap_err()
-                .contains("forces")
-        );
+        // Stokes takes force dipoles (nine values per source) since issue 35.
+        assert!(choice("stokes").check_dipoles().is_ok());
         assert!(choice("laplace").check_dipoles().is_ok());
         assert_eq!(
             choice("yukawa:2.5").title(),

@@ -277,8 +277,9 @@ fn bad_kernels_and_dipole_files_are_clear_errors() {
             "(N, 3) array of charges",
         ),
         (
+            // Stokes force dipoles: nine values (D_kc) per source.
             vec!["--dipoles", short.to_str().unwrap(), "--kernel", "stokes"],
-            "does not support dipole sources",
+            "(N, 9) array of dipoles",
         ),
         (
             vec![

@@ -467,10 +467,11 @@ fn what_the_method_cannot_do_is_a_clear_error() {
         ),
         "{err}"
     );
-    // Stokes takes forces only.
+    // Stokes has no Hessians.
     let err = FmmBuilder::new(&points)
         .kernel(Stokes3d::default())
         .source_kind(SourceKind::Dipole)
+        .mode(EvalMode::PotentialGradientHessian)
         .build_svd()
         .err()
         .expect("refused");

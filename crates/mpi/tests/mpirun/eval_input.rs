@@ -94,7 +94,8 @@ fn eval_refuses_hostile_input_on_every_rank() {
         text,
         "--kernel is \"laplace\" on rank 0",
     );
-    // Row 13: dipoles for Stokes, as on one machine.
+    // Row 13: dipoles for Stokes are force dipoles, nine values per
+    // source, as on one machine (f.npy holds three).
     let f = path("f.npy");
     let args = base(&["--kernel", "stokes"]);
     let mut args = refs(&args);
@@ -102,7 +103,7 @@ fn eval_refuses_hostile_input_on_every_rank() {
     expect_error(
         "stokes dipoles",
         mpirun(2, &args),
-        "does not support dipole sources",
+        "(N, 9) array of dipoles",
     );
     // Row 3: RAYON_NUM_THREADS that is not a number.
     let args = base(&[]);
