@@ -97,9 +97,19 @@ fn eval_refuses_hostile_input_on_every_rank() {
     // Row 13: dipoles for Stokes are force dipoles, nine values per
     // source, as on one machine (f.npy holds three).
     let f = path("f.npy");
-    let args = base(&["--kernel", "stokes"]);
-    let mut args = refs(&args);
-    args.extend(["--dipoles", &f]);
+    let args = [
+        "eval",
+        "--sources",
+        &s,
+        "--charges",
+        &f,
+        "--order",
+        "3",
+        "--kernel",
+        "stokes",
+        "--dipoles",
+        &f,
+    ];
     expect_error(
         "stokes dipoles",
         mpirun(2, &args),
