@@ -71,7 +71,9 @@ pub use periodic::{Periodic, PeriodicAxes, SurfaceTerm};
 pub use precompute::{first_far_level, m2l_usage};
 pub use progress::{EvalProgress, ProgressFn};
 pub use scheme_choice::SchemeChoice;
-pub use stokes_layers::{StokesEvaluation, StokesLayers, StokesRequest, StokesValues};
+pub use stokes_layers::{
+    StokesErrors, StokesEvaluation, StokesLayers, StokesRequest, StokesValues,
+};
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};
 pub use tuning::{ChosenParameters, f32_reaches};

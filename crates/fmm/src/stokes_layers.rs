@@ -45,7 +45,7 @@
 //! a tolerance is given. Periodic cells are refused (the Laplace pieces
 //! would need their own lattice conventions).
 
-use ferrofmm_kernels::{EvalMode, Laplace3d, Real, SourceKind, Stokes3d};
+use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real, SourceKind, Stokes3d};
 
 use crate::{BuildScheme, Fmm, FmmBuilder, FmmError, Verification};
 
@@ -274,7 +274,7 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             (Some(fmm), Some(plan)) => Some(fmm.evaluate_many(&laplace_densities, plan.n_vectors)?),
             _ => None,
         };
-        Ok(self.combine(velocity, laplace.as_deref()))
+        Ok(self.combine(velocity, laplace.as_deref(), self.stokes.n_targets()))
     }
 
     /// As [`StokesLayers::evaluate`], the first evaluation of a tolerance
@@ -306,7 +306,7 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             _ => (None, None),
         };
         Ok(StokesEvaluation {
-            values: self.combine(stokes.values, laplace.as_deref()),
+            values: self.combine(stokes.values, laplace.as_deref(), self.stokes.n_targets()),
             stokes: stokes.verification,
             laplace: laplace_check,
         })
@@ -401,20 +401,156 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         Ok((stokes, laplace))
     }
 
+    /// Relative L2 errors of [`StokesLayers::evaluate`]'s `values` at the
+    /// targets `sample` (indices), against direct sums of the same pieces
+    /// (the Stokeslet with forces and force dipoles, the Laplace vectors)
+    /// in `f64`, combined as the FMM's are.
+    ///
+    /// # Errors
+    /// As [`StokesLayers::evaluate`] for the densities.
+    pub fn relative_errors(
+        &self,
+        forces: Option<&[T]>,
+        stresslets: Option<(&[T], &[T])>,
+        values: &StokesValues<T>,
+        sample: &[usize],
+    ) -> Result<StokesErrors, FmmError> {
+        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let wide = |v: &[T]| v.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
+        let (sources, targets) = self.stokes.points_f64();
+        let targets = targets.as_deref().unwrap_or(&sources);
+        let at: Vec<f64> = sample
+            .iter()
+            .flat_map(|&j| targets[3 * j..3 * j + 3].iter().copied())
+            .collect();
+        let m = sample.len();
+        let mode = self.stokes.mode();
+        let stokes_kernel = *self.stokes.kernel();
+        let mut velocity = vec![0.0; m * stokes_kernel.values_per_target(mode)];
+        stokes_kernel.evaluate_sources(
+            self.stokes.source_kind(),
+            mode,
+            &sources,
+            &wide(&stokes_densities),
+            &at,
+            &mut velocity,
+        );
+        let laplace = self.plan.map(|plan| {
+            let lap = wide(&laplace_densities);
+            let per = sources.len() / 3 * plan.kind.values_per_source();
+            let w = plan.mode.values_per_target();
+            let mut out = vec![0.0; plan.n_vectors * m * w];
+            for (q, o) in lap.chunks_exact(per).zip(out.chunks_exact_mut(m * w)) {
+                Laplace3d.evaluate_sources(plan.kind, plan.mode, &sources, q, &at, o);
+            }
+            out
+        });
+        let want = self.combine(velocity, laplace.as_deref(), m);
+        let wv = if self.gradient { 12 } else { 3 };
+        let got_velocity: Vec<f64> = sample
+            .iter()
+            .flat_map(|&j| {
+                values.velocity[wv * j..wv * j + wv]
+                    .iter()
+                    .map(|x| x.to_f64())
+            })
+            .collect();
+        let part = |v: &[f64], w: usize, lo: usize, hi: usize| -> Vec<f64> {
+            v.chunks_exact(w).flat_map(|c| c[lo..hi].to_vec()).collect()
+        };
+        let error = |got: &[f64], want: &[f64]| {
+            let num: f64 = got.iter().zip(want).map(|(a, b)| (a - b) * (a - b)).sum();
+            let den: f64 = want.iter().map(|b| b * b).sum();
+            if den > 0.0 {
+                (num / den).sqrt()
+            } else {
+                num.sqrt()
+            }
+        };
+        let velocity_error = error(
+            &part(&got_velocity, wv, 0, 3),
+            &part(&want.velocity, wv, 0, 3),
+        );
+        let velocity_gradient = self.gradient.then(|| {
+            error(
+                &part(&got_velocity, wv, 3, 12),
+                &part(&want.velocity, wv, 3, 12),
+            )
+        });
+        let (pressure, pressure_gradient) = match (&values.pressure, &want.pressure) {
+            (Some(p), Some(pw)) => {
+                let wp = if self.gradient { 4 } else { 1 };
+                let got: Vec<f64> = sample
+                    .iter()
+                    .flat_map(|&j| p[wp * j..wp * j + wp].iter().map(|x| x.to_f64()))
+                    .collect();
+                (
+                    Some(error(&part(&got, wp, 0, 1), &part(pw, wp, 0, 1))),
+                    self.gradient
+                        .then(|| error(&part(&got, wp, 1, 4), &part(pw, wp, 1, 4))),
+                )
+            }
+            _ => (None, None),
+        };
+        Ok(StokesErrors {
+            n_sampled: m,
+            velocity: velocity_error,
+            velocity_gradient,
+            pressure,
+            pressure_gradient,
+        })
+    }
+}
+
+/// Relative L2 errors of a [`StokesLayers`] evaluation on sampled targets
+/// ([`StokesLayers::relative_errors`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StokesErrors {
+    /// Targets compared.
+    pub n_sampled: usize,
+    /// The velocity's error.
+    pub velocity: f64,
+    /// The velocity gradient's (with gradients).
+    pub velocity_gradient: Option<f64>,
+    /// The pressure's (with the pressure).
+    pub pressure: Option<f64>,
+    /// The pressure gradient's (with the pressure and gradients).
+    pub pressure_gradient: Option<f64>,
+}
+
+impl StokesErrors {
+    /// The largest of the errors.
+    pub fn worst(&self) -> f64 {
+        [
+            self.velocity_gradient,
+            self.pressure,
+            self.pressure_gradient,
+        ]
+        .into_iter()
+        .flatten()
+        .fold(self.velocity, f64::max)
+    }
+}
+
+impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
     /// Add the Laplace fields to the Stokes velocities and form the
     /// pressure (module docs' table).
-    fn combine(&self, mut velocity: Vec<T>, laplace: Option<&[T]>) -> StokesValues<T> {
+    fn combine<U: Real>(
+        &self,
+        mut velocity: Vec<U>,
+        laplace: Option<&[U]>,
+        m: usize,
+    ) -> StokesValues<U> {
         let (Some(plan), Some(lap)) = (self.plan, laplace) else {
             return StokesValues {
                 velocity,
                 pressure: None,
             };
         };
-        let m = self.stokes.n_targets();
         let w = plan.mode.values_per_target();
         let field = |vector: usize, j: usize| &lap[(vector * m + j) * w..(vector * m + j + 1) * w];
         // Hessian entry (a, b) in the order xx, yy, zz, xy, xz, yz.
-        let hess = |h: &[T], a: usize, b: usize| {
+        let hess = |h: &[U], a: usize, b: usize| {
             h[match (a.min(b), a.max(b)) {
                 (a, b) if a == b => 4 + a,
                 (0, 1) => 7,
@@ -440,7 +576,7 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         }
         let pressure = self.request.pressure.then(|| {
             let wp = if self.gradient { 4 } else { 1 };
-            let mut p = vec![T::ZERO; wp * m];
+            let mut p = vec![U::ZERO; wp * m];
             for (j, pj) in p.chunks_exact_mut(wp).enumerate() {
                 if let Some(v) = plan.force_pressure {
                     for (o, x) in pj.iter_mut().zip(field(v, j)) {
