@@ -137,12 +137,15 @@ pub struct StokesValues<T> {
     pub pressure: Option<Vec<T>>,
 }
 
-/// [`StokesValues`] with the verification of each FMM (the first
-/// evaluation of a tolerance; see [`Fmm::evaluate_verified`]).
+/// [`StokesValues`] with their times and the verification of each FMM
+/// (the first evaluation of a tolerance; see [`Fmm::evaluate_verified`]).
 #[derive(Clone, Debug)]
 pub struct StokesEvaluation<T> {
     /// The values.
     pub values: StokesValues<T>,
+    /// Time per operator, both FMMs added up (the verification's direct
+    /// sums not included).
+    pub timings: crate::EvalTimings,
     /// The Stokes FMM's verification.
     pub stokes: Option<Verification>,
     /// The Laplace FMM's verification (when there is one).
@@ -268,13 +271,40 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         forces: Option<&[T]>,
         stresslets: Option<(&[T], &[T])>,
     ) -> Result<StokesValues<T>, FmmError> {
+        self.evaluate_timed(forces, stresslets).map(|e| e.values)
+    }
+
+    /// As [`StokesLayers::evaluate`], with the time of each operator (both
+    /// FMMs' added up) in [`StokesEvaluation::timings`].
+    ///
+    /// # Errors
+    /// As [`StokesLayers::evaluate`].
+    pub fn evaluate_timed(
+        &self,
+        forces: Option<&[T]>,
+        stresslets: Option<(&[T], &[T])>,
+    ) -> Result<StokesEvaluation<T>, FmmError> {
         let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
-        let velocity = self.stokes.evaluate(&stokes_densities)?;
+        let (velocity, mut timings) = self.stokes.evaluate_timed(&stokes_densities)?;
         let laplace = match (&self.laplace, &self.plan) {
-            (Some(fmm), Some(plan)) => Some(fmm.evaluate_many(&laplace_densities, plan.n_vectors)?),
+            (Some(fmm), Some(plan)) => {
+                let per = fmm.n_sources() * plan.kind.values_per_source();
+                let mut values = Vec::new();
+                for one in laplace_densities.chunks_exact(per) {
+                    let (v, t) = fmm.evaluate_timed(one)?;
+                    values.extend(v);
+                    timings.accumulate(&t);
+                }
+                Some(values)
+            }
             _ => None,
         };
-        Ok(self.combine(velocity, laplace.as_deref(), self.stokes.n_targets()))
+        Ok(StokesEvaluation {
+            values: self.combine(velocity, laplace.as_deref(), self.stokes.n_targets()),
+            timings,
+            stokes: None,
+            laplace: None,
+        })
     }
 
     /// As [`StokesLayers::evaluate`], the first evaluation of a tolerance
@@ -290,16 +320,19 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
     ) -> Result<StokesEvaluation<T>, FmmError> {
         let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
         let stokes = self.stokes.evaluate_verified(&stokes_densities)?;
+        let mut timings = stokes.timings;
         let (laplace, laplace_check) = match (&mut self.laplace, &self.plan) {
             (Some(fmm), Some(plan)) => {
                 // The first vector is checked (it may raise the order);
                 // the others are evaluated at the order it settles on.
                 let per = fmm.n_sources() * plan.kind.values_per_source();
                 let first = fmm.evaluate_verified(&laplace_densities[..per])?;
+                timings.accumulate(&first.timings);
                 let mut values = first.values;
-                if plan.n_vectors > 1 {
-                    values
-                        .extend(fmm.evaluate_many(&laplace_densities[per..], plan.n_vectors - 1)?);
+                for one in laplace_densities[per..].chunks_exact(per) {
+                    let (v, t) = fmm.evaluate_timed(one)?;
+                    values.extend(v);
+                    timings.accumulate(&t);
                 }
                 (Some(values), first.verification)
             }
@@ -307,6 +340,7 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         };
         Ok(StokesEvaluation {
             values: self.combine(stokes.values, laplace.as_deref(), self.stokes.n_targets()),
+            timings,
             stokes: stokes.verification,
             laplace: laplace_check,
         })

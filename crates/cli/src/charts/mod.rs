@@ -277,6 +277,8 @@ pub(crate) mod tests {
                 potential: error,
                 gradient: Some(10.0 * error),
                 hessian: None,
+                pressure: None,
+                pressure_gradient: None,
             }),
             direct_check_s: Some(0.01),
             peak_rss_bytes: Some(50 << 20),

@@ -81,6 +81,7 @@ pub fn demo(args: &DemoArgs) -> Result<()> {
         default_tolerance: false,
         verify: args.fmm.verify()?,
         periodic: args.fmm.periodic()?,
+        pressure: false,
         force: args.fmm.force,
         out_sources: None,
         complex_output: false,

@@ -26,13 +26,32 @@ pub struct EvalArgs {
     /// complex64; the output is then complex too), re, im pairs (.csv
     /// `re,im` per line, .npy N x 2), or real charges alone (zero
     /// imaginary parts). At least one of --charges and --dipoles.
-    #[arg(long, value_name = "FILE", required_unless_present = "dipoles")]
+    #[arg(long, value_name = "FILE", required_unless_present_any = ["dipoles", "strslet"])]
     pub charges: Option<PathBuf>,
     /// Dipole vectors n, one per source: .csv (nx,ny,nz per line) or .npy
     /// (N x 3). Each source then adds n . grad_x K(x, y) (a double-layer
     /// potential), with its charge when --charges is given too.
+    /// For `--kernel stokes`: force dipoles, nine values per source (`D_kc`,
+    /// the derivative along `k` of the Stokeslet of force component `c`;
+    /// .npy N x 9).
     #[arg(long, value_name = "FILE")]
     pub dipoles: Option<PathBuf>,
+    /// `--kernel stokes` only: stresslet strengths `m` (FMM3D's `strslet`),
+    /// one 3-vector per source (.csv or .npy N x 3), with `--strsvec`. Each
+    /// adds `3 d (d . m)(d . n) / (4 pi r^5)` to the velocity (`d`: target
+    /// minus source); with `--charges` too, forces and stresslets.
+    #[arg(long, value_name = "FILE", requires = "strsvec")]
+    pub strslet: Option<PathBuf>,
+    /// `--kernel stokes` only: stresslet orientations `n` (FMM3D's
+    /// `strsvec`, e.g. surface normals), same format, with `--strslet`.
+    #[arg(long, value_name = "FILE", requires = "strslet")]
+    pub strsvec: Option<PathBuf>,
+    /// `--kernel stokes` only: also the pressure (FMM3D's `pre`), and with
+    /// --gradients its gradient: columns `pressure` (and `pressure_grad_x,
+    /// pressure_grad_y, pressure_grad_z`) after the velocity's. Free space
+    /// only.
+    #[arg(long)]
+    pub pressure: bool,
     /// Output file, .csv or .npy, in the run's precision, one row per
     /// target: `potential`; with --gradients also `grad_x, grad_y, grad_z`
     /// (N x 4); with --hessians also `hess_xx, hess_yy, hess_zz, hess_xy,
@@ -74,10 +93,31 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
     if args.dipoles.is_some() {
         kernel.check_dipoles().map_err(CliError::InvalidArgument)?;
     }
+    let layered = args.strslet.is_some() || args.pressure;
+    if layered && kernel.name() != "stokes" {
+        return Err(CliError::InvalidArgument(format!(
+            "--strslet, --strsvec and --pressure belong to --kernel stokes, not {}",
+            kernel.name()
+        )));
+    }
+    if layered && args.dipoles.is_some() {
+        return Err(CliError::InvalidArgument(
+            "--dipoles (force dipoles) do not combine with stresslets or --pressure: give \
+             stresslets as --strslet and --strsvec"
+                .to_string(),
+        ));
+    }
+    if layered && args.hessians {
+        return Err(CliError::InvalidArgument(
+            "--kernel stokes has no Hessians".to_string(),
+        ));
+    }
     let mut inputs = vec![("--sources", args.sources.as_path())];
     for (flag, path) in [
         ("--charges", &args.charges),
         ("--dipoles", &args.dipoles),
+        ("--strslet", &args.strslet),
+        ("--strsvec", &args.strsvec),
         ("--targets", &args.targets),
     ] {
         if let Some(p) = path {
@@ -161,6 +201,29 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         None => None,
     };
 
+    let stresslets = match (&args.strslet, &args.strsvec) {
+        (Some(m), Some(n)) => {
+            let read = |path: &std::path::Path, what: &'static str| {
+                let v = reader.read(path, Contents::Points)?;
+                if v.len() != 3 * n_sources {
+                    return Err(CliError::CountMismatch {
+                        what,
+                        charges_path: path.to_path_buf(),
+                        charges: v.len() / 3,
+                        sources_path: args.sources.clone(),
+                        sources: n_sources,
+                    });
+                }
+                Ok(v)
+            };
+            Some((
+                read(m, "stresslet strengths")?,
+                read(n, "stresslet orientations")?,
+            ))
+        }
+        _ => None,
+    };
+
     // Values at the sources too: the sources lead the targets (a target on
     // a source skips that source: K(x, x) := 0, so each source's value
     // excludes itself, as without --targets).
@@ -177,6 +240,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         targets,
         charges,
         dipoles,
+        stresslets,
     };
     let settings = Settings {
         command: "eval",
@@ -194,6 +258,7 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         default_tolerance: false,
         verify: args.fmm.verify()?,
         periodic: args.fmm.periodic()?,
+        pressure: args.pressure,
         force: args.fmm.force,
         out_sources: split,
         complex_output,

@@ -244,4 +244,12 @@ pub struct ErrorFigures {
     /// Relative L2 error of the Hessian (`None` without Hessians).
     #[serde(default)]
     pub hessian: Option<f64>,
+    /// Relative L2 error of the Stokes pressure (`None` without
+    /// `--pressure`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressure: Option<f64>,
+    /// Relative L2 error of its gradient (`None` without `--pressure
+    /// --gradients`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub pressure_gradient: Option<f64>,
 }

@@ -269,6 +269,12 @@ impl RunReport {
                 if let Some(h) = err.hessian {
                     row(&mut o, "Hessian", format!("{h:.2e}"));
                 }
+                if let Some(p) = err.pressure {
+                    row(&mut o, "pressure", format!("{p:.2e}"));
+                }
+                if let Some(p) = err.pressure_gradient {
+                    row(&mut o, "pressure gradient", format!("{p:.2e}"));
+                }
             }
             None => {
                 let _ = writeln!(o, "relative L2 error    not checked (use --check N)");

@@ -16,5 +16,6 @@ mod pipes;
 mod precompute;
 mod quiet;
 mod reporting;
+mod stokes_layers;
 mod streams;
 mod sweep;

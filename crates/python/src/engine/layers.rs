@@ -66,15 +66,17 @@ impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
         let r = self.request();
         let per = self.n_sources() * values_per_source(r.forces, r.stresslets);
         let mut values = Vec::new();
+        let mut timings = EvalTimings::default();
         for one in q.chunks_exact(per.max(1)).take(n_vectors) {
             let (f, mn) = unpack(one, r.forces, r.stresslets);
             let mn = mn.as_ref().map(|(m, n)| (m.as_slice(), n.as_slice()));
-            let v = StokesLayers::evaluate(self, f.as_deref(), mn)?;
-            values.extend(interleave(v, self.has_gradient()));
+            let e = StokesLayers::evaluate_timed(self, f.as_deref(), mn)?;
+            values.extend(interleave(e.values, self.has_gradient()));
+            timings.accumulate(&e.timings);
         }
         Ok(Evaluated {
             values: T::wrap(values),
-            timings: EvalTimings::default(),
+            timings,
             energies: vec![None; n_vectors],
             verification: None,
         })
@@ -92,13 +94,15 @@ impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
         let mn_ref = mn.as_ref().map(|(m, n)| (m.as_slice(), n.as_slice()));
         let first = StokesLayers::evaluate_verified(self, f.as_deref(), mn_ref)?;
         let mut values = interleave(first.values, self.has_gradient());
+        let mut timings = first.timings;
         if n_vectors > 1 {
             let rest = Engine::evaluate(self, T::wrap(q[per..].to_vec()), n_vectors - 1)?;
             values.extend(T::unwrap(rest.values));
+            timings.accumulate(&rest.timings);
         }
         Ok(Evaluated {
             values: T::wrap(values),
-            timings: EvalTimings::default(),
+            timings,
             energies: vec![None; n_vectors],
             verification: reported(first.stokes, first.laplace),
         })

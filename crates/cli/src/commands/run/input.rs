@@ -36,6 +36,9 @@ pub enum Input {
         charges: Option<Vec<f64>>,
         /// One dipole vector per source, interleaved (`None`: charges only).
         dipoles: Option<Vec<f64>>,
+        /// Stokes stresslets: strengths `m` and orientations `n`, three
+        /// values each per source (`None`: none).
+        stresslets: Option<(Vec<f64>, Vec<f64>)>,
     },
 }
 
@@ -104,6 +107,8 @@ pub struct Settings {
     pub complex_output: bool,
     /// Periodic boundaries (`--box`), `None` for free space.
     pub periodic: Option<ferrofmm_fmm::Periodic>,
+    /// The Stokes pressure too (`eval --pressure`).
+    pub pressure: bool,
 }
 
 impl Settings {

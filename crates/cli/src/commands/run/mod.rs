@@ -7,10 +7,10 @@
 use std::path::Path;
 use std::time::Instant;
 
-use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, SvdM2l};
+use ferrofmm_field::{CacheSetting, DenseM2l, FftM2l, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::choose_precision;
 use ferrofmm_fmm::{
-    BuildScheme, EvalTimings, FmmBuilder, effective_tolerance,
+    BuildScheme, EvalTimings, Fmm, FmmBuilder, effective_tolerance,
     relative_errors_sources_with_progress, sample_indices,
 };
 use ferrofmm_fmm::{MemoryLimit, MemoryReport, PrecomputeMonitor, Verification};
@@ -27,6 +27,7 @@ use crate::report::{
 use ferrofmm_io::{self as io, Values};
 
 mod input;
+mod layers;
 
 pub use input::{Input, Settings, densities};
 
@@ -172,15 +173,33 @@ fn run_kernel<K: Kernel>(
     use PrecisionArg::{Auto, F32, F64};
     use SchemeArg::{Dense, Fft, Svd};
     match (settings.precision, settings.scheme) {
-        (F64, Svd) => run_typed::<f64, SvdM2l<f64>, K>(kernel, input, settings, output),
-        (F64, Dense) => run_typed::<f64, DenseM2l<f64>, K>(kernel, input, settings, output),
-        (F32, Svd) => run_typed::<f32, SvdM2l<f32>, K>(kernel, input, settings, output),
-        (F32, Dense) => run_typed::<f32, DenseM2l<f32>, K>(kernel, input, settings, output),
-        (F64, Fft) => run_typed::<f64, FftM2l<f64>, K>(kernel, input, settings, output),
-        (F32, Fft) => run_typed::<f32, FftM2l<f32>, K>(kernel, input, settings, output),
+        (F64, Svd) => run_chosen::<f64, SvdM2l<f64>, K>(kernel, input, settings, output),
+        (F64, Dense) => run_chosen::<f64, DenseM2l<f64>, K>(kernel, input, settings, output),
+        (F32, Svd) => run_chosen::<f32, SvdM2l<f32>, K>(kernel, input, settings, output),
+        (F32, Dense) => run_chosen::<f32, DenseM2l<f32>, K>(kernel, input, settings, output),
+        (F64, Fft) => run_chosen::<f64, FftM2l<f64>, K>(kernel, input, settings, output),
+        (F32, Fft) => run_chosen::<f32, FftM2l<f32>, K>(kernel, input, settings, output),
         (Auto, _) | (_, SchemeArg::Auto) => {
             unreachable!("auto precision and scheme are resolved above")
         }
+    }
+}
+
+/// [`run_typed`], or a Stokes run with stresslets or the pressure
+/// ([`layers::run`]).
+fn run_chosen<T: Real, S: BuildScheme<T>, K: Kernel>(
+    kernel: K,
+    input: Input,
+    settings: &Settings,
+    output: Option<&Path>,
+) -> Result<RunReport>
+where
+    S::Config: Default,
+{
+    if layers::wanted(&input, settings) {
+        layers::run::<T, S>(input, settings, output)
+    } else {
+        run_typed::<T, S, K>(kernel, input, settings, output)
     }
 }
 
@@ -332,6 +351,7 @@ where
             targets,
             charges,
             dipoles,
+            stresslets: _,
         } => {
             let (kind, d) = densities(charges, dipoles, settings.kernel.components());
             ferrofmm_fmm::check_representable::<T>(&d)?;
@@ -345,32 +365,15 @@ where
             .with_cancel_flag(crate::interrupt::flag())
             .with_progress(stage.precompute_progress());
         let _precomputing = crate::interrupt::precomputing();
-        let mut builder = FmmBuilder::<T, _>::from_f64(&sources)
-            .kernel(kernel.clone())
-            .source_kind(kind)
-            .mode(mode)
-            .monitor(monitor)
-            .memory_limit(if settings.force {
-                MemoryLimit::Unlimited
-            } else {
-                MemoryLimit::Auto
-            });
-        if let Some(t) = &targets {
-            builder = builder.targets_f64(t);
-        }
-        if let Some(p) = settings.order {
-            builder = builder.order(p);
-        }
-        if let Some(s) = settings.leaf_size {
-            builder = builder.leaf_size(s);
-        }
-        builder = builder.cache(settings.cache.clone());
-        if let Some(cell) = settings.periodic {
-            builder = builder.periodic(cell);
-        }
-        if let Some(eps) = settings.tolerance {
-            builder = builder.tolerance(eps).verify(settings.verify);
-        }
+        let builder = configured(
+            kernel.clone(),
+            kind,
+            mode,
+            &sources,
+            targets.as_deref(),
+            settings,
+        )
+        .monitor(monitor);
         S::build(builder)
     }?;
 
@@ -476,6 +479,8 @@ where
             potential: e.potential,
             gradient: e.gradient,
             hessian: e.hessian,
+            pressure: None,
+            pressure_gradient: None,
         };
         (Some(figures), Some(t0.elapsed().as_secs_f64()))
     } else {
@@ -504,13 +509,116 @@ where
 
     // The energy of charges at the sources themselves (a scalar kernel).
     let energy = fmm.energy(&q, &values).ok();
+    Ok(report(
+        &fmm,
+        settings,
+        &kernel,
+        Outcome {
+            start,
+            geometry,
+            charges: charge_kind,
+            verification,
+            repeats,
+            best,
+            median,
+            errors,
+            direct_check_s,
+            energy,
+            sources: kind.name().to_string(),
+            inputs_bytes,
+            separate_targets,
+        },
+    ))
+}
+
+/// The builder of a run: the points (in f64, rounded to `T` relative to
+/// the tree's origin), kernel, source kind, mode and the settings' order,
+/// leaf size, cache, cell and tolerance.
+pub(super) fn configured<'a, T: Real, K: Kernel>(
+    kernel: K,
+    kind: SourceKind,
+    mode: EvalMode,
+    sources: &'a [f64],
+    targets: Option<&'a [f64]>,
+    settings: &Settings,
+) -> FmmBuilder<'a, T, K> {
+    let mut builder = FmmBuilder::<T, _>::from_f64(sources)
+        .kernel(kernel)
+        .source_kind(kind)
+        .mode(mode)
+        .memory_limit(if settings.force {
+            MemoryLimit::Unlimited
+        } else {
+            MemoryLimit::Auto
+        });
+    if let Some(t) = targets {
+        builder = builder.targets_f64(t);
+    }
+    if let Some(p) = settings.order {
+        builder = builder.order(p);
+    }
+    if let Some(s) = settings.leaf_size {
+        builder = builder.leaf_size(s);
+    }
+    builder = builder.cache(settings.cache.clone());
+    if let Some(cell) = settings.periodic {
+        builder = builder.periodic(cell);
+    }
+    if let Some(eps) = settings.tolerance {
+        builder = builder.tolerance(eps).verify(settings.verify);
+    }
+    builder
+}
+
+/// What a run measured, for its [`RunReport`].
+pub(super) struct Outcome {
+    pub(super) start: Instant,
+    pub(super) geometry: Option<String>,
+    pub(super) charges: Option<String>,
+    pub(super) verification: Option<Verification>,
+    pub(super) repeats: usize,
+    pub(super) best: EvalTimings,
+    pub(super) median: f64,
+    pub(super) errors: Option<ErrorFigures>,
+    pub(super) direct_check_s: Option<f64>,
+    pub(super) energy: Option<f64>,
+    /// The source kind's name.
+    pub(super) sources: String,
+    pub(super) inputs_bytes: u64,
+    pub(super) separate_targets: bool,
+}
+
+/// The report of a run of `fmm` (the Stokes FMM of a run with stresslets
+/// or the pressure).
+pub(super) fn report<T: Real, K: Kernel, S: M2lScheme<T>>(
+    fmm: &Fmm<T, K, S>,
+    settings: &Settings,
+    kernel: &K,
+    outcome: Outcome,
+) -> RunReport {
+    let Outcome {
+        start,
+        geometry,
+        charges: charge_kind,
+        verification,
+        repeats,
+        best,
+        median,
+        errors,
+        direct_check_s,
+        energy,
+        sources,
+        inputs_bytes,
+        separate_targets,
+    } = outcome;
+    let mode = fmm.mode();
     let summary = fmm.summary();
     let (cache, cache_dir) = cache_report(
         &settings.cache,
         fmm.operators().cache_status(),
         &fmm.m2l_scheme().cache_status(),
     );
-    Ok(RunReport {
+    RunReport {
         command: settings.command.to_string(),
         geometry,
         n_sources: fmm.n_sources(),
@@ -556,7 +664,7 @@ where
                 },
                 {
                     use ferrofmm_fmm::periodic::LatticeSum;
-                    match (ferrofmm_fmm::periodic::lattice_sum(&kernel), c.surface()) {
+                    match (ferrofmm_fmm::periodic::lattice_sum(kernel), c.surface()) {
                         (Some(LatticeSum::Yukawa { .. }), _) => "screened, absolutely convergent",
                         (Some(LatticeSum::Stokes { .. }), _) => {
                             "Hasimoto: zero mean velocity, net force balanced by pressure"
@@ -570,7 +678,7 @@ where
             )
         }),
         energy,
-        sources: kind.name().to_string(),
+        sources,
         threads: rayon::current_num_threads(),
         cache,
         cache_dir,
@@ -592,7 +700,7 @@ where
             fmm.n_sources() + if separate_targets { fmm.n_targets() } else { 0 },
             peak_rss_bytes(),
         )),
-    })
+    }
 }
 
 #[cfg(test)]
