@@ -152,6 +152,17 @@ pub struct StokesEvaluation<T> {
     pub laplace: Option<Verification>,
 }
 
+impl<T> StokesEvaluation<T> {
+    /// The check to report: the one that missed, else the Stokes one
+    /// (`None` when nothing was checked).
+    pub fn verification(&self) -> Option<&Verification> {
+        match (&self.stokes, &self.laplace) {
+            (s, Some(l)) if !l.met && s.as_ref().is_none_or(|s| s.met) => Some(l),
+            (s, _) => s.as_ref(),
+        }
+    }
+}
+
 /// A Stokes FMM for forces and stresslets with the pressure: a
 /// [`Stokes3d`] FMM and, where the request needs one, a [`Laplace3d`] FMM
 /// (see the [module docs](self) for the maths).

@@ -124,10 +124,16 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
     }
 
     fn cache_write_errors(&self) -> Vec<String> {
-        [
+        write_errors([
             self.operators().cache_status().clone(),
             self.m2l_scheme().cache_status(),
-        ]
+        ])
+    }
+}
+
+/// Why each of these cache files could not be written (one line each).
+pub(super) fn write_errors(statuses: impl IntoIterator<Item = CacheStatus>) -> Vec<String> {
+    statuses
         .into_iter()
         .filter_map(|status| match status {
             CacheStatus::Computed {
@@ -137,7 +143,6 @@ impl<T: Float, K: Kernel, S: M2lScheme<T>> Engine for Fmm<T, K, S> {
             _ => None,
         })
         .collect()
-    }
 }
 
 /// Everything a build needs besides the points.

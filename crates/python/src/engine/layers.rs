@@ -8,10 +8,10 @@ use std::sync::Arc;
 use ferrofmm_field::CacheStatus;
 use ferrofmm_fmm::{
     BuildScheme, EvalTimings, FmmError, FmmSummary, ProgressFn, SetupTimings, StokesLayers,
-    StokesValues, Verification,
+    StokesValues,
 };
 
-use super::erased::{Engine, Evaluated};
+use super::erased::{Engine, Evaluated, write_errors};
 use super::floats::{Float, Floats};
 
 /// Values per source of one vector: three per force, six per stresslet.
@@ -52,14 +52,6 @@ fn interleave<T: Copy>(values: StokesValues<T>, gradient: bool) -> Vec<T> {
         .collect()
 }
 
-/// The check to report: the one that missed, else the Stokes one.
-fn reported(stokes: Option<Verification>, laplace: Option<Verification>) -> Option<Verification> {
-    match (stokes, laplace) {
-        (s, Some(l)) if !l.met && s.as_ref().is_none_or(|s| s.met) => Some(l),
-        (s, _) => s,
-    }
-}
-
 impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
     fn evaluate(&self, densities: Floats, n_vectors: usize) -> Result<Evaluated, FmmError> {
         let q = T::unwrap(densities);
@@ -93,6 +85,7 @@ impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
         let (f, mn) = unpack(&q[..per], r.forces, r.stresslets);
         let mn_ref = mn.as_ref().map(|(m, n)| (m.as_slice(), n.as_slice()));
         let first = StokesLayers::evaluate_verified(self, f.as_deref(), mn_ref)?;
+        let verification = first.verification().cloned();
         let mut values = interleave(first.values, self.has_gradient());
         let mut timings = first.timings;
         if n_vectors > 1 {
@@ -104,7 +97,7 @@ impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
             values: T::wrap(values),
             timings,
             energies: vec![None; n_vectors],
-            verification: reported(first.stokes, first.laplace),
+            verification,
         })
     }
 
@@ -137,16 +130,7 @@ impl<T: Float, S: BuildScheme<T>> Engine for StokesLayers<T, S> {
             statuses.push(l.operators().cache_status().clone());
             statuses.push(l.m2l_scheme().cache_status());
         }
-        statuses
-            .into_iter()
-            .filter_map(|status| match status {
-                CacheStatus::Computed {
-                    write_error: Some(e),
-                    ..
-                } => Some(e),
-                _ => None,
-            })
-            .collect()
+        write_errors(statuses)
     }
 
     fn cache_summary(&self) -> Option<String> {

@@ -103,6 +103,7 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
     layers.set_progress(None);
     drop(stage);
     let evaluated = result?;
+    let verification = evaluated.verification().cloned();
     let (values, stokes_check, laplace_check) =
         (evaluated.values, evaluated.stokes, evaluated.laplace);
     let best = evaluated.timings;
@@ -166,11 +167,6 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
         })?;
     }
 
-    // The report shows the check that missed, else the Stokes one.
-    let verification = match (stokes_check, laplace_check) {
-        (s, Some(l)) if !l.met && s.as_ref().is_none_or(|s| s.met) => Some(l),
-        (s, _) => s,
-    };
     let sources_name = match (request.forces, request.stresslets) {
         (true, true) => "force+stresslet",
         (false, true) => "stresslet",
