@@ -166,8 +166,13 @@ def test_os_errors_and_bad_arguments(tmp_path):
         ferrofmm.load(tmp_path / "x.csv", "forces")
     with pytest.raises(ValueError, match="unknown kernel"):
         ferrofmm.load(tmp_path / "x.csv", "charges", kernel="coulomb")
-    with pytest.raises(ValueError, match="does not support dipole sources"):
-        ferrofmm.load(tmp_path / "x.csv", "dipoles", kernel="stokes")
+    # Stokes dipoles are force dipoles: nine values a row, (n, 3, 3).
+    (tmp_path / "force_dipoles.csv").write_text("1,2,3,4,5,6,7,8,9\n9,8,7,6,5,4,3,2,1\n")
+    d = ferrofmm.load(tmp_path / "force_dipoles.csv", "dipoles", kernel="stokes")
+    assert d.shape == (2, 3, 3) and d[0, 1, 2] == 6.0
+    np.save(tmp_path / "three_columns.npy", np.ones((2, 3)))
+    with pytest.raises(ValueError, match=r"\(N, 9\) array of dipoles"):
+        ferrofmm.load(tmp_path / "three_columns.npy", "dipoles", kernel="stokes")
     with pytest.raises(OSError, match="does not exist"):
         ferrofmm.save(tmp_path / "no" / "o.npy", np.ones(3))
     with pytest.raises(ValueError, match="unknown file type for an output"):

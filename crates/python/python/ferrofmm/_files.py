@@ -46,7 +46,8 @@ def load(path: Any, what: str = "points", *, kernel: str = "laplace") -> np.ndar
         Points: ``(n, 3)`` float64. Charges: ``(n,)`` float64 for a scalar kernel, ``(n,)``
         complex128 for a complex one (from a complex array, ``re, im`` records or real charges
         alone, whose imaginary parts are zero), ``(n, 3)`` for Stokes forces. Dipoles:
-        ``(n, 3)``, complex128 for a complex kernel.
+        ``(n, 3)``, complex128 for a complex kernel; Stokes force dipoles ``(n, 3, 3)`` (nine
+        values a record, ``D[k, c]``).
 
     Raises
     ------
@@ -76,6 +77,8 @@ def load(path: Any, what: str = "points", *, kernel: str = "laplace") -> np.ndar
         return z if what == "charges" else z.reshape(-1, 3)
     if columns == 1:
         return values
+    if what == "dipoles" and d["components"] > 1:
+        return values.reshape(-1, 3, d["components"])
     return values.reshape(-1, columns)
 
 
