@@ -436,7 +436,8 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
                 laplace[o..o + 3].copy_from_slice(&f[3 * i..3 * i + 3]);
             }
             if let Some(v0) = plan.dipole_pressure {
-                let d = dipole(i);
+                // The force dipole just written among the Stokes densities.
+                let d = &stokes[per * (i + 1) - 9..per * (i + 1)];
                 for k in 0..3 {
                     let o = at(v0 + k) + dipole_at;
                     laplace[o..o + 3].copy_from_slice(&d[3 * k..3 * k + 3]);

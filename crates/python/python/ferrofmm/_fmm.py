@@ -194,8 +194,8 @@ class Fmm:
         (FMM3D's ``pre``): ``f . d / (4 pi r^3)`` for a force,
         ``(6 (d . m)(d . n) / r^5 - 2 (m . n) / r^3) / (4 pi)`` for a
         stresslet. Stresslets and the pressure add one Laplace FMM on the
-        same points (``info["laplace"]`` is not reported separately; the
-        check of a tolerance covers both), free space only.
+        same points, free space only; a tolerance is checked on both FMMs
+        and ``info`` reports the check that missed, else the Stokes one.
     dtype : {None, "float32", "float64"}
         Float type of the run; ``None`` follows ``sources``.
     threads : int, optional
