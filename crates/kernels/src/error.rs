@@ -109,12 +109,18 @@ pub enum KernelError {
 /// # Errors
 /// [`KernelError::InvalidParameter`] otherwise.
 pub(crate) fn check_wavenumber(k: f64) -> Result<f64, KernelError> {
-    if k.is_finite() && k >= 0.0 {
-        Ok(k)
+    check_parameter("k", k)
+}
+
+/// `value` when it is finite and non-negative,
+/// [`KernelError::InvalidParameter`] naming `name` otherwise.
+pub(crate) fn check_parameter(name: &'static str, value: f64) -> Result<f64, KernelError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
     } else {
         Err(KernelError::InvalidParameter {
-            name: "k",
-            value: k,
+            name,
+            value,
             expected: "finite and >= 0",
         })
     }

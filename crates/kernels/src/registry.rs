@@ -15,7 +15,7 @@
 //! |---|---|---|
 //! | `laplace` | `1 / (4 pi r)` ([`Laplace3d`]) | 1 |
 //! | `yukawa:K` (or `modified-helmholtz:K`) | `exp(-K r) / (4 pi r)`, `K >= 0` ([`ModifiedHelmholtz3d`]) | 1 |
-//! | `helmholtz:K` | `exp(i K r) / (4 pi r)`, `K >= 0` ([`Helmholtz3d`]; charges and values as `[re, im]`) | 2 |
+//! | `helmholtz:K` | `exp(i K r) / (4 pi r)`, `K >= 0` or complex `A+Bi` with `B >= 0` (damped; [`Helmholtz3d`]; charges and values as `[re, im]`) | 2 |
 //! | `stokes` | the Stokeslet `(I / r + r r^T / r^3) / (8 pi)`, viscosity 1 ([`Stokes3d`]; forces in, velocities out) | 3 |
 //!
 //! ```
@@ -24,6 +24,11 @@
 //! assert_eq!(k.components(), 2);
 //! assert_eq!(k.name(), "helmholtz:10");
 //! assert_eq!(k.parameter(), Some(10.0));
+//! // A complex wavenumber (damped waves), written `A+Bi` (or `A+Bj`):
+//! let damped: KernelChoice = "helmholtz:10+0.5i".parse().unwrap();
+//! assert_eq!((damped.parameter(), damped.imaginary_part()), (Some(10.0), 0.5));
+//! assert_eq!(damped.name(), "helmholtz:10+0.5i");
+//! assert!("yukawa:1+1i".parse::<KernelChoice>().is_err()); // a real parameter
 //! struct Name;
 //! impl KernelVisitor for Name {
 //!     type Output = String;
@@ -107,7 +112,7 @@ impl KernelDescription {
     }
 }
 
-/// A kernel's one real parameter (`yukawa:K`).
+/// A kernel's one parameter (`yukawa:K`), real or complex.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParameterDescription {
     /// Its short name (`k`, the keyword in Python).
@@ -116,6 +121,10 @@ pub struct ParameterDescription {
     pub meaning: &'static str,
     /// A value for examples in messages (`2.5`).
     pub example: &'static str,
+    /// Whether it may be complex (`helmholtz:10+0.5i`; a Python `complex`):
+    /// the kernel type's [`BuiltinKernel::with_complex_parameter`] takes
+    /// the imaginary part.
+    pub complex: bool,
 }
 
 /// What the M2L scheme `auto` means for a kernel.
@@ -161,8 +170,34 @@ pub trait BuiltinKernel: Kernel {
     /// [`KernelError::InvalidParameter`] for a value out of range.
     fn with_parameter(parameter: Option<f64>) -> Result<Self, KernelError>;
 
-    /// The parameter of this value (`None` when it has none).
+    /// The parameter of this value (`None` when it has none); its real
+    /// part when it is complex.
     fn parameter(&self) -> Option<f64>;
+
+    /// The kernel with the complex parameter `re + i im`, for a kernel
+    /// whose description says its parameter may be complex
+    /// ([`ParameterDescription::complex`]). The default takes a real one
+    /// only.
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidParameter`] for a value out of range, or an
+    /// imaginary part the kernel does not take.
+    fn with_complex_parameter(re: f64, im: f64) -> Result<Self, KernelError> {
+        if im == 0.0 {
+            Self::with_parameter(Some(re))
+        } else {
+            Err(KernelError::InvalidParameter {
+                name: "imaginary part",
+                value: im,
+                expected: "0 (the parameter is real)",
+            })
+        }
+    }
+
+    /// The imaginary part of this value's parameter (0 unless complex).
+    fn imaginary_part(&self) -> f64 {
+        0.0
+    }
 }
 
 /// One of the built-in kernels with its parameter (see the [module
@@ -174,6 +209,8 @@ pub struct KernelChoice {
     /// Index into the registry.
     index: usize,
     parameter: Option<f64>,
+    /// The parameter's imaginary part (0 unless it is complex).
+    imaginary: f64,
 }
 
 /// A kernel name that is not a registered one, or a parameter out of
@@ -199,7 +236,9 @@ pub trait KernelVisitor {
 
 impl KernelChoice {
     /// Parses `NAME` or `NAME:PARAMETER` (`laplace`, `yukawa:K`, alias
-    /// `modified-helmholtz:K`, `helmholtz:K`, `stokes`).
+    /// `modified-helmholtz:K`, `helmholtz:K`, `stokes`); a complex
+    /// parameter is written `A+Bi`, `A-Bi`, `Bi` (or with `j`), without
+    /// spaces or with them (`helmholtz:10+0.5i`).
     ///
     /// # Errors
     /// [`ParseKernelError`] naming what is wrong.
@@ -210,7 +249,7 @@ impl KernelChoice {
         };
         let (name, parameter) = match spec.split_once(':') {
             Some((name, value)) => {
-                let value = value.trim().parse::<f64>().map_err(|_| {
+                let value = parse_complex(value).ok_or_else(|| {
                     let meaning = lookup(name)
                         .and_then(|(_, d)| d.parameter)
                         .map_or("parameter", |p| p.meaning);
@@ -220,7 +259,48 @@ impl KernelChoice {
             }
             None => (spec, None),
         };
-        Self::from_parts(name, parameter).map_err(|e| bad(e.why))
+        match parameter {
+            Some((re, im)) if im != 0.0 => Self::from_complex_parts(name, re, im),
+            p => Self::from_parts(name, p.map(|(re, _)| re)),
+        }
+        .map_err(|e| bad(e.why))
+    }
+
+    /// The kernel called `name` with the complex parameter `re + i im`
+    /// (`kernel="helmholtz", k=10+0.5j` in Python).
+    ///
+    /// # Errors
+    /// [`ParseKernelError`] for an unknown name, a kernel whose parameter
+    /// is real (and `im != 0`), or a value out of range.
+    pub fn from_complex_parts(name: &str, re: f64, im: f64) -> Result<Self, ParseKernelError> {
+        if im == 0.0 {
+            return Self::from_parts(name, Some(re));
+        }
+        let spec = format!("{name}:{}", complex_text(re, im));
+        let bad = |why: String| ParseKernelError {
+            spec: spec.clone(),
+            why,
+        };
+        let Some((index, d)) = lookup(name) else {
+            return Err(bad(format!("use {}", Self::usage())));
+        };
+        match d.parameter {
+            None => return Err(bad(format!("{} takes no parameter", d.name))),
+            Some(p) if !p.complex => {
+                return Err(bad(format!(
+                    "the {} of {} is real, e.g. {}:{}",
+                    p.meaning, d.name, d.name, p.example
+                )));
+            }
+            Some(_) => {}
+        }
+        let choice = KernelChoice {
+            index,
+            parameter: Some(re),
+            imaginary: im,
+        };
+        choice.check().map_err(|e| bad(e.to_string()))?;
+        Ok(choice)
     }
 
     /// The kernel called `name` (or an alias) with `parameter`, as a
@@ -252,15 +332,23 @@ impl KernelChoice {
             }
             _ => {}
         }
-        let choice = KernelChoice { index, parameter };
-        // Range check: the kernel type's own constructor.
+        let choice = KernelChoice {
+            index,
+            parameter,
+            imaginary: 0.0,
+        };
+        choice.check().map_err(|e| bad(e.to_string()))?;
+        Ok(choice)
+    }
+
+    /// Range check: the kernel type's own constructor.
+    fn check(self) -> Result<(), KernelError> {
         struct Check;
         impl KernelVisitor for Check {
             type Output = ();
             fn visit<K: Kernel>(self, _: K) {}
         }
-        choice.try_visit(Check).map_err(|e| bad(e.to_string()))?;
-        Ok(choice)
+        self.try_visit(Check)
     }
 
     /// The choice naming `kernel`, when its type is registered.
@@ -298,10 +386,14 @@ impl KernelChoice {
 
     /// The kernel as a report names it: the description's
     /// [title](KernelDescription::title) with the parameter's value
-    /// (`modified Helmholtz exp(-2.5 r)/(4 pi r)`).
+    /// (`modified Helmholtz exp(-2.5 r)/(4 pi r)`; a complex one in
+    /// brackets, `exp(i (10+0.5i) r)`).
     pub fn title(self) -> String {
         let title = self.description().title;
         match self.parameter {
+            Some(p) if self.imaginary != 0.0 => {
+                title.replace("{}", &format!("({})", complex_text(p, self.imaginary)))
+            }
             Some(p) => title.replace("{}", &p.to_string()),
             None => title.to_string(),
         }
@@ -312,17 +404,23 @@ impl KernelChoice {
         &DESCRIPTIONS[self.index]
     }
 
-    /// Its parameter (`None` for a kernel without one).
+    /// Its parameter (`None` for a kernel without one); the real part of
+    /// a complex one.
     pub fn parameter(self) -> Option<f64> {
         self.parameter
     }
 
+    /// The imaginary part of its parameter (0 for a real one).
+    pub fn imaginary_part(self) -> f64 {
+        self.imaginary
+    }
+
     /// The name [`KernelChoice::parse`] reads back: `laplace`, `yukawa:K`,
-    /// `helmholtz:K` or `stokes`.
+    /// `helmholtz:K`, `helmholtz:A+Bi` or `stokes`.
     pub fn name(self) -> String {
         let d = self.description();
         match self.parameter {
-            Some(p) => format!("{}:{p}", d.name),
+            Some(p) => format!("{}:{}", d.name, complex_text(p, self.imaginary)),
             None => d.name.to_string(),
         }
     }
@@ -370,7 +468,7 @@ impl KernelChoice {
     }
 
     fn try_visit<V: KernelVisitor>(self, visitor: V) -> Result<V::Output, KernelError> {
-        visit_index(self.index, self.parameter, visitor)
+        visit_index(self.index, self.parameter, self.imaginary, visitor)
     }
 }
 
@@ -397,10 +495,54 @@ fn lookup(name: &str) -> Option<(usize, &'static KernelDescription)> {
         .find(|(_, d)| d.name == name || d.aliases.contains(&name))
 }
 
+/// `re` alone when `im` is 0, else `re+imi` (`10+0.5i`, `10-0.5i`).
+fn complex_text(re: f64, im: f64) -> String {
+    if im == 0.0 {
+        re.to_string()
+    } else if im < 0.0 {
+        format!("{re}-{}i", -im)
+    } else {
+        format!("{re}+{im}i")
+    }
+}
+
+/// A real number, or a complex one written `A+Bi`, `A-Bi`, `Bi` (`j` for
+/// `i` too), as `(re, im)`; spaces around the sign are allowed.
+fn parse_complex(text: &str) -> Option<(f64, f64)> {
+    let t: String = text.chars().filter(|c| !c.is_whitespace()).collect();
+    let Some(body) = t.strip_suffix(['i', 'j']) else {
+        return t.parse::<f64>().ok().map(|re| (re, 0.0));
+    };
+    // The sign that starts the imaginary part: the last `+` or `-` that is
+    // not the first character nor an exponent's.
+    let bytes = body.as_bytes();
+    let split = (1..bytes.len())
+        .rev()
+        .find(|&i| matches!(bytes[i], b'+' | b'-') && !matches!(bytes[i - 1], b'e' | b'E'));
+    let number = |s: &str| -> Option<f64> {
+        match s {
+            "" | "+" => Some(1.0),
+            "-" => Some(-1.0),
+            _ => s.parse::<f64>().ok(),
+        }
+    };
+    match split {
+        Some(i) => Some((body[..i].parse::<f64>().ok()?, number(&body[i..])?)),
+        None => Some((0.0, number(body)?)),
+    }
+}
+
 const WAVENUMBER: ParameterDescription = ParameterDescription {
     name: "k",
     meaning: "wavenumber",
     example: "2.5",
+    complex: false,
+};
+
+/// [`WAVENUMBER`], complex allowed.
+const COMPLEX_WAVENUMBER: ParameterDescription = ParameterDescription {
+    complex: true,
+    ..WAVENUMBER
 };
 
 const ALL_SOURCES: &[SourceKind] = &[
@@ -461,9 +603,10 @@ impl BuiltinKernel for Helmholtz3d {
     const DESCRIPTION: KernelDescription = KernelDescription {
         name: "helmholtz",
         aliases: &[],
-        summary: "exp(iKr)/(4 pi r): complex charges and outputs as re, im columns",
+        summary: "exp(iKr)/(4 pi r), K >= 0 or complex A+Bi with B >= 0 (damped waves): complex \
+                  charges and outputs as re, im columns",
         title: "Helmholtz exp(i {} r)/(4 pi r), complex",
-        parameter: Some(WAVENUMBER),
+        parameter: Some(COMPLEX_WAVENUMBER),
         component_names: &["re", "im"],
         complex: true,
         source_kinds: ALL_SOURCES,
@@ -477,7 +620,15 @@ impl BuiltinKernel for Helmholtz3d {
     }
 
     fn parameter(&self) -> Option<f64> {
-        Some(self.wavenumber())
+        Some(self.k)
+    }
+
+    fn with_complex_parameter(re: f64, im: f64) -> Result<Self, KernelError> {
+        Helmholtz3d::new_complex(re, im)
+    }
+
+    fn imaginary_part(&self) -> f64 {
+        self.k_im
     }
 }
 
@@ -515,12 +666,19 @@ macro_rules! registry {
         fn visit_index<V: KernelVisitor>(
             index: usize,
             parameter: Option<f64>,
+            imaginary: f64,
             visitor: V,
         ) -> Result<V::Output, KernelError> {
             let mut at = 0;
             $(
                 if index == at {
-                    return Ok(visitor.visit(<$kernel as BuiltinKernel>::with_parameter(parameter)?));
+                    let kernel = match (parameter, imaginary) {
+                        (Some(re), im) if im != 0.0 => {
+                            <$kernel as BuiltinKernel>::with_complex_parameter(re, im)?
+                        }
+                        _ => <$kernel as BuiltinKernel>::with_parameter(parameter)?,
+                    };
+                    return Ok(visitor.visit(kernel));
                 }
                 at += 1;
             )+
@@ -532,7 +690,11 @@ macro_rules! registry {
             let mut index = 0;
             $(
                 if let Some(k) = kernel.downcast_ref::<$kernel>() {
-                    return Some(KernelChoice { index, parameter: BuiltinKernel::parameter(k) });
+                    return Some(KernelChoice {
+                        index,
+                        parameter: BuiltinKernel::parameter(k),
+                        imaginary: BuiltinKernel::imaginary_part(k),
+                    });
                 }
                 index += 1;
             )+
@@ -580,6 +742,65 @@ mod tests {
         for d in KernelChoice::registered() {
             assert!(e.why.contains(d.name), "{e} does not name {}", d.name);
         }
+    }
+
+    #[test]
+    fn complex_wavenumbers_parse_and_round_trip() {
+        for (spec, re, im) in [
+            ("helmholtz:10+0.5i", 10.0, 0.5),
+            ("helmholtz:10+0.5j", 10.0, 0.5),
+            ("helmholtz: 3 + 2i", 3.0, 2.0),
+            ("helmholtz:2.5i", 0.0, 2.5),
+            ("helmholtz:i", 0.0, 1.0),
+            ("helmholtz:1e1+5e-1i", 10.0, 0.5),
+            ("helmholtz:4+0i", 4.0, 0.0),
+        ] {
+            let k = choice(spec);
+            assert_eq!(
+                (k.parameter(), k.imaginary_part()),
+                (Some(re), im),
+                "{spec}"
+            );
+            assert_eq!(KernelChoice::parse(&k.name()), Ok(k), "{spec}");
+            struct Wavenumber;
+            impl KernelVisitor for Wavenumber {
+                type Output = Vec<f64>;
+                fn visit<K: Kernel>(self, kernel: K) -> Vec<f64> {
+                    kernel.parameters()
+                }
+            }
+            let want = if im == 0.0 { vec![re] } else { vec![re, im] };
+            assert_eq!(k.visit(Wavenumber), want, "{spec}");
+            assert_eq!(
+                KernelChoice::from_complex_parts("helmholtz", re, im),
+                Ok(k),
+                "{spec}"
+            );
+        }
+        assert_eq!(choice("helmholtz:4+0i"), choice("helmholtz:4"));
+        assert_eq!(choice("helmholtz:10+0.5i").name(), "helmholtz:10+0.5i");
+        assert_eq!(
+            choice("helmholtz:10+0.5i").title(),
+            "Helmholtz exp(i (10+0.5i) r)/(4 pi r), complex"
+        );
+        let damped = Helmholtz3d::new_complex(3.0, 0.25).unwrap();
+        assert_eq!(KernelChoice::of(&damped), Some(choice("helmholtz:3+0.25i")));
+        for bad in [
+            "helmholtz:10-0.5i",
+            "helmholtz:-1+1i",
+            "helmholtz:1+infi",
+            "helmholtz:1+xi",
+            "helmholtz:1+2+3i",
+            "yukawa:1+1i",
+            "laplace:1i",
+        ] {
+            let e = KernelChoice::parse(bad).unwrap_err();
+            assert_eq!(e.spec, bad);
+            assert!(!e.why.is_empty(), "{bad}");
+        }
+        let e = KernelChoice::parse("yukawa:1+1i").unwrap_err();
+        assert!(e.why.contains("real"), "{e}");
+        assert!(KernelChoice::from_complex_parts("stokes", 1.0, 1.0).is_err());
     }
 
     #[test]

@@ -82,6 +82,33 @@ def test_helmholtz_batches_real_input_and_targets(rng):
         assert rel(r.potential[j], u) < 1e-5
 
 
+def test_damped_helmholtz_takes_a_complex_wavenumber(rng):
+    """k = a + bj: exp(-b r) exp(i a r) / (4 pi r), the direct sum's formulas
+    with the complex k as they are; the report names the complex wavenumber."""
+    x = rng.random((N, 3))
+    q = (rng.random(N) - 0.5) + 1j * (rng.random(N) - 0.5)
+    n = (rng.random((N, 3)) - 0.5) + 1j * (rng.random((N, 3)) - 0.5)
+    idx = np.random.default_rng(7).choice(N, SAMPLE, replace=False)
+    for k in (10.0 + 2.0j, np.complex128(3.0 + 12.0j)):
+        r = ferrofmm.helmholtz(x, q, k=k, dipoles=n, eps=1e-6)
+        u, _ = helmholtz_direct(x, x[idx], k, q, n)
+        assert rel(r.potential[idx], u) < 1e-5, k
+        assert r.info["verified"] is True and r.info["measured_error"]["potential"] <= 1e-6
+    r = ferrofmm.helmholtz(x, q, k=10.0 + 2.0j, eps=1e-6, gradient=True)
+    u, g = helmholtz_direct(x, x[idx], 10.0 + 2.0j, q)
+    assert rel(r.potential[idx], u) < 1e-5 and rel(r.gradient[idx], g) < 1e-5
+    # A complex k with no imaginary part is the real one.
+    a = ferrofmm.helmholtz(x, q, k=5.0 + 0j, order=5).potential
+    b = ferrofmm.helmholtz(x, q, k=5.0, order=5).potential
+    assert np.array_equal(a, b)
+    with pytest.raises(ValueError, match="k"):
+        ferrofmm.helmholtz(x, q, k=5.0 - 1.0j, order=4)
+    with pytest.raises(ValueError, match="real"):
+        ferrofmm.yukawa(x, q.real, k=1.0 + 1.0j, order=4)
+    with pytest.raises(TypeError):
+        ferrofmm.helmholtz(x, q, k="5+1j", order=4)
+
+
 def test_stokes_velocity_and_gradient(rng):
     x = rng.random((N, 3))
     f = rng.random((N, 3)) - 0.5

@@ -1,17 +1,21 @@
 //! The oscillatory Helmholtz kernel `G(x, y) = e^{i k |x - y|} / (4 pi |x - y|)`,
-//! a complex kernel in its real 2 x 2 form.
+//! a complex kernel in its real 2 x 2 form, for a real wavenumber `k >= 0`
+//! or a complex one `k = a + i b` with `b >= 0` (damped waves, `e^{ikr} =
+//! e^{-br} e^{iar}`).
 //!
 //! # Maths
-//! With `r = |y - x|`, `d = y - x` and the radial functions
+//! With `r = |y - x|`, `d = y - x`, `z = ikr = -br + i ar` and the radial
+//! functions
 //!
 //! ```text
-//! f0 = e^{ikr} / (4 pi r)
-//! f1 = f0' / r = e^{ikr} (ikr - 1) / (4 pi r^3)
-//! f2 = f1' / r = e^{ikr} (3 - 3ikr - k^2 r^2) / (4 pi r^5)
-//! f3 = f2' / r = e^{ikr} (-15 + 15ikr + 6k^2 r^2 - ik^3 r^3) / (4 pi r^7)
+//! f0 = e^{ikr} / (4 pi r) = e^z / (4 pi r)
+//! f1 = f0' / r = f0 (z - 1) / r^2                  = e^{ikr} (ikr - 1) / (4 pi r^3)
+//! f2 = f1' / r = f0 (z^2 - 3z + 3) / r^4           = e^{ikr} (3 - 3ikr - k^2 r^2) / (4 pi r^5)
+//! f3 = f2' / r = f0 (z^3 - 6z^2 + 15z - 15) / r^6  = e^{ikr} (-15 + 15ikr + 6k^2 r^2 - ik^3 r^3) / (4 pi r^7)
 //! ```
 //!
-//! (the modified Helmholtz functions with `k -> -ik`), a source with
+//! (the modified Helmholtz functions with `k -> -ik`; the polynomials in
+//! `z` hold for complex `k` as they are), a source with
 //! complex charge `q` and complex dipole vector `n` adds at `y`
 //!
 //! ```text
@@ -30,7 +34,8 @@
 //!
 //! which for a charge is `H_ab = delta_ab g'/r + d_a d_b (g'' - g'/r) / r^2`
 //! with `g(r) = e^{ikr} / (4 pi r)`. Its trace is `-k^2 u` (away from the
-//! sources, `(Delta + k^2) u = 0`). At `k = 0` these are the Laplace
+//! sources, `(Delta + k^2) u = 0`, with the complex `k^2 = a^2 - b^2 + 2iab`
+//! when damped). At `k = 0` these are the Laplace
 //! functions `1/(4 pi r)`, `-1/(4 pi r^3)`, `3/(4 pi r^5)`, `-15/(4 pi r^7)`.
 //!
 //! # Real form
@@ -53,10 +58,15 @@ use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
 /// formulas).
 ///
 /// * [`Kernel::components`] is 2 (real and imaginary parts);
-/// * not scale invariant for `k > 0`, so the FMM builds operators per
-///   level, and [`Kernel::wavenumber`] is `k`: the FMM refuses domains
-///   wider than the low-frequency limit
-///   (`ferrofmm_fmm::MAX_WAVENUMBER_WIDTH / k`);
+/// * the wavenumber is real ([`Helmholtz3d::new`]) or complex with a
+///   non-negative imaginary part ([`Helmholtz3d::new_complex`]: damped
+///   waves `e^{-br} e^{iar}`, an absorbing medium); the damped kernel runs
+///   its own vectorised loop (an `exp` per pair beside the `sin`/`cos`), so
+///   a real `k` keeps the speed it had;
+/// * not scale invariant for `k != 0`, so the FMM builds operators per
+///   level, and [`Kernel::wavenumber`] is `Re k` (the oscillation; damping
+///   only helps the expansions): the FMM refuses domains wider than the
+///   low-frequency limit (`ferrofmm_fmm::MAX_WAVENUMBER_WIDTH / Re k`);
 /// * charges and dipoles (alone or together), potentials, gradients and
 ///   Hessians.
 ///
@@ -72,29 +82,67 @@ use crate::{EvalMode, INV_4PI, Kernel, KernelError, Real, SourceKind};
 /// ```
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Helmholtz3d {
-    /// The wavenumber `k >= 0` (inverse length; wavelength `2 pi / k`).
+    /// The real part of the wavenumber, `Re k >= 0` (inverse length;
+    /// wavelength `2 pi / Re k`).
     pub k: f64,
+    /// The imaginary part of the wavenumber, `Im k >= 0` (inverse length):
+    /// the waves decay as `e^{-r Im k}`; 0 for undamped waves.
+    pub k_im: f64,
 }
 
 impl Helmholtz3d {
-    /// The kernel with wavenumber `k`.
+    /// The kernel with the real wavenumber `k`.
     ///
     /// # Errors
     /// [`KernelError::InvalidParameter`] when `k` is negative, NaN or
     /// infinite.
     pub fn new(k: f64) -> Result<Self, KernelError> {
-        crate::error::check_wavenumber(k).map(|k| Helmholtz3d { k })
+        crate::error::check_wavenumber(k).map(|k| Helmholtz3d { k, k_im: 0.0 })
+    }
+
+    /// The kernel with the complex wavenumber `k = re + i im`: damped
+    /// waves `e^{ikr} / (4 pi r) = e^{-im r} e^{i re r} / (4 pi r)`.
+    ///
+    /// ```
+    /// use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel};
+    /// let h = Helmholtz3d::new_complex(2.0, 1.0).unwrap();
+    /// let mut u = [0.0f64; 2];
+    /// h.evaluate(EvalMode::Potential, &[0.0; 3], &[1.0, 0.0], &[0.5, 0.0, 0.0], &mut u);
+    /// // e^{i (2 + i) 0.5} / (2 pi) = e^{-0.5} e^{i} / (2 pi)
+    /// let a = (-0.5f64).exp() / (2.0 * std::f64::consts::PI);
+    /// assert!((u[0] - a * 1f64.cos()).abs() < 1e-15 && (u[1] - a * 1f64.sin()).abs() < 1e-15);
+    /// assert_eq!(h.parameters(), vec![2.0, 1.0]);
+    /// assert!(Helmholtz3d::new_complex(2.0, -1.0).is_err());
+    /// ```
+    ///
+    /// # Errors
+    /// [`KernelError::InvalidParameter`] when either part is negative,
+    /// NaN or infinite (a negative imaginary part would grow
+    /// exponentially).
+    pub fn new_complex(re: f64, im: f64) -> Result<Self, KernelError> {
+        let k = crate::error::check_wavenumber(re)?;
+        let k_im = crate::error::check_parameter("Im k", im)?;
+        Ok(Helmholtz3d { k, k_im })
+    }
+
+    /// Whether the wavenumber has an imaginary part (damped waves).
+    pub fn is_damped(&self) -> bool {
+        self.k_im != 0.0
     }
 }
 
-/// `e^{ikr}` times `1 / (4 pi r)`: `(Re, Im)` of `f0`, and `r^{-1}`.
+/// `e^{ikr}` times `1 / (4 pi r)` for `k = a + i b`: `(Re, Im)` of `f0`,
+/// and `r^{-1}`.
 #[inline(always)]
-fn f0_parts<T: Real>(k: T, r2: T) -> (T, T, T) {
+fn f0_parts<T: Real>(a: T, b: T, r2: T) -> (T, T, T) {
     let r = r2.sqrt();
     let rinv = T::ONE / r;
-    let (s, c) = (k * r).sin_cos();
-    let a = T::from_f64(INV_4PI) * rinv;
-    (c * a, s * a, rinv)
+    let (s, c) = (a * r).sin_cos();
+    let mut amp = T::from_f64(INV_4PI) * rinv;
+    if b != T::ZERO {
+        amp *= (-(b * r)).exp();
+    }
+    (c * amp, s * amp, rinv)
 }
 
 /// Complex product `(a + ib)(c + id)`.
@@ -109,14 +157,23 @@ impl Kernel for Helmholtz3d {
         "helmholtz3d".to_string()
     }
 
-    /// `vec![k]`.
+    /// `vec![k]` for a real wavenumber, `vec![Re k, Im k]` for a damped
+    /// one (so operators cached for one are never read for the other).
     fn parameters(&self) -> Vec<f64> {
-        vec![self.k]
+        if self.is_damped() {
+            vec![self.k, self.k_im]
+        } else {
+            vec![self.k]
+        }
     }
 
-    /// `None` for `k > 0`; `Some(-1.0)` for `k = 0` (Laplace, complex).
+    /// `None` for `k != 0`; `Some(-1.0)` for `k = 0` (Laplace, complex).
     fn homogeneity(&self) -> Option<f64> {
-        if self.k == 0.0 { Some(-1.0) } else { None }
+        if self.k == 0.0 && self.k_im == 0.0 {
+            Some(-1.0)
+        } else {
+            None
+        }
     }
 
     /// 2: real and imaginary parts.
@@ -124,26 +181,28 @@ impl Kernel for Helmholtz3d {
         2
     }
 
-    /// `k`.
+    /// `Re k`: the oscillation the expansions must resolve.
     fn wavenumber(&self) -> f64 {
         self.k
     }
 
-    /// `Re G = cos(kr) / (4 pi r)`.
+    /// `Re G = e^{-br} cos(ar) / (4 pi r)` for `k = a + i b`.
     #[inline]
     fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        f0_parts(T::from_f64(self.k), r2).0
+        f0_parts(T::from_f64(self.k), T::from_f64(self.k_im), r2).0
     }
 
-    /// `grad_y Re G = Re f1 d = -(cos kr + kr sin kr) d / (4 pi r^3)`.
+    /// `grad_y Re G = Re f1 d = Re(f0 (z - 1)) d / r^2` with `z = ikr`
+    /// (`-(cos kr + kr sin kr) d / (4 pi r^3)` for a real `k`).
     #[inline]
     fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
         let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-        let k = T::from_f64(self.k);
-        let (gr, gi, rinv) = f0_parts(k, r2);
-        let kr = k * r2 * rinv;
-        let f1 = -(gr + kr * gi) * rinv * rinv;
+        let (a, b) = (T::from_f64(self.k), T::from_f64(self.k_im));
+        let (gr, gi, rinv) = f0_parts(a, b, r2);
+        let r = r2 * rinv;
+        let (zr, zi) = (-(b * r), a * r);
+        let f1 = (gr * (zr - T::ONE) - gi * zi) * rinv * rinv;
         [f1 * d[0], f1 * d[1], f1 * d[2]]
     }
 
@@ -161,7 +220,7 @@ impl Kernel for Helmholtz3d {
         let ns = sources.len() / 3;
         let nt = targets.len() / 3;
         assert_eq!(matrix.len(), 4 * ns * nt, "helmholtz3d: matrix size");
-        let k = T::from_f64(self.k);
+        let (a, b) = (T::from_f64(self.k), T::from_f64(self.k_im));
         let cols = 2 * ns;
         for (j, y) in targets.chunks_exact(3).enumerate() {
             for (i, x) in sources.chunks_exact(3).enumerate() {
@@ -170,7 +229,7 @@ impl Kernel for Helmholtz3d {
                 let (gr, gi) = if r2 == T::ZERO {
                     (T::ZERO, T::ZERO)
                 } else {
-                    let (gr, gi, _) = f0_parts(k, r2);
+                    let (gr, gi, _) = f0_parts(a, b, r2);
                     (gr, gi)
                 };
                 let top = 2 * j * cols + 2 * i;
@@ -184,9 +243,11 @@ impl Kernel for Helmholtz3d {
 }
 
 impl Helmholtz3d {
-    /// The scalar pairwise loop (`f64::sin_cos`), the reference the
-    /// vectorised [`Kernel::evaluate_sources`] is tested against. Same
-    /// layout and panics.
+    /// The scalar pairwise loop (`sin_cos` and `exp` of the float type,
+    /// the radial functions as polynomials in the complex `z = ikr` of the
+    /// module docs), the reference the vectorised
+    /// [`Kernel::evaluate_sources`] is tested against. Same layout and
+    /// panics.
     pub fn evaluate_sources_pairwise<T: Real>(
         &self,
         kind: SourceKind,
@@ -201,13 +262,13 @@ impl Helmholtz3d {
         {
             panic!("helmholtz3d: {e}");
         }
-        let k = T::from_f64(self.k);
+        let (ka, kb) = (T::from_f64(self.k), T::from_f64(self.k_im));
         let vps = 2 * kind.values_per_source();
         let w = 2 * mode.values_per_target();
         let (grad, hess) = (mode.has_gradient(), mode.has_hessian());
         let (has_q, has_n) = (kind != SourceKind::Dipole, kind.has_dipoles());
         let n_off = if has_q { 2 } else { 0 };
-        let three = T::from_f64(3.0);
+        let c = |v: f64| T::from_f64(v);
         for (y, o) in targets.chunks_exact(3).zip(out.chunks_exact_mut(w)) {
             let mut acc = [T::ZERO; 20];
             for (x, q) in sources.chunks_exact(3).zip(densities.chunks_exact(vps)) {
@@ -216,17 +277,21 @@ impl Helmholtz3d {
                 if r2 == T::ZERO {
                     continue;
                 }
-                let (gr, gi, rinv) = f0_parts(k, r2);
+                let (gr, gi, rinv) = f0_parts(ka, kb, r2);
                 let rinv2 = rinv * rinv;
-                let kr = k * r2 * rinv;
-                // f1 = f0 (ikr - 1) / r^2
+                // z = ikr and the polynomials of the module docs.
+                let r = r2 * rinv;
+                let (zr, zi) = (-(kb * r), ka * r);
+                let z2 = cmul(zr, zi, zr, zi);
+                let z3 = cmul(z2.0, z2.1, zr, zi);
+                // f1 = f0 (z - 1) / r^2
                 let (f1r, f1i) = {
-                    let (a, b) = cmul(gr, gi, -T::ONE, kr);
+                    let (a, b) = cmul(gr, gi, zr - T::ONE, zi);
                     (a * rinv2, b * rinv2)
                 };
-                // f2 = f0 (3 - 3ikr - k^2 r^2) / r^4
+                // f2 = f0 (z^2 - 3z + 3) / r^4
                 let (f2r, f2i) = {
-                    let (a, b) = cmul(gr, gi, three - kr * kr, -three * kr);
+                    let (a, b) = cmul(gr, gi, z2.0 - c(3.0) * zr + c(3.0), z2.1 - c(3.0) * zi);
                     (a * rinv2 * rinv2, b * rinv2 * rinv2)
                 };
                 // Coefficient of d in the gradient, and the potential; with
@@ -263,13 +328,12 @@ impl Helmholtz3d {
                         ci -= b;
                     }
                     if hess {
-                        // f3 = f0 (-15 + 15ikr + 6k^2 r^2 - ik^3 r^3) / r^6
-                        let (kr2, fifteen) = (kr * kr, T::from_f64(15.0));
+                        // f3 = f0 (z^3 - 6z^2 + 15z - 15) / r^6
                         let (a, b) = cmul(
                             gr,
                             gi,
-                            T::from_f64(6.0) * kr2 - fifteen,
-                            kr * (fifteen - kr2),
+                            z3.0 - c(6.0) * z2.0 + c(15.0) * zr - c(15.0),
+                            z3.1 - c(6.0) * z2.1 + c(15.0) * zi,
                         );
                         let r6 = rinv2 * rinv2 * rinv2;
                         let (a, b) = cmul(a * r6, b * r6, ndr, ndi);

@@ -71,10 +71,13 @@ fn check_gradient<K: Kernel>(k: &K, kind: SourceKind, seed: u64) {
     );
 }
 
+/// Real wavenumbers and complex ones (damped waves), `(Re k, Im k)`.
+const WAVENUMBERS: [(f64, f64); 5] = [(0.5, 0.0), (3.0, 0.0), (10.0, 0.0), (3.0, 1.0), (0.0, 2.0)];
+
 #[test]
 fn helmholtz_gradients_match_differences_for_every_source_kind() {
-    for (i, kw) in [0.5, 3.0, 10.0].into_iter().enumerate() {
-        let k = Helmholtz3d::new(kw).unwrap();
+    for (i, (a, b)) in WAVENUMBERS.into_iter().enumerate() {
+        let k = Helmholtz3d::new_complex(a, b).unwrap();
         for kind in [
             SourceKind::Charge,
             SourceKind::Dipole,
@@ -112,7 +115,13 @@ fn stokes_gradients_match_differences_and_the_velocity_is_divergence_free() {
 /// the source position along `n`, for each complex dipole component.
 #[test]
 fn helmholtz_dipoles_are_source_derivatives_of_charges() {
-    let k = Helmholtz3d::new(4.0).unwrap();
+    for k in [Helmholtz3d::new(4.0), Helmholtz3d::new_complex(4.0, 1.5)] {
+        dipoles_are_source_derivatives(&k.unwrap());
+    }
+}
+
+fn dipoles_are_source_derivatives(k: &Helmholtz3d) {
+    let k = *k;
     let (s, d, t) = separated(&k, SourceKind::Dipole, 21);
     let got = eval(
         &k,
@@ -154,7 +163,54 @@ fn helmholtz_dipoles_are_source_derivatives_of_charges() {
         }
     }
     let err = relative_l2(&got, &want);
-    assert!(err < 1e-7, "dipoles vs source differences: {err:e}");
+    assert!(err < 1e-7, "{k:?}: dipoles vs source differences: {err:e}");
+}
+
+/// The damped kernel against its closed form `e^{-br} e^{iar} / (4 pi r)`
+/// (complex charges), and `Im k = 0` is the real-wavenumber kernel.
+#[test]
+fn damped_helmholtz_is_the_closed_form() {
+    let k = Helmholtz3d::new_complex(5.0, 2.0).unwrap();
+    let (s, d, t) = separated(&k, SourceKind::Charge, 33);
+    let got = eval(&k, SourceKind::Charge, EvalMode::Potential, &s, &d, &t);
+    let mut want = vec![0.0; got.len()];
+    for (j, y) in t.chunks_exact(3).enumerate() {
+        for (x, q) in s.chunks_exact(3).zip(d.chunks_exact(2)) {
+            let r = ((y[0] - x[0]).powi(2) + (y[1] - x[1]).powi(2) + (y[2] - x[2]).powi(2)).sqrt();
+            let amp = (-2.0 * r).exp() / (4.0 * std::f64::consts::PI * r);
+            let (gr, gi) = (amp * (5.0 * r).cos(), amp * (5.0 * r).sin());
+            want[2 * j] += gr * q[0] - gi * q[1];
+            want[2 * j + 1] += gr * q[1] + gi * q[0];
+        }
+    }
+    let err = relative_l2(&got, &want);
+    assert!(err < 1e-14, "damped potential vs closed form: {err:e}");
+    let (a, b) = (
+        Helmholtz3d::new(5.0).unwrap(),
+        Helmholtz3d::new_complex(5.0, 0.0).unwrap(),
+    );
+    assert_eq!(a, b);
+    let mode = EvalMode::PotentialGradientHessian;
+    assert_eq!(
+        eval(
+            &a,
+            SourceKind::ChargeDipole,
+            mode,
+            &s,
+            &[0.5; 8 * 64][..8 * s.len() / 3],
+            &t
+        ),
+        eval(
+            &b,
+            SourceKind::ChargeDipole,
+            mode,
+            &s,
+            &[0.5; 8 * 64][..8 * s.len() / 3],
+            &t
+        ),
+    );
+    assert!(Helmholtz3d::new_complex(1.0, -0.5).is_err());
+    assert!(Helmholtz3d::new_complex(1.0, f64::NAN).is_err());
 }
 
 /// Hessian columns (complex `H_xx, H_yy, H_zz, H_xy, H_xz, H_yz` after
@@ -210,16 +266,20 @@ fn check_hessian(k: &Helmholtz3d, kind: SourceKind, seed: u64) {
         .collect();
     let err = relative_l2(&head, &grad);
     assert!(err < 1e-14, "k={} {kind:?}: leading values {err:e}", k.k);
-    let k2 = k.k * k.k;
+    // The complex k^2 = a^2 - b^2 + 2iab.
+    let (k2r, k2i) = (k.k * k.k - k.k_im * k.k_im, 2.0 * k.k * k.k_im);
+    let k2 = k2r.abs() + k2i.abs();
     for o in full.chunks_exact(20) {
+        let minus_k2u = [-(k2r * o[0] - k2i * o[1]), -(k2r * o[1] + k2i * o[0])];
         for part in 0..2 {
             let tr = o[8 + part] + o[10 + part] + o[12 + part];
             let scale = o[8 + part].abs() + o[10 + part].abs() + o[12 + part].abs();
             assert!(
-                (tr + k2 * o[part]).abs() <= 1e-12 * (scale + k2 * o[part].abs()),
-                "k={} {kind:?}: trace {tr:e} vs -k^2 u = {:e}",
+                (tr - minus_k2u[part]).abs() <= 1e-12 * (scale + k2 * (o[0].abs() + o[1].abs())),
+                "k={}+{}i {kind:?}: trace {tr:e} vs -k^2 u = {:e}",
                 k.k,
-                -k2 * o[part]
+                k.k_im,
+                minus_k2u[part]
             );
         }
     }
@@ -227,8 +287,18 @@ fn check_hessian(k: &Helmholtz3d, kind: SourceKind, seed: u64) {
 
 #[test]
 fn helmholtz_hessians_match_differences_of_the_gradient() {
-    for (i, kw) in [0.0, 0.5, 3.0, 7.0].into_iter().enumerate() {
-        let k = Helmholtz3d::new(kw).unwrap();
+    for (i, (a, b)) in [
+        (0.0, 0.0),
+        (0.5, 0.0),
+        (3.0, 0.0),
+        (7.0, 0.0),
+        (3.0, 1.5),
+        (0.0, 2.0),
+    ]
+    .into_iter()
+    .enumerate()
+    {
+        let k = Helmholtz3d::new_complex(a, b).unwrap();
         for kind in [
             SourceKind::Charge,
             SourceKind::Dipole,
@@ -350,8 +420,8 @@ fn single_precision_follows_double() {
 fn helmholtz_single_precision_hessians_follow_double() {
     let mode = EvalMode::PotentialGradientHessian;
     let f = |v: &[f64]| v.iter().map(|&x| x as f32).collect::<Vec<f32>>();
-    for kw in [0.0, 5.0] {
-        let k = Helmholtz3d::new(kw).unwrap();
+    for (kw, b) in [(0.0, 0.0), (5.0, 0.0), (5.0, 1.0)] {
+        let k = Helmholtz3d::new_complex(kw, b).unwrap();
         for kind in [
             SourceKind::Charge,
             SourceKind::Dipole,
@@ -490,8 +560,15 @@ fn bad_input_is_refused_with_the_component_count() {
 /// points, and `kr` up to about 90.
 #[test]
 fn helmholtz_vector_loop_matches_the_pairwise_loop_at_every_level() {
-    for kw in [0.0, 2.5, 30.0] {
-        let k = Helmholtz3d::new(kw).unwrap();
+    for (kw, b) in [
+        (0.0, 0.0),
+        (2.5, 0.0),
+        (30.0, 0.0),
+        (2.5, 1.5),
+        (30.0, 4.0),
+        (0.0, 3.0),
+    ] {
+        let k = Helmholtz3d::new_complex(kw, b).unwrap();
         for kind in [
             SourceKind::Charge,
             SourceKind::Dipole,
@@ -516,7 +593,10 @@ fn helmholtz_vector_loop_matches_the_pairwise_loop_at_every_level() {
                     lanes::evaluate_sources_with(level, &k, kind, mode, &s, &d, &t, &mut got);
                     assert!(got.iter().all(|v| v.is_finite()));
                     let err = relative_l2(&got, &want);
-                    assert!(err < 1e-13, "k={kw} {kind:?} {mode:?} {level:?}: {err:e}");
+                    assert!(
+                        err < 1e-13,
+                        "k={kw}+{b}i {kind:?} {mode:?} {level:?}: {err:e}"
+                    );
                 }
             }
         }

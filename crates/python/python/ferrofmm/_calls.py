@@ -11,7 +11,7 @@ from ._fmm import Fmm, FmmResult, _check_progress
 
 def _one_call(
     kernel: str,
-    k: Optional[float],
+    k: Optional[complex],
     sources: Any,
     charges: Any,
     dipoles: Any,
@@ -161,7 +161,7 @@ def _with_wavenumber(kernel: str, doc: str) -> Callable[..., FmmResult]:
         sources: Any,
         charges: Any = None,
         *,
-        k: float,
+        k: complex,
         dipoles: Any = None,
         targets: Any = None,
         eps: Optional[float] = None,
@@ -214,7 +214,9 @@ helmholtz = _with_wavenumber(
     "helmholtz",
     """Helmholtz potentials ``u(y) = sum_i q_i exp(i k r) / (4 pi r) + n_i . grad_x (...)``.
 
-    ``r = |y - x_i|``, ``k >= 0`` the wavenumber. ``charges`` is complex
+    ``r = |y - x_i|``, ``k >= 0`` the wavenumber, or a complex ``k = a + bj``
+    with ``b >= 0`` for damped waves ``exp(-b r) exp(i a r) / (4 pi r)`` (an
+    absorbing medium; the oscillation ``a`` sets the limit below). ``charges`` is complex
     ``(n,)`` or ``(k, n)``, ``dipoles`` complex ``(n, 3)`` or ``(k, n, 3)``
     (real arrays are taken as complex); ``.potential`` is complex ``(m,)``,
     ``.gradient`` complex ``(m, 3)``, with ``hessian=True`` ``.hessian``
@@ -232,6 +234,9 @@ helmholtz = _with_wavenumber(
     >>> r = ferrofmm.helmholtz(x, np.ones(2000) + 0.5j, k=10.0, eps=1e-6)
     >>> r.potential.dtype
     dtype('complex128')
+    >>> damped = ferrofmm.helmholtz(x, np.ones(2000), k=10.0 + 2.0j, eps=1e-6)
+    >>> bool(np.abs(damped.potential).max() < np.abs(r.potential).max())
+    True
     """,
 )
 

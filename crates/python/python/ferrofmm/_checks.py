@@ -71,6 +71,17 @@ def _real(name: str, value: Any) -> Optional[float]:
     return float(value)
 
 
+def _wavenumber(value: Any) -> Optional[Tuple[float, float]]:
+    """A wavenumber as ``(re, im)``: a real number, or a complex one (damped Helmholtz
+    waves; the kernel refuses a negative imaginary part), or None."""
+    if value is None:
+        return None
+    if isinstance(value, (complex, np.complexfloating)):
+        return (float(value.real), float(value.imag))
+    re = _real("k", value)
+    return None if re is None else (re, 0.0)
+
+
 def _kernel(name: str) -> Dict[str, Any]:
     """The registry's description of kernel ``name`` (see ``_ferrofmm.KERNELS``), else ValueError
     naming the kernels there are."""

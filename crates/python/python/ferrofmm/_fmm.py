@@ -26,7 +26,7 @@ from ._checks import (
     _per_target,
     _points,
     _positive_int,
-    _real,
+    _wavenumber,
     _vector_valued,
 )
 from ._ferrofmm import (
@@ -149,11 +149,13 @@ class Fmm:
         results) or the Stokeslet ``(I / r + d d^T / r^3) / (8 pi)``
         (viscosity 1: forces ``(n, 3)`` in, velocities ``(m, 3)`` and
         velocity gradients ``(m, 3, 3)`` out, ``[..., a, c] = d u_a / d x_c``).
-    k : float, optional
+    k : float or complex, optional
         The wavenumber of the yukawa (screening) or helmholtz (oscillation)
-        kernel (``k >= 0``). Helmholtz is the low-frequency method: ``k``
-        times the domain width is limited (about 6 wavelengths), beyond
-        it the build raises ``ValueError`` naming the limit.
+        kernel (``k >= 0``). Helmholtz also takes a complex ``k = a + bj``
+        with ``b >= 0``: damped waves ``exp(-b r) exp(i a r) / (4 pi r)``.
+        Helmholtz is the low-frequency method: ``Re k`` times the domain
+        width is limited (about 6 wavelengths), beyond it the build raises
+        ``ValueError`` naming the limit.
     eps : float, optional
         Requested relative L2 error of the potential (and of the gradient
         when ``gradient=True``). The order and leaf size are chosen from it;
@@ -312,7 +314,7 @@ class Fmm:
         _kernel(kernel)
         if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
             raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
-        k = _real("k", k)
+        k = _wavenumber(k)
         leaf_size = _positive_int("leaf_size", leaf_size)
         threads = _positive_int("threads", threads)
         cache_dir, default_cache = _cache(cache, cache_dir)

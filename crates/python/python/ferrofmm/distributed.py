@@ -89,7 +89,7 @@ from ._checks import (  # noqa: E402  (after the MPI checks above)
     _kernel,
     _points,
     _positive_int,
-    _real,
+    _wavenumber,
 )
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE  # noqa: E402
 from ._fmm import DEFAULT_EPS, AccuracyWarning, FmmResult  # noqa: E402
@@ -329,7 +329,7 @@ class Fmm:
                 eps=None if eps is None and order is not None else
                 float(DEFAULT_EPS[run] if eps is None else eps),
                 order=None if order is None else int(order),
-                k=_real("k", k),
+                k=_wavenumber(k),
                 leaf_size=_positive_int("leaf_size", leaf_size),
                 threads=_positive_int("threads", threads),
                 samples=_positive_int("samples", samples) or 0,

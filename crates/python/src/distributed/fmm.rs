@@ -44,7 +44,7 @@ impl NativeDistFmm {
         sources: PyReadonlyArray1<'_, f64>,
         targets: Option<PyReadonlyArray1<'_, f64>>,
         kernel: &str,
-        k: Option<f64>,
+        k: Option<(f64, f64)>,
         eps: Option<f64>,
         order: Option<usize>,
         leaf_size: Option<usize>,

@@ -81,10 +81,15 @@ pub(crate) fn source_kind(source: &str) -> PyResult<SourceKind> {
     }
 }
 
-/// The kernel `kernel` names with its parameter `k`, or `ValueError`
-/// saying what is missing or misplaced.
-pub(crate) fn kernel_choice(kernel: &str, k: Option<f64>) -> PyResult<KernelChoice> {
-    KernelChoice::from_parts(kernel, k).map_err(|e| {
+/// The kernel `kernel` names with its parameter `k` (`(re, im)`: a
+/// complex wavenumber for Helmholtz), or `ValueError` saying what is
+/// missing or misplaced.
+pub(crate) fn kernel_choice(kernel: &str, k: Option<(f64, f64)>) -> PyResult<KernelChoice> {
+    match k {
+        Some((re, im)) => KernelChoice::from_complex_parts(kernel, re, im),
+        None => KernelChoice::from_parts(kernel, None),
+    }
+    .map_err(|e| {
         PyValueError::new_err(
             match KernelChoice::registered().iter().find(|d| d.name == kernel) {
                 Some(d) => match (d.parameter, k) {

@@ -61,7 +61,7 @@ impl NativeFmm {
         sources: &Bound<'_, PyAny>,
         targets: Option<&Bound<'_, PyAny>>,
         kernel: &str,
-        k: Option<f64>,
+        k: Option<(f64, f64)>,
         eps: Option<f64>,
         order: Option<usize>,
         leaf_size: Option<usize>,
