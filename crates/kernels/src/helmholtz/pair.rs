@@ -88,7 +88,7 @@ const TWO_PI_F64_LO: f64 = 2.449_293_598_294_706_4e-16;
 impl LaneSources for Helmholtz3d {
     /// `NQ = 2, 6, 8` (complex charge, dipole, both) and `W = 2, 8, 20`
     /// (complex potential, with the gradient, with the gradient and the
-    /// Hessian); a complex wavenumber through [`Damped`].
+    /// Hessian); a complex wavenumber through the damped micro-kernels (`Damped`).
     fn run_sources<T: Real>(
         &self,
         level: SimdLevel,
