@@ -124,7 +124,8 @@ def test_fmm_equals_single_machine(kernel, params, components, complex_):
 
 
 @pytest.mark.parametrize("kernel,params,eps", [("laplace", {}, 1e-6), ("yukawa", {"k": 2.0}, 1e-5),
-                                               ("helmholtz", {"k": 3.0}, 1e-4),
+                                               # damped waves (a complex k)
+                                               ("helmholtz", {"k": 3.0 + 1.0j}, 1e-4),
                                                ("stokes", {}, 1e-4)])
 def test_eps_is_met(kernel, params, eps):
     rng = np.random.default_rng(3 + RANK)
