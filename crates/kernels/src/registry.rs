@@ -259,11 +259,8 @@ impl KernelChoice {
             }
             None => (spec, None),
         };
-        match parameter {
-            Some((re, im)) if im != 0.0 => Self::from_complex_parts(name, re, im),
-            p => Self::from_parts(name, p.map(|(re, _)| re)),
-        }
-        .map_err(|e| bad(e.why))
+        let (re, im) = parameter.map_or((None, 0.0), |(re, im)| (Some(re), im));
+        Self::made(name, re, im).map_err(|e| bad(e.why))
     }
 
     /// The kernel called `name` with the complex parameter `re + i im`
@@ -273,34 +270,7 @@ impl KernelChoice {
     /// [`ParseKernelError`] for an unknown name, a kernel whose parameter
     /// is real (and `im != 0`), or a value out of range.
     pub fn from_complex_parts(name: &str, re: f64, im: f64) -> Result<Self, ParseKernelError> {
-        if im == 0.0 {
-            return Self::from_parts(name, Some(re));
-        }
-        let spec = format!("{name}:{}", complex_text(re, im));
-        let bad = |why: String| ParseKernelError {
-            spec: spec.clone(),
-            why,
-        };
-        let Some((index, d)) = lookup(name) else {
-            return Err(bad(format!("use {}", Self::usage())));
-        };
-        match d.parameter {
-            None => return Err(bad(format!("{} takes no parameter", d.name))),
-            Some(p) if !p.complex => {
-                return Err(bad(format!(
-                    "the {} of {} is real, e.g. {}:{}",
-                    p.meaning, d.name, d.name, p.example
-                )));
-            }
-            Some(_) => {}
-        }
-        let choice = KernelChoice {
-            index,
-            parameter: Some(re),
-            imaginary: im,
-        };
-        choice.check().map_err(|e| bad(e.to_string()))?;
-        Ok(choice)
+        Self::made(name, Some(re), im)
     }
 
     /// The kernel called `name` (or an alias) with `parameter`, as a
@@ -310,9 +280,16 @@ impl KernelChoice {
     /// [`ParseKernelError`] for an unknown name, a missing or unexpected
     /// parameter, or a value out of range.
     pub fn from_parts(name: &str, parameter: Option<f64>) -> Result<Self, ParseKernelError> {
+        Self::made(name, parameter, 0.0)
+    }
+
+    /// [`KernelChoice::from_complex_parts`] and [`KernelChoice::from_parts`]:
+    /// the parameter `parameter + i imaginary` (`imaginary` 0 for a real
+    /// one), checked by name, presence, kind and range.
+    fn made(name: &str, parameter: Option<f64>, imaginary: f64) -> Result<Self, ParseKernelError> {
         let bad = |why: String| ParseKernelError {
             spec: match parameter {
-                Some(p) => format!("{name}:{p}"),
+                Some(p) => format!("{name}:{}", complex_text(p, imaginary)),
                 None => name.to_string(),
             },
             why,
@@ -330,12 +307,19 @@ impl KernelChoice {
             (None, Some(_)) => {
                 return Err(bad(format!("{} takes no parameter", d.name)));
             }
+            (Some(p), Some(_)) if imaginary != 0.0 && !p.complex => {
+                return Err(bad(format!(
+                    "the {} of {} is real, e.g. {}:{}",
+                    p.meaning, d.name, d.name, p.example
+                )));
+            }
             _ => {}
         }
         let choice = KernelChoice {
             index,
             parameter,
-            imaginary: 0.0,
+            // -0 is 0: one choice, one name.
+            imaginary: if imaginary == 0.0 { 0.0 } else { imaginary },
         };
         choice.check().map_err(|e| bad(e.to_string()))?;
         Ok(choice)
