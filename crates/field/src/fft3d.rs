@@ -14,6 +14,14 @@
 //! inverse undoes them in reverse order and divides by `N^3`, so that
 //! `inverse(forward(g)) = g` and a pointwise product of two spectra is the
 //! spectrum of the circular convolution of the grids.
+//!
+//! A complex grid (a complex kernel's densities, [`Fft3d::forward_complex`])
+//! has no such symmetry: its spectrum is all `N^3` values `G[a][b][c]`,
+//! stored at `(a N + b) N + c`, computed in place by complex transforms
+//! along `z`, `y` and `x`. One complex spectrum holds what the real and
+//! imaginary parts' two half spectra hold, and the convolution of a
+//! complex kernel with complex densities is one pointwise product per
+//! frequency instead of four.
 
 use std::sync::Arc;
 
@@ -34,7 +42,8 @@ pub(crate) struct Fft3d {
 /// per thread ([`Fft3d::workspace`]) and reused for every transform, so
 /// that no transform allocates or zero-fills.
 pub(crate) struct FftWorkspace {
-    /// Lines gathered for one batched complex transform (`N^2 H`).
+    /// Lines gathered for one batched complex transform (`N^3`: the
+    /// complex grids' `x` lines; the real ones use `N^2 H`).
     lines: Vec<Complex<f64>>,
     /// The complex plans' scratch.
     complex: Vec<Complex<f64>>,
@@ -56,7 +65,7 @@ impl Fft3d {
             .max(self.inverse.get_inplace_scratch_len());
         let real = self.r2c.get_scratch_len().max(self.c2r.get_scratch_len());
         FftWorkspace {
-            lines: vec![Complex::new(0.0, 0.0); n * n * h],
+            lines: vec![Complex::new(0.0, 0.0); n * n * n.max(h)],
             complex: vec![Complex::new(0.0, 0.0); complex],
             real: vec![Complex::new(0.0, 0.0); real],
             real_line: vec![0.0; n],
@@ -161,6 +170,78 @@ impl Fft3d {
         }
     }
 
+    /// Values of one complex grid and of its spectrum: `N^3`.
+    pub(crate) fn complex_len(&self) -> usize {
+        self.real_len()
+    }
+
+    /// The spectrum of a complex grid, in place: on entry `data` is the grid
+    /// (flat index `(x N + y) N + z`), zero outside `[0, support)^3`; on
+    /// return it is `G[a][b][c]` at `(a N + b) N + c`. The `z` lines of
+    /// zero `(x, y)` and the `y` lines of zero planes are skipped.
+    pub(crate) fn forward_complex(
+        &self,
+        data: &mut [Complex<f64>],
+        support: usize,
+        work: &mut FftWorkspace,
+    ) {
+        let (n, support) = self.complex_dims(data, support);
+        for x in 0..support {
+            for y in 0..support {
+                self.forward
+                    .process_with_scratch(&mut data[(x * n + y) * n..][..n], &mut work.complex);
+            }
+        }
+        for x in 0..support {
+            Self::along(
+                &mut data[x * n * n..(x + 1) * n * n],
+                n,
+                &self.forward,
+                work,
+                n,
+            );
+        }
+        Self::along(data, n * n, &self.forward, work, n);
+    }
+
+    /// The inverse of [`Fft3d::forward_complex`] (divided by `N^3`), in
+    /// place, correct at the points of `[0, support)^3` (the rest of
+    /// `data` is scratch on return).
+    pub(crate) fn inverse_complex(
+        &self,
+        data: &mut [Complex<f64>],
+        support: usize,
+        work: &mut FftWorkspace,
+    ) {
+        let (n, support) = self.complex_dims(data, support);
+        Self::along(data, n * n, &self.inverse, work, support);
+        for x in 0..support {
+            Self::along(
+                &mut data[x * n * n..(x + 1) * n * n],
+                n,
+                &self.inverse,
+                work,
+                support,
+            );
+        }
+        let norm = 1.0 / (n * n * n) as f64;
+        for x in 0..support {
+            for y in 0..support {
+                let line = &mut data[(x * n + y) * n..][..n];
+                self.inverse.process_with_scratch(line, &mut work.complex);
+                for v in &mut line[..support] {
+                    *v *= norm;
+                }
+            }
+        }
+    }
+
+    /// `(N, min(support, N))`, after checking the length of a complex grid.
+    fn complex_dims(&self, data: &[Complex<f64>], support: usize) -> (usize, usize) {
+        assert_eq!(data.len(), self.complex_len());
+        (self.n, support.min(self.n))
+    }
+
     /// `(N, N/2 + 1, min(support, N))`, after checking the lengths of a
     /// grid and a spectrum.
     fn dims(
@@ -238,6 +319,81 @@ mod tests {
     fn inverse_of_forward_and_convolution() {
         for n in [6, 7] {
             round_trip_and_convolution(n);
+        }
+    }
+
+    /// The complex transforms: round trip, a pointwise product is a
+    /// circular convolution, and a real grid's spectrum is the real
+    /// transform's (on its half), with the pruned support too.
+    #[test]
+    fn complex_transforms_round_trip_and_convolve() {
+        for (n, support) in [(6, 6), (7, 4), (12, 6)] {
+            complex_round_trip_and_convolution(n, support);
+        }
+    }
+
+    fn complex_round_trip_and_convolution(n: usize, support: usize) {
+        let fft = Fft3d::new(n);
+        let mut s = 7u64;
+        let mut next = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let idx = |x: usize, y: usize, z: usize| (x * n + y) * n + z;
+        let inside = |i: usize| {
+            let (x, y, z) = (i / (n * n), i / n % n, i % n);
+            x < support && y < support && z < support
+        };
+        let mut grid = |full: bool| -> Vec<Complex<f64>> {
+            (0..n * n * n)
+                .map(|i| {
+                    if full || inside(i) {
+                        Complex::new(next(), next())
+                    } else {
+                        Complex::new(0.0, 0.0)
+                    }
+                })
+                .collect()
+        };
+        let (a, b) = (grid(false), grid(true));
+        let mut work = fft.workspace();
+        let (mut sa, mut sb) = (a.clone(), b.clone());
+        fft.forward_complex(&mut sa, support, &mut work);
+        fft.forward_complex(&mut sb, n, &mut work);
+        // A real grid: the real transform's half spectrum.
+        let re: Vec<f64> = a.iter().map(|z| z.re).collect();
+        let mut half = vec![Complex::new(0.0, 0.0); fft.spectrum_len()];
+        fft.forward(&re, &mut half, support, &mut work);
+        let mut sre: Vec<Complex<f64>> = re.iter().map(|&x| Complex::new(x, 0.0)).collect();
+        fft.forward_complex(&mut sre, support, &mut work);
+        let h = n / 2 + 1;
+        for (i, z) in half.iter().enumerate() {
+            let (ab, c) = (i / h, i % h);
+            assert!((sre[ab * n + c] - z).norm() < 1e-12, "{i}");
+        }
+        let mut back = sa.clone();
+        fft.inverse_complex(&mut back, n, &mut work);
+        for (x, y) in a.iter().zip(&back) {
+            assert!((x - y).norm() < 1e-14);
+        }
+        let mut conv: Vec<Complex<f64>> = sa.iter().zip(&sb).map(|(x, y)| x * y).collect();
+        fft.inverse_complex(&mut conv, support, &mut work);
+        for (x, y, z) in [(0, 0, 0), (1, 3, 2), (3, 3, 3), (2, 0, 3)] {
+            if x >= support || y >= support || z >= support {
+                continue;
+            }
+            let mut want = Complex::new(0.0, 0.0);
+            for i in 0..n {
+                for j in 0..n {
+                    for k in 0..n {
+                        want += a[idx(i, j, k)]
+                            * b[idx((x + n - i) % n, (y + n - j) % n, (z + n - k) % n)];
+                    }
+                }
+            }
+            assert!((conv[idx(x, y, z)] - want).norm() < 1e-12, "{x} {y} {z}");
         }
     }
 

@@ -161,6 +161,19 @@ pub trait Kernel: Clone + Send + Sync + 'static {
         1
     }
 
+    /// `true` for a complex scalar kernel in its real form: `c = 2` and
+    /// every block is `[[Re K, -Im K], [Im K, Re K]]` (the `(1, 0)` entry
+    /// of [`Kernel::assemble`]'s block is `Im K`), so that a complex
+    /// density `q_0 + i q_1` gives the complex potential `K q`. M2L
+    /// schemes may then work in complex arithmetic (the FFT scheme
+    /// convolves one complex spectrum instead of four real ones). `false`
+    /// (the default) uses the general `c x c` path, which is right for any
+    /// kernel, so only a kernel whose blocks have that structure exactly
+    /// may say `true`.
+    fn is_complex(&self) -> bool {
+        false
+    }
+
     /// Values per source of `kind`: `components() * kind.values_per_source()`.
     fn values_per_source(&self, kind: SourceKind) -> usize {
         self.components() * kind.values_per_source()

@@ -7,7 +7,9 @@ use ferrofmm_field::{
     DenseConfig, DenseM2l, N_TRANSFER_VECTORS, OperatorParams, SvdConfig, SvdM2l,
     default_svd_tolerance, transfer_vector_index,
 };
-use ferrofmm_kernels::{Helmholtz3d, Laplace3d, ModifiedHelmholtz3d, Precision, Stokes3d};
+use ferrofmm_kernels::{
+    EvalMode, Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, Precision, Real, Stokes3d,
+};
 
 #[test]
 fn the_check_covers_every_transfer_vector() {
@@ -101,11 +103,44 @@ fn fft_conforms_exactly() {
         .unwrap();
 }
 
+/// Helmholtz's blocks as a `2 x 2` real kernel that does not say it is
+/// complex: the FFT scheme's general path of `c^2` real convolutions.
+#[derive(Clone)]
+struct RealForm(Helmholtz3d);
+
+impl Kernel for RealForm {
+    fn name(&self) -> String {
+        "helmholtz3d-real-form".to_string()
+    }
+    fn parameters(&self) -> Vec<f64> {
+        self.0.parameters()
+    }
+    fn homogeneity(&self) -> Option<f64> {
+        self.0.homogeneity()
+    }
+    fn components(&self) -> usize {
+        2
+    }
+    fn kernel_value<T: Real>(&self, d: [T; 3]) -> T {
+        self.0.kernel_value(d)
+    }
+    fn kernel_gradient<T: Real>(&self, d: [T; 3]) -> [T; 3] {
+        self.0.kernel_gradient(d)
+    }
+    fn evaluate<T: Real>(&self, mode: EvalMode, s: &[T], q: &[T], t: &[T], out: &mut [T]) {
+        self.0.evaluate(mode, s, q, t, out)
+    }
+    fn assemble<T: Real>(&self, sources: &[T], targets: &[T], matrix: &mut [T]) {
+        self.0.assemble(sources, targets, matrix)
+    }
+}
+
 /// Kernels with several components: the `3 x 3` Stokeslet (odd and even
-/// orders) and the complex Helmholtz kernel in its real `2 x 2` form
-/// (per-level operators; `k W = 8` on the check's domain of width 2), in
-/// `f64` and `f32`: `c^2` convolutions per pair, the same operator as the
-/// dense products.
+/// orders) and the Helmholtz kernel (per-level operators; `k W = 8` on the
+/// check's domain of width 2), in `f64` and `f32`: the same operator as
+/// the dense products, both on the complex path (one complex convolution
+/// per pair, real and damped wavenumbers) and in the
+/// general real form (`c^2` real convolutions).
 #[test]
 fn fft_conforms_exactly_for_kernels_with_components() {
     use ferrofmm_field::{FftConfig, FftM2l};
@@ -121,12 +156,22 @@ fn fft_conforms_exactly_for_kernels_with_components() {
         println!("fft stokes p = {p}: {:.2e}", r.relative_error);
     }
     let helmholtz = Helmholtz3d::new(4.0).unwrap();
-    let r =
-        check_scheme::<f64, FftM2l<f64>, _>(&helmholtz, &OperatorParams::new(4), &FftConfig, 1e-12)
+    let damped = Helmholtz3d::new_complex(3.0, 1.5).unwrap();
+    for (k, p) in [(&helmholtz, 4), (&damped, 3)] {
+        let r = check_scheme::<f64, FftM2l<f64>, _>(k, &OperatorParams::new(p), &FftConfig, 1e-12)
             .unwrap();
-    println!("fft helmholtz p = 4: {:.2e}", r.relative_error);
+        println!("fft {} p = {p}: {:.2e}", k.name(), r.relative_error);
+    }
     check_scheme::<f32, FftM2l<f32>, _>(&helmholtz, &OperatorParams::new(3), &FftConfig, 1e-5)
         .unwrap();
+    let r = check_scheme::<f64, FftM2l<f64>, _>(
+        &RealForm(helmholtz),
+        &OperatorParams::new(3),
+        &FftConfig,
+        1e-12,
+    )
+    .unwrap();
+    println!("fft helmholtz in real form p = 3: {:.2e}", r.relative_error);
 }
 
 /// Orders 8 and 10 (grids 15 and 20: the smooth sizes at or above `2p -

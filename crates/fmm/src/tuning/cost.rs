@@ -197,6 +197,28 @@ impl CostModel {
     }
 }
 
+impl CostModel {
+    /// The model of a complex kernel ([`Kernel::is_complex`](ferrofmm_kernels::Kernel::is_complex)):
+    /// [`CostModel::with_components`]`(2)`, except that the FFT scheme
+    /// convolves one complex spectrum of `N^3` (about `2 F`) frequencies per
+    /// box instead of four real ones: its pointwise products cost twice the
+    /// scalar kernel's, not four times (its transforms twice, as before).
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::CostModel;
+    /// let (one, z) = (CostModel::default(), CostModel::default().with_complex_components());
+    /// assert_eq!(z.fft_pair, 2.0 * one.fft_pair);
+    /// assert_eq!(z.fft_box, 2.0 * one.fft_box);
+    /// assert_eq!(z.m2l_flop, 4.0 * one.m2l_flop);
+    /// ```
+    pub fn with_complex_components(self) -> Self {
+        CostModel {
+            fft_pair: self.fft_pair * 2.0,
+            ..self.with_components(2)
+        }
+    }
+}
+
 /// Predicted seconds, by kind of work.
 #[derive(Clone, Copy, Debug, Default, PartialEq, serde::Serialize)]
 pub struct CostPrediction {

@@ -146,7 +146,8 @@ impl TuningModel for YukawaModel {
 /// measured for `k W` up to [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH)
 /// (`examples/components_sweep.rs`, `docs/kernels.md`); costs are the
 /// Laplace model's with [`HELMHOLTZ_P2P_FACTOR`] per pair and two
-/// components.
+/// components, convolved as one complex spectrum by the FFT scheme
+/// ([`CostModel::with_complex_components`](crate::tuning::CostModel::with_complex_components)).
 #[derive(Clone, Copy, Debug)]
 pub struct HelmholtzModel {
     /// `k` times the domain width.
@@ -240,7 +241,7 @@ impl TuningModel for HelmholtzModel {
         CostModel::default()
             .for_mode(mode)
             .scaled_kernel(HELMHOLTZ_P2P_FACTOR)
-            .with_components(2)
+            .with_complex_components()
     }
 }
 

@@ -181,6 +181,11 @@ impl Kernel for Helmholtz3d {
         2
     }
 
+    /// `true`: the blocks are `[[Re G, -Im G], [Im G, Re G]]`.
+    fn is_complex(&self) -> bool {
+        true
+    }
+
     /// `Re k`: the oscillation the expansions must resolve.
     fn wavenumber(&self) -> f64 {
         self.k

@@ -51,9 +51,27 @@
 //! `c^2` convolutions per pair: `c` forward FFTs per source box, `c`
 //! inverse FFTs per target box, `c^2` kernel spectra per vector and `c^2`
 //! pointwise products per frequency, against `c^2 n^2` for the dense
-//! scheme (the same ratio as for `c = 1`). A complex kernel pays twice
-//! what one complex convolution would (its four real spectra hold the
-//! real and imaginary parts twice), for one code path for every kernel.
+//! scheme (the same ratio as for `c = 1`).
+//!
+//! # Complex kernels
+//!
+//! A complex kernel in real form ([`Kernel::is_complex`]: `c = 2`, blocks
+//! `[[Re T, -Im T], [Im T, Re T]]`) would pay twice in that form: its four
+//! real spectra hold `Re T` and `Im T` twice each. It is convolved as what
+//! it is instead,
+//!
+//! ```text
+//! check[j] = sum_i T_v[j - i] phi[i],    T_v, phi, check complex,
+//! ```
+//!
+//! with complex 3D FFTs ([`Fft3d::forward_complex`]): one complex spectrum
+//! per box each way and one complex kernel spectrum per vector, each of
+//! all `N^3` frequencies (a complex grid's spectrum has no conjugate
+//! half), so one pointwise product per frequency: `N^3` complex
+//! multiply-adds per pair against `4 N^2 (floor(N/2) + 1)`, about half,
+//! and half the kernel spectra's memory. The transforms cost what the two
+//! real ones did. The pointwise products are the scalar path's, with
+//! `N^3` frequencies.
 //!
 //! # Siblings together
 //!
@@ -137,6 +155,10 @@ pub struct FftM2l<T: Real> {
     n: usize,
     /// Components `c` of the kernel.
     components: usize,
+    /// Whether the kernel is convolved as a complex scalar (see the module
+    /// docs): then each box has one complex spectrum of `N^3` frequencies,
+    /// otherwise `c` real-grid spectra of `N^2 (floor(N/2) + 1)`.
+    complex: bool,
     /// Expansion order `p`: lattice points per axis.
     order: usize,
     levels: LevelMap,
@@ -146,8 +168,8 @@ pub struct FftM2l<T: Real> {
     /// Frequency blocks of a spectrum.
     blocks: usize,
     /// `slabs[set]`: the kernel spectra `That_v` of the set, frequency
-    /// block by frequency block (`[block][SLAB_VECTORS][c][c][W]`, see
-    /// [`hadamard`]).
+    /// block by frequency block (`[block][SLAB_VECTORS][s][s][W]` with `s`
+    /// spectra per box, [`FftM2l::spectra_per_box`]; see [`hadamard`]).
     slabs: Vec<Vec<f64>>,
     /// `present[set][v]`: whether `That_v` was computed.
     present: Vec<Vec<bool>>,
@@ -210,8 +232,26 @@ impl CachePayload<f64> for FftSlabs {
 }
 
 impl<T: Real> FftM2l<T> {
+    /// Whether `kernel` takes the complex path (see the module docs).
+    fn convolves_complex<K: Kernel>(kernel: &K) -> bool {
+        kernel.is_complex() && kernel.components() == 2
+    }
+
+    /// Spectra per box: 1 on the complex path, else `c`.
+    fn spectra_per_box(&self) -> usize {
+        if self.complex { 1 } else { self.components }
+    }
+
+    /// Frequencies of one spectrum: `N^3` on the complex path, else
+    /// `N^2 (floor(N/2) + 1)`.
+    fn spectrum_len(&self) -> usize {
+        spectrum_len(&self.fft, self.complex)
+    }
+
     /// The kernel grids `T_v` at half-width `h`, transformed: `c^2`
-    /// spectra, entry `(a, b)` of the `c x c` block at `a c + b`.
+    /// spectra, entry `(a, b)` of the `c x c` block at `a c + b`; on the
+    /// complex path one spectrum, of `Re T + i Im T` (entries `(0, 0)` and
+    /// `(1, 0)`).
     fn kernel_spectra<K: Kernel>(
         kernel: &K,
         params: &OperatorParams,
@@ -243,6 +283,15 @@ impl<T: Real> FftM2l<T> {
         }
         let wrap = |m: i32| m.rem_euclid(grid as i32) as usize;
         let mut work = fft.workspace();
+        if Self::convolves_complex(kernel) {
+            let mut spectrum = vec![Complex::new(0.0, 0.0); fft.complex_len()];
+            for (m, block) in offsets.iter().zip(values.chunks_exact(4)) {
+                spectrum[(wrap(m[0]) * grid + wrap(m[1])) * grid + wrap(m[2])] =
+                    Complex::new(block[0], block[2]);
+            }
+            fft.forward_complex(&mut spectrum, grid, &mut work);
+            return Ok(vec![spectrum]);
+        }
         let mut real = vec![0.0f64; fft.real_len()];
         let spectra = (0..c * c)
             .map(|ab| {
@@ -276,6 +325,21 @@ impl<T: Real> FftM2l<T> {
                 continue;
             };
             let phi = &multipoles[col * len..(col + 1) * len];
+            if self.complex {
+                let spectrum = &mut scratch.spectrum;
+                spectrum.fill(Complex::new(0.0, 0.0));
+                for (&at, z) in self.lattice.iter().zip(phi.chunks_exact(2)) {
+                    spectrum[at] = Complex::new(z[0].to_f64(), z[1].to_f64());
+                }
+                self.fft
+                    .forward_complex(spectrum, self.order, &mut scratch.work);
+                for (f, z) in spectrum.iter().enumerate() {
+                    let at = ((f / FREQ_BLOCK) * 8 + cs) * W + f % FREQ_BLOCK;
+                    out[at] = z.re;
+                    out[at + FREQ_BLOCK] = z.im;
+                }
+                continue;
+            }
             for b in 0..c {
                 for (&at, x) in self.lattice.iter().zip(phi[b..].iter().step_by(c)) {
                     scratch.grid[at] = x.to_f64();
@@ -308,7 +372,7 @@ impl<T: Real> FftM2l<T> {
     ) {
         let c = self.components;
         let n = c * self.n;
-        let group_len = self.blocks * 8 * c * W;
+        let group_len = self.group_values();
         for (i, g) in groups.enumerate() {
             let hit = siblings.targets_hit(g);
             for ct in (0..8).filter(|ct| hit >> ct & 1 == 1) {
@@ -317,6 +381,20 @@ impl<T: Real> FftM2l<T> {
                     .expect("a target slot with pairs has a column");
                 let y = &targets[i * group_len..(i + 1) * group_len];
                 let column = &mut out[(col - col0) * n..(col - col0 + 1) * n];
+                if self.complex {
+                    let spectrum = &mut scratch.spectrum;
+                    for (f, z) in spectrum.iter_mut().enumerate() {
+                        let at = ((f / FREQ_BLOCK) * 8 + ct) * W + f % FREQ_BLOCK;
+                        *z = Complex::new(y[at], y[at + FREQ_BLOCK]);
+                    }
+                    self.fft
+                        .inverse_complex(spectrum, self.order, &mut scratch.work);
+                    for (o, &at) in column.chunks_exact_mut(2).zip(&self.lattice) {
+                        o[0] += T::from_f64(scale * spectrum[at].re);
+                        o[1] += T::from_f64(scale * spectrum[at].im);
+                    }
+                    continue;
+                }
                 for a in 0..c {
                     for (f, z) in scratch.spectrum.iter_mut().enumerate() {
                         let at = (((f / FREQ_BLOCK) * 8 + ct) * c + a) * W + f % FREQ_BLOCK;
@@ -336,9 +414,29 @@ impl<T: Real> FftM2l<T> {
         }
     }
 
-    /// Bytes of the spectra of one sibling group (`8 c` spectra).
+    /// Values of the spectra of one sibling group (`8` boxes'
+    /// [`FftM2l::spectra_per_box`] spectra).
+    fn group_values(&self) -> usize {
+        self.blocks * 8 * self.spectra_per_box() * W
+    }
+
+    /// Bytes of the spectra of one sibling group.
     fn group_bytes(&self) -> usize {
-        self.blocks * 8 * self.components * W * std::mem::size_of::<f64>()
+        self.group_values() * std::mem::size_of::<f64>()
+    }
+
+    /// One thread's buffers: a real grid (unused on the complex path) and
+    /// a spectrum (the complex path's grid too).
+    fn scratch(&self) -> Scratch {
+        Scratch {
+            grid: if self.complex {
+                Vec::new()
+            } else {
+                vec![0.0f64; self.fft.real_len()]
+            },
+            spectrum: vec![Complex::new(0.0, 0.0); self.spectrum_len()],
+            work: self.fft.workspace(),
+        }
     }
 
     /// Source groups whose spectra fit the budget (at least one).
@@ -385,11 +483,21 @@ pub(crate) fn grid_size(p: usize) -> usize {
         .expect("smooth numbers are unbounded")
 }
 
+/// Frequencies of one spectrum: `N^3` for complex grids, else
+/// `N^2 (floor(N/2) + 1)`.
+fn spectrum_len(fft: &Fft3d, complex: bool) -> usize {
+    if complex {
+        fft.complex_len()
+    } else {
+        fft.spectrum_len()
+    }
+}
+
 /// One thread's buffers in [`FftM2l::apply`].
 struct Scratch {
-    /// A real grid (`N^3`).
+    /// A real grid (`N^3`; empty on the complex path).
     grid: Vec<f64>,
-    /// A spectrum.
+    /// A spectrum (on the complex path also the grid transformed in place).
     spectrum: Vec<Complex<f64>>,
     /// The transforms' scratch.
     work: FftWorkspace,
@@ -428,11 +536,14 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         check_radii(params)?;
         params.monitor.check()?;
         let c = kernel.components();
+        let complex = Self::convolves_complex(kernel);
+        // Spectra per box.
+        let s = if complex { 1 } else { c };
         let plan = Plan::new(kernel, params, domain_width, depth, usage)?;
         let (levels, sets) = (&plan.levels, &plan.sets);
         let grid = grid_size(params.order);
         let fft = Fft3d::new(grid);
-        let blocks = fft.spectrum_len().div_ceil(FREQ_BLOCK);
+        let blocks = spectrum_len(&fft, complex).div_ceil(FREQ_BLOCK);
         let lattice = unit_surface(params.order)
             .iter()
             .map(|u| {
@@ -445,7 +556,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         // Without a cache file there is nothing to keep complete: the plan
         // has only the used vectors (with one, `planned_sets` gives all 316).
         let n_sets = sets.len();
-        let cc = c * c;
+        let cc = s * s;
         let slab_len = blocks * SLAB_VECTORS * cc * W;
         let compute_set = |set: usize, wanted: &[usize]| -> Result<Vec<f64>, FieldError> {
             if wanted.is_empty() {
@@ -480,13 +591,17 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
             let mut key =
                 CacheKey::new::<K, f64>("m2l-fft", kernel, params.order, params.radii.to_array())
                     .for_domain(domain_width, depth);
-            key.scheme_config = format!("grid {grid}");
+            key.scheme_config = if complex {
+                format!("grid {grid}, complex")
+            } else {
+                format!("grid {grid}")
+            };
             key
         };
         let layout = FftLayout {
             blocks,
             sets: n_sets,
-            components: c,
+            components: s,
         };
         let compute = || -> Result<FftSlabs, FieldError> {
             let slabs = sets
@@ -511,6 +626,7 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         Ok(FftM2l {
             n: n_surface_points(params.order),
             components: c,
+            complex,
             order: params.order,
             levels: plan.levels,
             fft,
@@ -532,13 +648,22 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         usage: &M2lUsage,
     ) -> PrecomputeEstimate {
         let sets = planned_sets(kernel.homogeneity().is_some(), params, depth, usage);
-        // `c^2` kernel spectra per vector.
-        let cc = (kernel.components() * kernel.components()) as f64;
+        // `c^2` kernel spectra per vector (one of `N^3` values complex).
+        let complex = Self::convolves_complex(kernel);
+        let c = kernel.components() as f64;
+        let cc = if complex { 1.0 } else { c * c };
         let m: usize = sets.iter().map(Vec::len).sum();
         let grid = grid_size(params.order) as f64;
-        let spectrum = grid * grid * (grid / 2.0 + 1.0);
-        // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3).
-        let flops = cc * m as f64 * (20.0 * grid.powi(3) + 15.0 * grid.powi(3) * grid.log2());
+        let spectrum = if complex {
+            grid.powi(3)
+        } else {
+            grid * grid * (grid / 2.0 + 1.0)
+        };
+        // Kernel grid (~20 flops per value) and a 3D FFT (~5 N^3 log2 N^3;
+        // the complex one twice that, for one transform instead of four).
+        let transforms = if complex { 2.0 } else { cc };
+        let flops = m as f64
+            * (20.0 * c * c * grid.powi(3) + transforms * 15.0 * grid.powi(3) * grid.log2());
         // The slabs hold every vector of a used set; each computed spectrum
         // is held once more until it is filed.
         let used_sets = sets.iter().filter(|w| !w.is_empty()).count() as f64;
@@ -576,12 +701,9 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let (set, scale) = self.levels.lookup(level, 1.0);
         self.assert_present(set, interactions);
         let siblings = interactions.sibling_blocks();
-        let group_len = self.blocks * 8 * c * W;
-        let scratch = || Scratch {
-            grid: vec![0.0f64; self.fft.real_len()],
-            spectrum: vec![Complex::new(0.0, 0.0); self.fft.spectrum_len()],
-            work: self.fft.workspace(),
-        };
+        let group_len = self.group_values();
+        let s = self.spectra_per_box();
+        let scratch = || self.scratch();
         let kernels = &self.slabs[set];
         let level_simd = SimdLevel::active();
         let threads = rayon::current_num_threads().max(1);
@@ -648,10 +770,10 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
                         targets,
                         blocks: self.blocks,
                     };
-                    if c == 1 {
+                    if s == 1 {
                         run_task(level_simd, products);
                     } else {
-                        run_task(level_simd, products.with_components(Many(c)));
+                        run_task(level_simd, products.with_components(Many(s)));
                     }
                     let done = TARGET_GROUP_WEIGHT * groups.len() as u64;
                     self.add_lattice_values(siblings, groups, targets, scale, scratch, col0, out);
@@ -686,14 +808,17 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
         let tables = GROUPS_PER_TASK
             * (crate::siblings::N_PARENT_OFFSETS - 1)
             * std::mem::size_of::<hadamard::BlockTable>();
-        let per_thread = GROUPS_PER_TASK * group
-            + tables
-            + 2 * (self.fft.real_len() * 8 + self.fft.spectrum_len() * 16);
+        let grid = if self.complex {
+            0
+        } else {
+            self.fft.real_len() * 8
+        };
+        let per_thread = GROUPS_PER_TASK * group + tables + 2 * (grid + self.spectrum_len() * 16);
         largest * group + rayon::current_num_threads() * per_thread
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {
-        let cc = (self.components * self.components) as f64;
-        8.0 * cc * self.fft.spectrum_len() as f64 * interactions.len() as f64
+        let s = self.spectra_per_box() as f64;
+        8.0 * s * s * self.spectrum_len() as f64 * interactions.len() as f64
     }
 }
