@@ -69,8 +69,8 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
 
 /// The kernel registry as a dict for the Python package: name -> {
 /// "components", "component_names", "complex", "parameter" (its keyword,
-/// or None), "parameter_meaning", "density_name", "dipoles",
-/// "summary" }. The package reads its kernel rules from here only.
+/// or None), "parameter_meaning", "parameter_complex" (whether it may be a
+/// Python complex, or None), "density_name", "dipoles", "summary" }. The package reads its kernel rules from here only.
 fn kernels(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
     use pyo3::types::PyDict;
     let all = PyDict::new(py);
@@ -81,6 +81,7 @@ fn kernels(py: Python<'_>) -> PyResult<Bound<'_, pyo3::types::PyDict>> {
         e.set_item("complex", d.complex)?;
         e.set_item("parameter", d.parameter.map(|p| p.name))?;
         e.set_item("parameter_meaning", d.parameter.map(|p| p.meaning))?;
+        e.set_item("parameter_complex", d.parameter.map(|p| p.complex))?;
         e.set_item("density_name", d.density_name)?;
         e.set_item(
             "dipoles",

@@ -107,6 +107,10 @@ def test_damped_helmholtz_takes_a_complex_wavenumber(rng):
         ferrofmm.yukawa(x, q.real, k=1.0 + 1.0j, order=4)
     with pytest.raises(TypeError):
         ferrofmm.helmholtz(x, q, k="5+1j", order=4)
+    # The registry says which parameters may be complex.
+    assert ferrofmm.KERNELS["helmholtz"]["parameter_complex"] is True
+    assert ferrofmm.KERNELS["yukawa"]["parameter_complex"] is False
+    assert ferrofmm.KERNELS["laplace"]["parameter_complex"] is None
 
 
 def test_stokes_velocity_and_gradient(rng):
