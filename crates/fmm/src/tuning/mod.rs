@@ -143,8 +143,8 @@ pub use model::{
 };
 pub use occupancy::Occupancy;
 pub use precompute_cost::{
-    DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_SET_SECONDS, SVD_ESTIMATE_SHARE,
-    precompute_seconds,
+    DENSE_SET_SECONDS, FFT_SET_SECONDS, OPERATOR_ENTRY_SECONDS, OPERATOR_SET_SECONDS,
+    SVD_ESTIMATE_SHARE, precompute_seconds,
 };
 pub use root::{
     ROOT_SCALES, ROOT_SEARCH_MIN_POINTS, ROOT_TIME_SLACK, RootChoice, box_budget, box_bytes,

@@ -9,16 +9,24 @@
 //! ([`fft_frequencies`]), one set costs
 //!
 //! ```text
-//! operators   OPERATOR_SET_SECONDS (c n)^3         check-to-equivalent pseudo-inverses, M2M, L2L
+//! operators   OPERATOR_ENTRY_SECONDS (c n)^2 + OPERATOR_SET_SECONDS (c n)^3
+//!                                                   check matrices, pseudo-inverses, M2M, L2L
 //! M2L, FFT    FFT_SET_SECONDS c^2 F                 316 kernel transforms (2 F for a complex kernel)
 //! M2L, SVD    SVD_ESTIMATE_SHARE svd_precompute_seconds c^3   the truncated SVDs
 //! M2L, dense  DENSE_SET_SECONDS 316 (c n)^2        one kernel matrix per transfer vector
 //! ```
 //!
-//! Measured on the 2-core machine with 2 threads (cold, no cache): Laplace
-//! operators 0.03 / 0.11 / 0.47 / 1.2 s at `p` = 6 / 8 / 10 / 12 (one
-//! set), modified Helmholtz the same per set, Helmholtz (complex) about
-//! 6x per set; the FFT M2L 0.03 / 0.07 / 0.19 / 0.27 s per real set; the
+//! The operators were refitted on the 2-core Intel Xeon (2 threads, cold,
+//! `ferrofmm demo --n 100000 --kernel laplace|helmholtz:10 --order P
+//! --leaf-size 512 --scheme fft --no-cache`, two Helmholtz sets): Laplace
+//! 12.5 / 38 / 125 / 311 ms at `p` = 6 / 8 / 10 / 12 (one set), Helmholtz
+//! 45 / 169 / 610 / 1746 ms per set. One curve in `m = c n` holds both
+//! within 25% (the cost grows as `m^2` at low orders, the kernel matrices
+//! and products, and towards `m^3` at high ones, the pseudo-inverses);
+//! the `(c n)^3` law alone (`2e-9`, fitted on the AMD machine's loaded
+//! runs) overstated Helmholtz at `p = 12` 3.5x and steered the chooser to
+//! a direct sum of 12 s where the FMM took 4 (`k D = 25`, 1e5 points,
+//! eps 1e-8). The FFT M2L 0.03 / 0.07 / 0.19 / 0.27 s per real set; the
 //! SVD M2L 1.4 / 6.6 / 34 s at `p` = 6 / 8 / 10 with the default SVD
 //! tolerance (0.65 / 3.9 / 14 s at `1e-4`), about 0.45 times
 //! [`SvdM2l::estimate`](ferrofmm_field::SvdM2l) on the loaded machine.
@@ -32,8 +40,17 @@ use ferrofmm_kernels::Kernel;
 use super::chooser::{ChosenParameters, svd_precompute_seconds};
 
 /// Seconds per `(c n)^3` of one operator set (pseudo-inverses of the
-/// check matrices, M2M and L2L products), 2 threads.
-pub const OPERATOR_SET_SECONDS: f64 = 2.0e-9;
+/// check matrices), 2 threads.
+pub const OPERATOR_SET_SECONDS: f64 = 3.3e-10;
+
+/// Seconds per `(c n)^2` of one operator set (check matrices, M2M and
+/// L2L products), 2 threads.
+pub const OPERATOR_ENTRY_SECONDS: f64 = 3.5e-7;
+
+/// Predicted seconds of one operator set of `m = c n` unknowns.
+fn operator_set_seconds(m: f64) -> f64 {
+    OPERATOR_ENTRY_SECONDS * m * m + OPERATOR_SET_SECONDS * m.powi(3)
+}
 
 /// Seconds per FFT frequency (times `c^2`) of one FFT M2L set, 2 threads.
 pub const FFT_SET_SECONDS: f64 = 2.0e-5;
@@ -63,7 +80,7 @@ pub fn precompute_seconds<K: Kernel>(
         return if depth == 0 {
             0.0
         } else {
-            OPERATOR_SET_SECONDS * n.powi(3)
+            operator_set_seconds(n)
         };
     }
     let sets = match kernel.homogeneity() {
@@ -79,7 +96,7 @@ pub fn precompute_seconds<K: Kernel>(
         M2lCostShape::Dense => DENSE_SET_SECONDS * 316.0 * n * n,
         _ => SVD_ESTIMATE_SHARE * svd_precompute_seconds(chosen) * c.powi(3),
     };
-    sets * (OPERATOR_SET_SECONDS * n.powi(3) + m2l)
+    sets * (operator_set_seconds(n) + m2l)
 }
 
 #[cfg(test)]
