@@ -80,8 +80,12 @@ pub fn effective_tolerance(
 /// at `p` points per box side, so the operators lose accuracy once boxes
 /// span several wavelengths (the low-frequency regime; a high-frequency
 /// FMM needs directional expansions). M2L starts at level 2, whose boxes
-/// are `W / 4` wide. Measured on the unit cube (docs/kernels.md).
-pub const MAX_WAVENUMBER_WIDTH: f64 = 40.0;
+/// are `W / 4` wide: at `k W = 100` four wavelengths, which order 16
+/// resolves to 3e-7 (N = 2e4, unit cube, FFT; order 14: 4e-5, order 12:
+/// 2e-3). Measured on the unit cube (docs/kernels.md); the chooser's
+/// orders for it come from
+/// [`helmholtz_error_factor`](crate::tuning::helmholtz_error_factor).
+pub const MAX_WAVENUMBER_WIDTH: f64 = 100.0;
 
 /// Builder of an [`Fmm`].
 ///

@@ -281,7 +281,7 @@ mod tests {
             .build_dense();
         match built {
             Err(e @ FmmError::BeyondLowFrequency { .. }) => {
-                assert!(e.to_string().contains("narrower than 4.000e-5"), "{e}");
+                assert!(e.to_string().contains("narrower than 1.000e-4"), "{e}");
             }
             other => panic!("{:?}", other.err()),
         }

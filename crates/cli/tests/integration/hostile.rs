@@ -112,6 +112,6 @@ fn the_wavenumber_limit_is_printed_in_scientific_notation() {
     ]);
     let (_, stderr) = texts(&out);
     assert_eq!(out.status.code(), Some(1), "{stderr}");
-    assert!(stderr.contains("narrower than 4.000e-5"), "{stderr}");
+    assert!(stderr.contains("narrower than 1.000e-4"), "{stderr}");
     assert!(!stderr.contains("0.0000"), "{stderr}");
 }

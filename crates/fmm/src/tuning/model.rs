@@ -178,40 +178,56 @@ pub const STOKES_P2P_FACTOR: f64 = 2.1;
 pub const STOKES_GRADIENT_P2P_FACTOR: f64 = 3.3;
 
 /// Factor on the Laplace error table of order `order` for the Helmholtz
-/// kernel at `k W = k_width`: 1 up to `k W = 10`, then the measured worst
-/// ratio (with a safety of about 2) of the Helmholtz error to the table at
-/// `k W` = 20, 30, 40 and orders 4, 6, 8 (N = 2e4, cube, charges and
-/// dipoles), interpolated in `log` between those points (orders below 4
-/// take the order-4 row, above 8 the order-8 row; beyond 40 the last
-/// column's growth continues).
+/// kernel at `k W = k_width`: the measured ratio of the Helmholtz error
+/// (worst of potential and gradient) at `k W` to the one at `k W = 10`,
+/// at the same order (N = 2e4, cube, charges and dipoles, leaf 64, FFT;
+/// `examples/components_sweep.rs`, `docs/kernels.md`), with a safety of
+/// about 1.5 on the columns past 40 and the rows above 8. Rows: orders 4,
+/// 6, 8, 10, 12, 14, 16; columns: `k W` = 10, 20, 30, 40, 50, 70, 100
+/// (orders 4 and 6 beyond 40 were not measured: they are set so high that
+/// they are never chosen there). The factor is 1 up to `k W = 10` and
+/// interpolated in `log` between rows and columns; orders below 4 take
+/// the order-4 row, above 16 the order-16 row; beyond 100 the last
+/// column's growth continues (the FMM refuses `k W` above
+/// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH)).
 ///
 /// ```
 /// use ferrofmm_fmm::tuning::helmholtz_error_factor;
 /// assert_eq!(helmholtz_error_factor(6, 5.0), 1.0);
 /// assert!(helmholtz_error_factor(4, 40.0) > helmholtz_error_factor(8, 40.0));
 /// assert!(helmholtz_error_factor(6, 30.0) > helmholtz_error_factor(6, 20.0));
+/// // At k W = 100 only high orders resolve the boxes of level 2.
+/// assert!(helmholtz_error_factor(16, 100.0) < 1e-1 * helmholtz_error_factor(12, 100.0));
 /// ```
 pub fn helmholtz_error_factor(order: usize, k_width: f64) -> f64 {
-    // Rows: orders 4, 6, 8; columns: k W = 10, 20, 30, 40.
-    const ROWS: [[f64; 4]; 3] = [
-        [1.0, 5.0, 60.0, 3200.0],
-        [1.0, 3.0, 25.0, 400.0],
-        [1.0, 3.0, 8.0, 130.0],
+    const ORDERS: [f64; 7] = [4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 16.0];
+    const K_WIDTHS: [f64; 7] = [10.0, 20.0, 30.0, 40.0, 50.0, 70.0, 100.0];
+    const ROWS: [[f64; 7]; 7] = [
+        [1.0, 5.0, 60.0, 3200.0, 1e5, 1e7, 1e9],
+        [1.0, 3.0, 25.0, 400.0, 1e4, 1e6, 1e8],
+        [1.0, 3.0, 8.0, 130.0, 2500.0, 1.8e5, 3.5e7],
+        [1.0, 3.5, 5.0, 16.0, 250.0, 5e4, 1.4e7],
+        [1.0, 1.5, 2.0, 6.0, 30.0, 1.1e4, 1e7],
+        [1.0, 1.5, 1.5, 2.5, 5.0, 700.0, 2.6e6],
+        [1.0, 1.5, 1.5, 2.0, 2.0, 25.0, 2.2e5],
     ];
-    let row_at = |p: f64| -> [f64; 4] {
-        let t = ((p - 4.0) / 2.0).clamp(0.0, 2.0);
-        let i = (t.floor() as usize).min(1);
-        let f = t - i as f64;
-        std::array::from_fn(|c| (ROWS[i][c].ln() * (1.0 - f) + ROWS[i + 1][c].ln() * f).exp())
-    };
-    let row = row_at(order as f64);
-    if k_width <= 10.0 {
+    if k_width <= K_WIDTHS[0] {
         return 1.0;
     }
-    let x = (k_width - 10.0) / 10.0;
-    let i = (x.floor() as usize).min(2);
-    let f = x - i as f64;
-    (row[i].ln() * (1.0 - f) + row[i + 1].ln() * f).exp()
+    // Position of `x` in `grid`: the segment `i` and the fraction within.
+    let locate = |grid: &[f64], x: f64| -> (usize, f64) {
+        let last = grid.len() - 2;
+        let i = grid.windows(2).position(|w| x < w[1]).unwrap_or(last);
+        (i, (x - grid[i]) / (grid[i + 1] - grid[i]))
+    };
+    let (r, fr) = locate(&ORDERS, order as f64);
+    let fr = fr.clamp(0.0, 1.0);
+    let (c, fc) = locate(&K_WIDTHS, k_width);
+    let at = |row: usize| {
+        let (a, b) = (ROWS[row][c].ln(), ROWS[row][c + 1].ln());
+        a * (1.0 - fc) + b * fc
+    };
+    (at(r) * (1.0 - fr) + at(r + 1) * fr).exp()
 }
 
 impl TuningModel for HelmholtzModel {
