@@ -42,8 +42,8 @@ pub(crate) struct Fft3d {
 /// per thread ([`Fft3d::workspace`]) and reused for every transform, so
 /// that no transform allocates or zero-fills.
 pub(crate) struct FftWorkspace {
-    /// Lines gathered for one batched complex transform (`N^3`: the
-    /// complex grids' `x` lines; the real ones use `N^2 H`).
+    /// Lines gathered for one batched complex transform (`N^2 H`; grown
+    /// to `N^3` by the first transform of a complex grid along `x`).
     lines: Vec<Complex<f64>>,
     /// The complex plans' scratch.
     complex: Vec<Complex<f64>>,
@@ -65,7 +65,7 @@ impl Fft3d {
             .max(self.inverse.get_inplace_scratch_len());
         let real = self.r2c.get_scratch_len().max(self.c2r.get_scratch_len());
         FftWorkspace {
-            lines: vec![Complex::new(0.0, 0.0); n * n * n.max(h)],
+            lines: vec![Complex::new(0.0, 0.0); n * n * h],
             complex: vec![Complex::new(0.0, 0.0); complex],
             real: vec![Complex::new(0.0, 0.0); real],
             real_line: vec![0.0; n],
@@ -295,6 +295,9 @@ impl Fft3d {
         keep: usize,
     ) {
         let n = data.len() / stride;
+        if work.lines.len() < n * stride {
+            work.lines.resize(n * stride, Complex::new(0.0, 0.0));
+        }
         let lines = &mut work.lines[..n * stride];
         for k in 0..n {
             for l in 0..stride {

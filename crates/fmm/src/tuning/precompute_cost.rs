@@ -21,7 +21,7 @@
 //! --leaf-size 512 --scheme fft --no-cache`, two Helmholtz sets): Laplace
 //! 12.5 / 38 / 125 / 311 ms at `p` = 6 / 8 / 10 / 12 (one set), Helmholtz
 //! 45 / 169 / 610 / 1746 ms per set. One curve in `m = c n` holds both
-//! within 25% (the cost grows as `m^2` at low orders, the kernel matrices
+//! within 30% (the cost grows as `m^2` at low orders, the kernel matrices
 //! and products, and towards `m^3` at high ones, the pseudo-inverses);
 //! the `(c n)^3` law alone (`2e-9`, fitted on the AMD machine's loaded
 //! runs) overstated Helmholtz at `p = 12` 3.5x and steered the chooser to
