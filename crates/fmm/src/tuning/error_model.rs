@@ -74,8 +74,19 @@ pub const MAX_SVD_TOLERANCE: f64 = 1e-2;
 /// is predicted at least this fraction cheaper.
 pub const HIGHER_ORDER_GAIN: f64 = 0.1;
 
-/// Highest order the error model knows (f64 errors stop falling beyond it).
+/// Highest order of the Laplace tables (f64 errors stop falling beyond it;
+/// see [`MAX_OSCILLATORY_ORDER`] for kernels whose errors do not).
 pub const MAX_TUNED_ORDER: usize = 12;
+
+/// Highest order an oscillatory kernel's model goes to
+/// ([`HelmholtzModel`](super::HelmholtzModel) in `f64`): at `k W` near
+/// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH) a level-2 box is
+/// four wavelengths wide and only orders 14 to 16 resolve it (`k W = 100`,
+/// N = 2e4 cube: 2.2e-3 at order 12, 3.6e-5 at 14, 3.3e-7 at 16;
+/// `docs/kernels.md`). The Laplace tables stop at [`MAX_TUNED_ORDER`]; the
+/// Helmholtz model's orders above it are measured
+/// ([`HELMHOLTZ_HIGH_ORDER_ERRORS`](super::HELMHOLTZ_HIGH_ORDER_ERRORS)).
+pub const MAX_OSCILLATORY_ORDER: usize = 16;
 
 /// Highest order used in `f32`: beyond it rounding dominates and the error
 /// no longer falls (measured: 3e-7..1e-6 at p = 7..8, 6e-7..1.4e-6 at
@@ -422,6 +433,34 @@ impl ErrorModel {
         m.scalable = None;
         m.scene = Some(*scene);
         m
+    }
+
+    /// The model with orders above its table: `(order, E_p)` appended in
+    /// `f64` (`f32` models stop at [`MAX_F32_ORDER`] and are returned as
+    /// they are), for kernels whose error keeps falling past
+    /// [`MAX_TUNED_ORDER`] (see
+    /// [`HELMHOLTZ_HIGH_ORDER_ERRORS`](super::HELMHOLTZ_HIGH_ORDER_ERRORS)).
+    /// Orders the model already has are kept.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::ErrorModel;
+    /// use ferrofmm_kernels::Precision;
+    /// let m = ErrorModel::laplace(Precision::F64).with_orders(&[(13, 5e-11), (12, 1.0)]);
+    /// assert_eq!(m.order_error(13), Some(5e-11));
+    /// assert!(m.order_error(12).unwrap() < 1e-9);
+    /// assert_eq!(ErrorModel::laplace(Precision::F32).with_orders(&[(13, 5e-11)]).order_error(13), None);
+    /// ```
+    pub fn with_orders(mut self, extra: &[(usize, f64)]) -> Self {
+        if self.precision != Precision::F64 {
+            return self;
+        }
+        for &(p, e) in extra {
+            if self.order_error(p).is_none() {
+                self.order_errors.push((p, e));
+            }
+        }
+        self.order_errors.sort_by_key(|&(p, _)| p);
+        self
     }
 
     pub(super) fn from_table(precision: Precision, table: &[f64], svd_factor: f64) -> Self {

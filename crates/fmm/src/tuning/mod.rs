@@ -42,7 +42,8 @@
 //! that were not measured; [`crate::verify`] checks the result afterwards.
 //! `f32` cannot promise less than about `S F32_ERROR_FLOOR` (see
 //! [`f32_reaches`]) and uses orders up to [`MAX_F32_ORDER`]; in `f64` the
-//! table ends at order [`MAX_TUNED_ORDER`].
+//! table ends at order [`MAX_TUNED_ORDER`] (the Helmholtz model goes on to
+//! [`MAX_OSCILLATORY_ORDER`], [`HELMHOLTZ_HIGH_ORDER_ERRORS`]).
 //!
 //! For an admissible order the SVD tolerance is the loosest `tau` that keeps
 //! `S predicted <= eps`, never tighter than the measured one and never
@@ -130,14 +131,14 @@ pub use cost::{CostModel, CostPrediction, CostSample, GRADIENT_COST_FACTOR, HESS
 pub use error_model::{
     CHOICE_BUDGET, CURVE_DIMENSION, ErrorModel, F32_ERROR_FLOOR, F32_GRADIENT_FLOOR,
     HESSIAN_ERROR_FACTOR, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES, MAX_F32_ORDER,
-    MAX_SVD_TOLERANCE, MAX_TUNED_ORDER, MIN_CHOICE_SECONDS, MIN_TUNED_ORDER, ROUNDING_FACTOR,
-    SAFETY_FACTOR, SCENE_POTENTIAL_GROWTH, SCENE_REFERENCE_POINTS, SCENE_SAFETY_FACTOR,
-    SECONDS_PER_SIMULATED_BOX, SURFACE_DIMENSIONS, VOLUME_DIMENSION, estimated_svd_rank,
-    f32_reaches, smallest_tolerance,
+    MAX_OSCILLATORY_ORDER, MAX_SVD_TOLERANCE, MAX_TUNED_ORDER, MIN_CHOICE_SECONDS, MIN_TUNED_ORDER,
+    ROUNDING_FACTOR, SAFETY_FACTOR, SCENE_POTENTIAL_GROWTH, SCENE_REFERENCE_POINTS,
+    SCENE_SAFETY_FACTOR, SECONDS_PER_SIMULATED_BOX, SURFACE_DIMENSIONS, VOLUME_DIMENSION,
+    estimated_svd_rank, f32_reaches, smallest_tolerance,
 };
 pub use model::{
-    BorrowedModel, HELMHOLTZ_P2P_FACTOR, HelmholtzModel, LaplaceModel, STOKES_ERROR_FACTOR,
-    STOKES_GRADIENT_P2P_FACTOR, STOKES_P2P_FACTOR, StokesModel, TuningModel,
+    BorrowedModel, HELMHOLTZ_HIGH_ORDER_ERRORS, HELMHOLTZ_P2P_FACTOR, HelmholtzModel, LaplaceModel,
+    STOKES_ERROR_FACTOR, STOKES_GRADIENT_P2P_FACTOR, STOKES_P2P_FACTOR, StokesModel, TuningModel,
     YUKAWA_GRADIENT_P2P_FACTOR, YUKAWA_MEASURED_K, YUKAWA_P2P_FACTOR, YukawaModel, default_model,
     helmholtz_error_factor,
 };

@@ -7,7 +7,9 @@ use ferrofmm_field::M2lCostShape;
 use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, Precision, TuningFamily};
 
 use super::cost::CostModel;
-use super::error_model::ErrorModel;
+use super::error_model::{
+    ErrorModel, HESSIAN_ERROR_FACTOR, MAX_OSCILLATORY_ORDER, MAX_TUNED_ORDER,
+};
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work
@@ -230,6 +232,21 @@ pub fn helmholtz_error_factor(order: usize, k_width: f64) -> f64 {
     (at(r) * (1.0 - fr) + at(r + 1) * fr).exp()
 }
 
+/// Errors of the Helmholtz kernel at orders 13 to
+/// [`MAX_OSCILLATORY_ORDER`] and `k W = 10`, where the Laplace tables stop
+/// ([`MAX_TUNED_ORDER`]) but the Helmholtz error still falls: measured 2.1e-11
+/// at order 14 and 2.3e-12 at 16 (3.4e-10 at 12; N = 2e4 unit cube,
+/// zero-mean charges and dipoles, leaf 64, FFT, worst of potential and
+/// gradient on 400 targets, `examples/components_sweep.rs`), orders 13 and
+/// 15 interpolated in `log`. They serve every output (times
+/// [`HESSIAN_ERROR_FACTOR`] with Hessians): where these orders are needed,
+/// at high `k W`, the potential's error is the gradient's (`k D = 100`,
+/// order 14: potential 3.3e-5 at 1e5 points against 3.6e-5 for the worst
+/// output at 2e4). [`helmholtz_error_factor`] scales them with `k W` as it
+/// does the Laplace tables.
+pub const HELMHOLTZ_HIGH_ORDER_ERRORS: [f64; MAX_OSCILLATORY_ORDER - MAX_TUNED_ORDER] =
+    [8.5e-11, 2.1e-11, 7.0e-12, 2.3e-12];
+
 impl TuningModel for HelmholtzModel {
     fn name(&self) -> String {
         format!(
@@ -243,7 +260,18 @@ impl TuningModel for HelmholtzModel {
     }
 
     fn error_model(&self, precision: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
-        let mut m = ErrorModel::laplace_for(precision, mode);
+        // Orders to 16: at k W near 100 only they resolve the coarse boxes.
+        let hessian = if mode.has_hessian() {
+            HESSIAN_ERROR_FACTOR
+        } else {
+            1.0
+        };
+        let high: Vec<(usize, f64)> = HELMHOLTZ_HIGH_ORDER_ERRORS
+            .iter()
+            .enumerate()
+            .map(|(i, e)| (MAX_TUNED_ORDER + 1 + i, e * hessian))
+            .collect();
+        let mut m = ErrorModel::laplace_for(precision, mode).with_orders(&high);
         for (p, e) in m.order_errors.iter_mut() {
             *e *= helmholtz_error_factor(*p, self.k_width);
         }
@@ -394,5 +422,66 @@ pub fn default_model<K: Kernel>(kernel: &K, domain_width: f64) -> Arc<dyn Tuning
         TuningFamily::ModifiedHelmholtz => Arc::new(YukawaModel { k_width }),
         TuningFamily::Helmholtz => Arc::new(HelmholtzModel { k_width }),
         TuningFamily::Stokes => Arc::new(StokesModel),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn model(k_width: f64, precision: Precision, mode: EvalMode) -> ErrorModel {
+        HelmholtzModel { k_width }.error_model(precision, mode, M2lCostShape::Fft)
+    }
+
+    /// At `k W = 100` the orders above 12 are what reaches 1e-3 .. 1e-6
+    /// (the potential): 2.2e-3 at order 12, 3.6e-5 at 14 and 3.3e-7 at 16
+    /// measured; each tolerance takes a higher order than the last.
+    #[test]
+    fn high_wavenumbers_use_orders_to_16() {
+        let m = model(100.0, Precision::F64, EvalMode::Potential);
+        let top = m.order_errors.last().unwrap().0;
+        assert_eq!(top, MAX_OSCILLATORY_ORDER);
+        let orders: Vec<Option<usize>> = [1e-3, 1e-4, 1e-5, 1e-6]
+            .iter()
+            .map(|&eps| m.smallest_order(eps, 0.0))
+            .collect();
+        assert!(
+            orders
+                .iter()
+                .all(|p| p.is_some_and(|p| p > MAX_TUNED_ORDER)),
+            "{orders:?}"
+        );
+        assert!(orders.windows(2).all(|w| w[0] < w[1]), "{orders:?}");
+        // The predictions stay above what was measured at orders 14 and 16
+        // (worst of potential and gradient, N = 2e4 cube; the potential
+        // alone at 1e5, order 14: 3.3e-5).
+        assert!(m.order_error(14).unwrap() >= 3.6e-5);
+        assert!(m.order_error(16).unwrap() >= 3.3e-7);
+        // With gradients too: the high orders' errors are the worst output's.
+        let g = model(100.0, Precision::F64, EvalMode::PotentialGradient);
+        assert_eq!(g.smallest_order(1e-6, 0.0), orders[3]);
+    }
+
+    /// At low wavenumbers the orders above 12 fall towards f64's rounding
+    /// (with gradients, whose order-12 entry is the higher); `f32` keeps
+    /// its orders.
+    #[test]
+    fn high_orders_fall_towards_rounding() {
+        let m = model(5.0, Precision::F64, EvalMode::PotentialGradient);
+        for p in MAX_TUNED_ORDER + 1..=MAX_OSCILLATORY_ORDER {
+            let e = m.order_error(p).unwrap();
+            assert!(
+                e >= 1e-12 && e < m.order_error(p - 1).unwrap(),
+                "p={p}: {e:e}"
+            );
+        }
+        let f32 = model(100.0, Precision::F32, EvalMode::Potential);
+        assert_eq!(
+            f32.order_errors.last().unwrap().0,
+            crate::tuning::MAX_F32_ORDER
+        );
+        // The Laplace model itself is unchanged.
+        let laplace = ErrorModel::laplace(Precision::F64);
+        assert_eq!(laplace.order_errors.last().unwrap().0, MAX_TUNED_ORDER);
     }
 }
