@@ -197,12 +197,21 @@ pub(crate) fn check_domain_width(
     })
 }
 
+/// Relative room above [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH)
+/// for the root box's padding (see [`check_wavenumber`]).
+const WAVENUMBER_WIDTH_SLACK: f64 = 1e-5;
+
 /// [`FmmError::BeyondLowFrequency`] when `k W` exceeds
 /// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH) for the kernel's
 /// wavenumber `k` and the domain width `W`.
+///
+/// The comparison allows a relative [`WAVENUMBER_WIDTH_SLACK`]: the tree's
+/// root is the points' bounding cube enlarged by about `2^-20` of its width
+/// (so that every point lies strictly inside), and points whose extent is
+/// exactly `100 / k` (`k D = 100`, the limit as users state it) must pass.
 pub(crate) fn check_wavenumber<K: Kernel>(kernel: &K, width: f64) -> Result<(), FmmError> {
     let k = kernel.wavenumber();
-    if k * width > crate::MAX_WAVENUMBER_WIDTH {
+    if k * width > crate::MAX_WAVENUMBER_WIDTH * (1.0 + WAVENUMBER_WIDTH_SLACK) {
         return Err(FmmError::BeyondLowFrequency {
             kernel: kernel.name(),
             wavenumber: k,
@@ -285,5 +294,23 @@ mod tests {
             }
             other => panic!("{:?}", other.err()),
         }
+    }
+
+    /// Points spanning exactly `100 / k` (`k D = 100`) pass although the
+    /// root box is a little wider than they are; 1% more is refused.
+    #[test]
+    fn the_wavenumber_limit_is_k_times_the_points_extent() {
+        use crate::FmmError;
+        use ferrofmm_kernels::Helmholtz3d;
+        use ferrofmm_tree::Domain;
+        let x = [0.0, 0.0, 0.0, 1.0, 1.0, 1.0, 0.3, 0.7, 0.2];
+        let d = Domain::from_points(&[&x]).unwrap();
+        assert!(d.width > 1.0);
+        let at = |k: f64| super::check_wavenumber(&Helmholtz3d::new(k).unwrap(), d.width);
+        assert!(at(crate::MAX_WAVENUMBER_WIDTH).is_ok());
+        assert!(matches!(
+            at(1.01 * crate::MAX_WAVENUMBER_WIDTH),
+            Err(FmmError::BeyondLowFrequency { .. })
+        ));
     }
 }
