@@ -1,0 +1,160 @@
+//! The cost model against this machine, pass by pass: for each setting,
+//! the measured P2P, far field (P2M, M2M, L2L, L2P, M2P, P2L), M2L and
+//! tree times next to what `tuning::CostModel` predicts for the same tree,
+//! and their ratio. A ratio far from 1 in one column only (the others
+//! near each other) is what moves the chooser's decisions on a new machine:
+//! only the ratios between the columns matter to it.
+//!
+//! ```text
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
+//!     N KERNEL GEOMETRY MODE SCHEME ORDER,LEAF [ORDER,LEAF ...]
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
+//!     100000 laplace cube gradient fft 6,512 8,384 6,128
+//! ```
+//!
+//! `KERNEL`: `laplace` or `helmholtz:K`; `GEOMETRY`: cube, sphere, plummer,
+//! two-clusters; `MODE`: `potential` or `gradient`; `SCHEME`: `fft` or
+//! `svd`. Zero-mean charges; evaluation the best of two; operators from
+//! the on-disk cache `target/cost-check-cache` (filled on the first run).
+use ferrofmm_field::{FftM2l, M2lCostShape, SvdM2l};
+use ferrofmm_fmm::tuning::{WorkCounts, default_model};
+use ferrofmm_fmm::{Charges, EvalTimings, FmmBuilder, Geometry};
+use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, Laplace3d, SourceKind};
+
+const CACHE: &str = "target/cost-check-cache";
+
+fn usage() -> ! {
+    eprintln!(
+        "usage: cost_check N laplace|helmholtz:K GEOMETRY potential|gradient fft|svd ORDER,LEAF ..."
+    );
+    std::process::exit(2);
+}
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    if args.len() < 6 {
+        usage();
+    }
+    let n: usize = args[0].parse().unwrap_or_else(|_| usage());
+    let geometry = Geometry::from_name(&args[2]).unwrap_or_else(|| usage());
+    let mode = match args[3].as_str() {
+        "potential" => EvalMode::Potential,
+        "gradient" => EvalMode::PotentialGradient,
+        _ => usage(),
+    };
+    let fft = match args[4].as_str() {
+        "fft" => true,
+        "svd" => false,
+        _ => usage(),
+    };
+    let settings: Vec<(usize, usize)> = args[5..]
+        .iter()
+        .map(|s| {
+            let (p, l) = s.split_once(',').unwrap_or_else(|| usage());
+            (
+                p.parse().unwrap_or_else(|_| usage()),
+                l.parse().unwrap_or_else(|_| usage()),
+            )
+        })
+        .collect();
+    let points: Vec<f64> = geometry.points(n, 7);
+    println!(
+        "| kernel | order, leaf | depth | P2P s (model) | far s (model) | M2L s (model) | tree s (model) | total s (model) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    match args[1].split_once(':') {
+        None if args[1] == "laplace" => {
+            for &s in &settings {
+                row(&points, Laplace3d, mode, fft, s);
+            }
+        }
+        Some(("helmholtz", k)) => {
+            let k: f64 = k.parse().unwrap_or_else(|_| usage());
+            for &s in &settings {
+                row(&points, Helmholtz3d::new(k).unwrap(), mode, fft, s);
+            }
+        }
+        _ => usage(),
+    }
+}
+
+fn row<K: Kernel>(
+    points: &[f64],
+    kernel: K,
+    mode: EvalMode,
+    fft: bool,
+    (order, leaf): (usize, usize),
+) {
+    let n = points.len() / 3;
+    let q: Vec<f64> = Charges::Signed.generate(n * kernel.values_per_source(SourceKind::Charge), 3);
+    let builder = || {
+        FmmBuilder::new(points)
+            .kernel(kernel.clone())
+            .order(order)
+            .leaf_size(leaf)
+            .mode(mode)
+            .cache_dir(CACHE)
+    };
+    // Build twice (the first fills the cache), keep the faster tree.
+    let run = |fmm: &dyn Fn() -> (f64, EvalTimings, WorkCounts, u32, f64, usize)| {
+        let _ = fmm();
+        let (a, b) = (fmm(), fmm());
+        if a.1.total <= b.1.total { a } else { b }
+    };
+    let (tree_s, t, work, depth, width, rank) = if fft {
+        run(&|| {
+            let f = builder()
+                .build_with::<FftM2l<f64>>(Default::default())
+                .unwrap();
+            let (_, t) = f.evaluate_timed(&q).unwrap();
+            let s = f.setup_timings();
+            let w = f.tree().domain().width;
+            let work = WorkCounts::of_tree(f.tree());
+            (
+                (s.tree + s.layout).as_secs_f64(),
+                t,
+                work,
+                f.summary().depth,
+                w,
+                0,
+            )
+        })
+    } else {
+        run(&|| {
+            let f = builder()
+                .build_with::<SvdM2l<f64>>(Default::default())
+                .unwrap();
+            let (_, t) = f.evaluate_timed(&q).unwrap();
+            let s = f.setup_timings();
+            let w = f.tree().domain().width;
+            let work = WorkCounts::of_tree(f.tree());
+            let rank = f.m2l_scheme().rank();
+            (
+                (s.tree + s.layout).as_secs_f64(),
+                t,
+                work,
+                f.summary().depth,
+                w,
+                rank,
+            )
+        })
+    };
+    let shape = if fft {
+        M2lCostShape::Fft
+    } else {
+        M2lCostShape::Compressed
+    };
+    let model = default_model(&kernel, width).cost_model(mode, shape);
+    let p = model.predict_for(shape, &work, order, rank);
+    let far = t.p2m + t.m2m + t.l2l + t.l2p + t.m2p + t.p2l;
+    let cell = |m: f64, pr: f64| format!("{m:.3} ({pr:.3}, {:.2}x)", m / pr);
+    println!(
+        "| {} | {order}, {leaf} | {depth} | {} | {} | {} | {} | {} |",
+        kernel.name(),
+        cell(t.p2p.as_secs_f64(), p.p2p),
+        cell(far.as_secs_f64(), p.far),
+        cell(t.m2l.as_secs_f64(), p.m2l),
+        cell(tree_s, p.tree),
+        cell(t.total.as_secs_f64() + tree_s, p.total),
+    );
+}
