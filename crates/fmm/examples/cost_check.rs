@@ -13,11 +13,23 @@
 //! ```
 //!
 //! `KERNEL`: `laplace` or `helmholtz:K`; `GEOMETRY`: cube, sphere, plummer,
-//! two-clusters; `MODE`: `potential` or `gradient`; `SCHEME`: `fft` or
-//! `svd`. Zero-mean charges; evaluation the best of two; operators from
-//! the on-disk cache `target/cost-check-cache` (filled on the first run).
+//! two-clusters; `MODE`: `potential` or `gradient`; `SCHEME`: `fft`, `svd`
+//! or `both` (each setting with each scheme). Zero-mean charges; evaluation
+//! the best of two; operators from the on-disk cache
+//! `target/cost-check-cache` (filled on the first run).
+//!
+//! For Laplace potentials (what `CostModel::default` describes; the other
+//! kernels and modes are factors on it) the runs are also fitted
+//! (`CostModel::fit`, group by group; a group without runs, e.g. the SVD
+//! M2L with `fft`, keeps its default) and the fitted model printed, to
+//! paste into `CostModel::default` after checking it on other settings.
+//!
+//! ```text
+//! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
+//!     100000 laplace cube potential both 4,64 6,128 6,512 8,256 8,512 10,512
+//! ```
 use ferrofmm_field::{FftM2l, M2lCostShape, SvdM2l};
-use ferrofmm_fmm::tuning::{WorkCounts, default_model};
+use ferrofmm_fmm::tuning::{CostModel, CostSample, WorkCounts, default_model};
 use ferrofmm_fmm::{Charges, EvalTimings, FmmBuilder, Geometry};
 use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, Laplace3d, SourceKind};
 
@@ -42,9 +54,10 @@ fn main() {
         "gradient" => EvalMode::PotentialGradient,
         _ => usage(),
     };
-    let fft = match args[4].as_str() {
-        "fft" => true,
-        "svd" => false,
+    let schemes: &[bool] = match args[4].as_str() {
+        "fft" => &[true],
+        "svd" => &[false],
+        "both" => &[true, false],
         _ => usage(),
     };
     let settings: Vec<(usize, usize)> = args[5..]
@@ -62,29 +75,42 @@ fn main() {
         "| kernel | order, leaf | depth | P2P s (model) | far s (model) | M2L s (model) | tree s (model) | total s (model) |"
     );
     println!("|---|---|---|---|---|---|---|---|");
+    let mut samples = Vec::new();
     match args[1].split_once(':') {
         None if args[1] == "laplace" => {
             for &s in &settings {
-                row(&points, Laplace3d, mode, fft, s);
+                for &fft in schemes {
+                    samples.push(row(&points, Laplace3d, mode, fft, s));
+                }
             }
         }
         Some(("helmholtz", k)) => {
             let k: f64 = k.parse().unwrap_or_else(|_| usage());
             for &s in &settings {
-                row(&points, Helmholtz3d::new(k).unwrap(), mode, fft, s);
+                for &fft in schemes {
+                    row(&points, Helmholtz3d::new(k).unwrap(), mode, fft, s);
+                }
             }
         }
         _ => usage(),
     }
+    if !samples.is_empty() && mode == EvalMode::Potential {
+        println!(
+            "\nfitted to these {} runs: {:#?}",
+            samples.len(),
+            CostModel::fit(&samples)
+        );
+    }
 }
 
+/// Measure one setting, print its row and return it as a fit sample.
 fn row<K: Kernel>(
     points: &[f64],
     kernel: K,
     mode: EvalMode,
     fft: bool,
     (order, leaf): (usize, usize),
-) {
+) -> CostSample {
     let n = points.len() / 3;
     let q: Vec<f64> = Charges::Signed.generate(n * kernel.values_per_source(SourceKind::Charge), 3);
     let builder = || {
@@ -149,12 +175,21 @@ fn row<K: Kernel>(
     let far = t.p2m + t.m2m + t.l2l + t.l2p + t.m2p + t.p2l;
     let cell = |m: f64, pr: f64| format!("{m:.3} ({pr:.3}, {:.2}x)", m / pr);
     println!(
-        "| {} | {order}, {leaf} | {depth} | {} | {} | {} | {} | {} |",
+        "| {} {} | {order}, {leaf} | {depth} | {} | {} | {} | {} | {} |",
         kernel.name(),
+        if fft { "fft" } else { "svd" },
         cell(t.p2p.as_secs_f64(), p.p2p),
         cell(far.as_secs_f64(), p.far),
         cell(t.m2l.as_secs_f64(), p.m2l),
         cell(tree_s, p.tree),
         cell(t.total.as_secs_f64() + tree_s, p.total),
     );
+    CostSample {
+        work,
+        order,
+        rank,
+        shape,
+        eval: t,
+        tree_seconds: tree_s,
+    }
 }
