@@ -199,7 +199,7 @@ pub(crate) fn check_domain_width(
 
 /// Relative room above [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH)
 /// for the root box's padding (see [`check_wavenumber`]).
-const WAVENUMBER_WIDTH_SLACK: f64 = 1e-5;
+pub(crate) const WAVENUMBER_WIDTH_SLACK: f64 = 1e-5;
 
 /// [`FmmError::BeyondLowFrequency`] when `k W` exceeds
 /// [`MAX_WAVENUMBER_WIDTH`](crate::MAX_WAVENUMBER_WIDTH) for the kernel's

@@ -256,7 +256,9 @@ impl TuningModel for HelmholtzModel {
     }
 
     fn measured(&self) -> bool {
-        self.k_width <= crate::MAX_WAVENUMBER_WIDTH
+        // The limit as the build checks it (room for the root's padding).
+        self.k_width
+            <= crate::MAX_WAVENUMBER_WIDTH * (1.0 + crate::validate::WAVENUMBER_WIDTH_SLACK)
     }
 
     fn error_model(&self, precision: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
