@@ -28,9 +28,9 @@
 //! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
 //!     100000 laplace cube potential both 4,64 6,128 6,512 8,256 8,512 10,512
 //! ```
-use ferrofmm_field::{FftM2l, M2lCostShape, SvdM2l};
+use ferrofmm_field::{FftM2l, M2lCostShape, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::{CostModel, CostSample, WorkCounts, default_model};
-use ferrofmm_fmm::{Charges, EvalTimings, FmmBuilder, Geometry};
+use ferrofmm_fmm::{Charges, EvalTimings, Fmm, FmmBuilder, Geometry};
 use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, Laplace3d, SourceKind};
 
 const CACHE: &str = "target/cost-check-cache";
@@ -103,6 +103,34 @@ fn main() {
     }
 }
 
+/// One built and evaluated setting.
+struct Measured {
+    /// Tree construction with the V-list layout, seconds.
+    tree_s: f64,
+    eval: EvalTimings,
+    work: WorkCounts,
+    depth: u32,
+    /// Width of the root box.
+    width: f64,
+    /// M2L rank (0 for FFT).
+    rank: usize,
+}
+
+impl Measured {
+    fn of<K: Kernel, S: M2lScheme<f64>>(f: &Fmm<f64, K, S>, q: &[f64], rank: usize) -> Self {
+        let (_, eval) = f.evaluate_timed(q).unwrap();
+        let s = f.setup_timings();
+        Measured {
+            tree_s: (s.tree + s.layout).as_secs_f64(),
+            eval,
+            work: WorkCounts::of_tree(f.tree()),
+            depth: f.summary().depth,
+            width: f.tree().domain().width,
+            rank,
+        }
+    }
+}
+
 /// Measure one setting, print its row and return it as a fit sample.
 fn row<K: Kernel>(
     points: &[f64],
@@ -121,48 +149,33 @@ fn row<K: Kernel>(
             .mode(mode)
             .cache_dir(CACHE)
     };
-    // Build twice (the first fills the cache), keep the faster tree.
-    let run = |fmm: &dyn Fn() -> (f64, EvalTimings, WorkCounts, u32, f64, usize)| {
-        let _ = fmm();
-        let (a, b) = (fmm(), fmm());
-        if a.1.total <= b.1.total { a } else { b }
+    // Build three times (the first fills the cache), keep the faster of
+    // the last two.
+    let best = |run: &dyn Fn() -> Measured| {
+        let _ = run();
+        let (a, b) = (run(), run());
+        if a.eval.total <= b.eval.total { a } else { b }
     };
-    let (tree_s, t, work, depth, width, rank) = if fft {
-        run(&|| {
+    let Measured {
+        tree_s,
+        eval: t,
+        work,
+        depth,
+        width,
+        rank,
+    } = if fft {
+        best(&|| {
             let f = builder()
                 .build_with::<FftM2l<f64>>(Default::default())
                 .unwrap();
-            let (_, t) = f.evaluate_timed(&q).unwrap();
-            let s = f.setup_timings();
-            let w = f.tree().domain().width;
-            let work = WorkCounts::of_tree(f.tree());
-            (
-                (s.tree + s.layout).as_secs_f64(),
-                t,
-                work,
-                f.summary().depth,
-                w,
-                0,
-            )
+            Measured::of(&f, &q, 0)
         })
     } else {
-        run(&|| {
+        best(&|| {
             let f = builder()
                 .build_with::<SvdM2l<f64>>(Default::default())
                 .unwrap();
-            let (_, t) = f.evaluate_timed(&q).unwrap();
-            let s = f.setup_timings();
-            let w = f.tree().domain().width;
-            let work = WorkCounts::of_tree(f.tree());
-            let rank = f.m2l_scheme().rank();
-            (
-                (s.tree + s.layout).as_secs_f64(),
-                t,
-                work,
-                f.summary().depth,
-                w,
-                rank,
-            )
+            Measured::of(&f, &q, f.m2l_scheme().rank())
         })
     };
     let shape = if fft {
