@@ -257,11 +257,7 @@ fn scene_error(i: usize, mode: EvalMode, scene: &Scene) -> f64 {
     if mode.values_per_target() == 1 {
         return pot;
     }
-    let hessian = if mode.has_hessian() {
-        HESSIAN_ERROR_FACTOR
-    } else {
-        1.0
-    };
+    let hessian = hessian_factor(mode);
     let grad = hessian
         * interp(
             &CURVE_GRADIENT_ERRORS,
@@ -276,11 +272,7 @@ fn worst_error(i: usize, mode: EvalMode) -> f64 {
     if mode.values_per_target() == 1 {
         return F64_POTENTIAL_ERRORS[i];
     }
-    let hessian = if mode.has_hessian() {
-        HESSIAN_ERROR_FACTOR
-    } else {
-        1.0
-    };
+    let hessian = hessian_factor(mode);
     F64_POTENTIAL_ERRORS[i].max(F64_GRADIENT_ERRORS[i] * hessian)
 }
 
@@ -291,6 +283,16 @@ fn worst_error(i: usize, mode: EvalMode) -> f64 {
 /// `F64_GRADIENT_ERRORS` is scaled by it for
 /// `EvalMode::PotentialGradientHessian`.
 pub const HESSIAN_ERROR_FACTOR: f64 = 2.5;
+
+/// [`HESSIAN_ERROR_FACTOR`] when `mode` evaluates Hessians, else 1: the
+/// factor on a gradient error table.
+pub(super) fn hessian_factor(mode: EvalMode) -> f64 {
+    if mode.has_hessian() {
+        HESSIAN_ERROR_FACTOR
+    } else {
+        1.0
+    }
+}
 
 /// Ranks of the SVD-compressed M2L stack at tolerances `10^-2 .. 10^-11`
 /// (measured, order 9; lower orders cap the rank at the number of surface
@@ -361,11 +363,7 @@ impl ErrorModel {
         if mode.values_per_target() == 1 {
             return Self::laplace(precision);
         }
-        let hessian = if mode.has_hessian() {
-            HESSIAN_ERROR_FACTOR
-        } else {
-            1.0
-        };
+        let hessian = hessian_factor(mode);
         let worst: Vec<f64> = F64_POTENTIAL_ERRORS
             .iter()
             .zip(&F64_GRADIENT_ERRORS)

@@ -7,9 +7,7 @@ use ferrofmm_field::M2lCostShape;
 use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, Precision, TuningFamily};
 
 use super::cost::CostModel;
-use super::error_model::{
-    ErrorModel, HESSIAN_ERROR_FACTOR, MAX_OSCILLATORY_ORDER, MAX_TUNED_ORDER,
-};
+use super::error_model::{ErrorModel, MAX_OSCILLATORY_ORDER, MAX_TUNED_ORDER, hessian_factor};
 
 /// What the chooser needs to know about one kernel (and, through `scheme`,
 /// one M2L scheme): how the error falls with the order, and what the work
@@ -239,7 +237,7 @@ pub fn helmholtz_error_factor(order: usize, k_width: f64) -> f64 {
 /// zero-mean charges and dipoles, leaf 64, FFT, worst of potential and
 /// gradient on 400 targets, `examples/components_sweep.rs`), orders 13 and
 /// 15 interpolated in `log`. They serve every output (times
-/// [`HESSIAN_ERROR_FACTOR`] with Hessians): where these orders are needed,
+/// [`HESSIAN_ERROR_FACTOR`](super::HESSIAN_ERROR_FACTOR) with Hessians): where these orders are needed,
 /// at high `k W`, the potential's error is the gradient's (`k D = 100`,
 /// order 14: potential 3.3e-5 at 1e5 points against 3.6e-5 for the worst
 /// output at 2e4). [`helmholtz_error_factor`] scales them with `k W` as it
@@ -263,11 +261,7 @@ impl TuningModel for HelmholtzModel {
 
     fn error_model(&self, precision: Precision, mode: EvalMode, _: M2lCostShape) -> ErrorModel {
         // Orders to 16: at k W near 100 only they resolve the coarse boxes.
-        let hessian = if mode.has_hessian() {
-            HESSIAN_ERROR_FACTOR
-        } else {
-            1.0
-        };
+        let hessian = hessian_factor(mode);
         let high: Vec<(usize, f64)> = HELMHOLTZ_HIGH_ORDER_ERRORS
             .iter()
             .enumerate()
