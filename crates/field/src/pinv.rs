@@ -60,6 +60,49 @@ pub(crate) fn pinv(a: MatRef<'_, f64>, rcond: f64, what: &str) -> Result<PinvF64
     Ok(from_svd(u.as_ref(), &s, v.as_ref(), rcond, None))
 }
 
+/// The least-squares solution `X = A^+ B` with the truncated pseudo-inverse
+/// of `A` (keeping `sigma_i > rcond sigma_0`), applied in its two factors
+/// (`U_r^T B`, then `V_r S_r^-1`), as every check-to-equivalent solve here
+/// is. `a` is row-major `m x n`, `b` row-major `m x k`; the result is
+/// row-major `n x k`. For those who translate equivalent densities outside
+/// the built-in operators (the periodic FMM's super-cells).
+///
+/// ```
+/// use ferrofmm_field::plumbing::truncated_solve;
+/// // A diagonal 2 x 2 system and a singular value below the cutoff.
+/// let x = truncated_solve(&[2.0, 0.0, 0.0, 4.0], 2, 2, &[1.0, 1.0], 1, 1e-13).unwrap();
+/// assert!((x[0] - 0.5).abs() < 1e-15 && (x[1] - 0.25).abs() < 1e-15);
+/// let x = truncated_solve(&[2.0, 0.0, 0.0, 1e-20], 2, 2, &[1.0, 1.0], 1, 1e-13).unwrap();
+/// assert_eq!(x[1], 0.0);
+/// ```
+///
+/// # Errors
+/// [`FieldError::InvalidParams`] for slices of the wrong lengths;
+/// [`FieldError::SvdFailed`] when the SVD does not converge.
+pub fn truncated_solve(
+    a: &[f64],
+    m: usize,
+    n: usize,
+    b: &[f64],
+    k: usize,
+    rcond: f64,
+) -> Result<Vec<f64>, FieldError> {
+    if a.len() != m * n || b.len() != m * k {
+        return Err(FieldError::InvalidParams(format!(
+            "truncated_solve: A has {} entries for {m} x {n}, B {} for {m} x {k}",
+            a.len(),
+            b.len()
+        )));
+    }
+    let a = faer::Mat::from_fn(m, n, |i, j| a[i * n + j]);
+    let p = pinv(a.as_ref(), rcond, "truncated solve")?;
+    let b = faer::Mat::from_fn(m, k, |i, j| b[i * k + j]);
+    let vs = MatRef::from_column_major_slice(&p.vs, n, p.rank);
+    let ut = MatRef::from_column_major_slice(&p.ut, p.rank, m);
+    let x = vs * (ut * b);
+    Ok((0..n * k).map(|e| x[(e / k, e % k)]).collect())
+}
+
 /// The truncated pseudo-inverses of `a` and of `b = D a^T D` (`a` square,
 /// `D = diag(signs)`), from one SVD: with `a = U S V^T`, `b = (D V) S (D
 /// U)^T`, so `b^+ = (D U_r S_r^-1) (V_r^T D)`. The downward check matrix of

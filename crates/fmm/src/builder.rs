@@ -540,14 +540,21 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     /// gradient). Laplace and Yukawa also run in slabs (`x` and `y`
     /// repeat, [`crate::PeriodicAxes::Xy`]) and rods (`x` repeats,
     /// [`crate::PeriodicAxes::X`]), whose points must lie within the cell
-    /// along the open axes. Other kernels, dipoles, Stokes slabs and rods,
-    /// non-cubic boxes and a [`FmmBuilder::domain`] beside the cell are
-    /// refused when building. A tolerance is chosen and verified as in
-    /// free space, the verification's truth being an Ewald sum
-    /// ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa;
+    /// along the open axes. Any other kernel whose lattice sum converges
+    /// absolutely (your own [`Kernel`], damped Helmholtz waves) runs in
+    /// bulk, slabs and rods too, its far images summed over super-cells
+    /// with its own values ([`crate::periodic::LatticeSum::Images`]); one
+    /// whose sum does not converge (decaying as `r^-3` or slower in bulk,
+    /// undamped waves) is refused when building, with the reason. Dipoles,
+    /// Stokes slabs and rods, non-cubic boxes and a [`FmmBuilder::domain`]
+    /// beside the cell are refused when building. A tolerance is chosen and
+    /// verified as in free space, the verification's truth being an Ewald
+    /// sum ([`ferrofmm_kernels::EwaldSum`], screened for Yukawa;
     /// [`ferrofmm_kernels::StokesEwaldSum`] for Stokes;
     /// [`ferrofmm_kernels::SlabGreen`] and [`ferrofmm_kernels::RodGreen`]
-    /// pair by pair for slabs and rods).
+    /// pair by pair for slabs and rods), or for the other kernels the image
+    /// sum itself, shell by shell (refused, with the reason, when it would
+    /// take more than `4e10` kernel evaluations).
     ///
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Periodic};
@@ -668,12 +675,15 @@ fn check_periodic_problem<K: Kernel>(
     match crate::periodic::lattice_sum(kernel) {
         None => {
             return Err(FmmError::InvalidParameter(format!(
-                "periodic boundaries run the Laplace, Yukawa (modified Helmholtz) and Stokes \
-                 kernels only in this release, not {}",
+                "{} has no periodic lattice sum: undamped waves' sums over the images do not \
+                 converge; give the wavenumber a positive imaginary part (damped waves), whose \
+                 sums do",
                 name()
             )));
         }
-        Some(LatticeSum::Yukawa { .. }) if cell.surface() == crate::SurfaceTerm::Vacuum => {
+        Some(LatticeSum::Yukawa { .. } | LatticeSum::Images { .. })
+            if cell.surface() == crate::SurfaceTerm::Vacuum =>
+        {
             return Err(FmmError::InvalidParameter(format!(
                 "the vacuum surface term belongs to the Laplace lattice sum, which converges \
                  only conditionally; {}'s converges absolutely and has none: leave the surface \

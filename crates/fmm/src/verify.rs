@@ -377,6 +377,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
         };
         let tolerance = (eps * PERIODIC_TRUTH_SHARE).clamp(1e-15, 1e-4);
         let truth = PeriodicTruth::new(
+            &self.kernel,
             &far.cell,
             far.lattice(),
             &points.sources,

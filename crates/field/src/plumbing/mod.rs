@@ -71,6 +71,7 @@ pub use crate::m2l::{
     check_lengths, for_each_chunk, for_each_chunk_with_progress, for_each_vector_group, gather,
     m2l_matrix, scatter_add,
 };
+pub use crate::pinv::truncated_solve;
 pub use crate::siblings::{
     LoosePair, N_PARENT_OFFSETS, SiblingBlock, SiblingBlocks, block_vector, full_mask, octant_bits,
     parent_offset,

@@ -31,7 +31,7 @@
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 
-use ferrofmm_kernels::{EvalMode, Kernel, KernelError, Real, SourceKind};
+use ferrofmm_kernels::{EvalMode, Kernel, Real, SourceKind};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 use rayon::prelude::*;
@@ -208,25 +208,46 @@ enum LatticeTruth {
     Slab(ferrofmm_kernels::SlabGreen, Vec<f64>, Vec<f64>),
     /// Laplace or Yukawa in a rod, pair by pair.
     Rod(ferrofmm_kernels::RodGreen, Vec<f64>, Vec<f64>),
+    /// Any other kernel: the image sum, shell by shell.
+    Images(Box<dyn ImageTruth>),
+}
+
+/// An image sum of any kernel, behind one type
+/// ([`crate::periodic::images::ImageSum`]).
+trait ImageTruth: Send + Sync {
+    fn at_points(&self, at: &[f64], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError>;
+    fn at_sources(&self, sample: &[usize], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError>;
+}
+
+impl<K: Kernel> ImageTruth for crate::periodic::images::ImageSum<K> {
+    fn at_points(&self, at: &[f64], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError> {
+        crate::periodic::images::ImageSum::at_points(self, at, mode)
+    }
+
+    fn at_sources(&self, sample: &[usize], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError> {
+        crate::periodic::images::ImageSum::at_sources(self, sample, mode)
+    }
 }
 
 impl LatticeTruth {
-    fn at_points(&self, at: &[f64], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        match self {
-            LatticeTruth::Scalar(s) => s.at_points(at, mode),
-            LatticeTruth::Stokes(s) => s.at_points(at, mode),
-            LatticeTruth::Slab(g, x, q) => g.sum_at_points(x, q, at, mode),
-            LatticeTruth::Rod(g, x, q) => g.sum_at_points(x, q, at, mode),
-        }
+    fn at_points(&self, at: &[f64], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError> {
+        Ok(match self {
+            LatticeTruth::Scalar(s) => s.at_points(at, mode)?,
+            LatticeTruth::Stokes(s) => s.at_points(at, mode)?,
+            LatticeTruth::Slab(g, x, q) => g.sum_at_points(x, q, at, mode)?,
+            LatticeTruth::Rod(g, x, q) => g.sum_at_points(x, q, at, mode)?,
+            LatticeTruth::Images(s) => s.at_points(at, mode)?,
+        })
     }
 
-    fn at_sources(&self, sample: &[usize], mode: EvalMode) -> Result<Vec<f64>, KernelError> {
-        match self {
-            LatticeTruth::Scalar(s) => s.at_sources(sample, mode),
-            LatticeTruth::Stokes(s) => s.at_sources(sample, mode),
-            LatticeTruth::Slab(g, x, q) => g.sum_at_sources(x, q, sample, mode),
-            LatticeTruth::Rod(g, x, q) => g.sum_at_sources(x, q, sample, mode),
-        }
+    fn at_sources(&self, sample: &[usize], mode: EvalMode) -> Result<Vec<f64>, crate::FmmError> {
+        Ok(match self {
+            LatticeTruth::Scalar(s) => s.at_sources(sample, mode)?,
+            LatticeTruth::Stokes(s) => s.at_sources(sample, mode)?,
+            LatticeTruth::Slab(g, x, q) => g.sum_at_sources(x, q, sample, mode)?,
+            LatticeTruth::Rod(g, x, q) => g.sum_at_sources(x, q, sample, mode)?,
+            LatticeTruth::Images(s) => s.at_sources(sample, mode)?,
+        })
     }
 }
 
@@ -234,7 +255,8 @@ impl<'a> PeriodicTruth<'a> {
     /// # Errors
     /// What [`ferrofmm_kernels::EwaldSum::with_options`] refuses.
     #[allow(clippy::too_many_arguments)]
-    pub(crate) fn new<T: Real>(
+    pub(crate) fn new<T: Real, K: Kernel>(
+        kernel: &K,
         cell: &crate::Periodic,
         lattice: crate::periodic::LatticeSum,
         sources: &[f64],
@@ -246,13 +268,21 @@ impl<'a> PeriodicTruth<'a> {
     ) -> Result<Self, crate::FmmError> {
         use crate::periodic::LatticeSum;
         let q: Vec<f64> = charges.iter().map(|q| q.to_f64()).collect();
+        if let LatticeSum::Images { .. } = lattice {
+            let sum = crate::periodic::images::ImageSum::new(kernel, cell, sources, &q, tolerance);
+            return Ok(PeriodicTruth {
+                sum: LatticeTruth::Images(Box::new(sum)),
+                targets,
+                mode,
+            });
+        }
         let axes = cell.axes();
         let cell = ferrofmm_kernels::PeriodicCell::new(cell.origin(), cell.lengths())?;
         if axes != crate::PeriodicAxes::Xyz {
             let kappa = match lattice {
                 LatticeSum::Laplace => 0.0,
                 LatticeSum::Yukawa { kappa } => kappa,
-                LatticeSum::Stokes { .. } => {
+                LatticeSum::Stokes { .. } | LatticeSum::Images { .. } => {
                     return Err(crate::FmmError::InvalidParameter(format!(
                         "no Stokes lattice sum for a {}",
                         axes.kind()
@@ -292,6 +322,7 @@ impl<'a> PeriodicTruth<'a> {
             LatticeSum::Laplace => LatticeTruth::Scalar(ferrofmm_kernels::EwaldSum::with_options(
                 cell, sources, &q, options,
             )?),
+            LatticeSum::Images { .. } => unreachable!("summed by images above"),
         };
         Ok(PeriodicTruth { sum, targets, mode })
     }
@@ -340,6 +371,7 @@ pub fn relative_errors_periodic<T: Real, K: Kernel>(
 ) -> Result<ErrorReport, crate::FmmError> {
     let lattice = crate::periodic::required_lattice(kernel)?;
     let exact = PeriodicTruth::new(
+        kernel,
         cell,
         lattice,
         sources,

@@ -355,18 +355,17 @@ fn far_images<T: Real, K: Kernel, S: M2lScheme<T>>(
     parts: &[Part<T, S>],
 ) -> Result<FarImages, FmmError> {
     let lattice = crate::periodic::required_lattice(kernel)?;
-    let radii = parts[0]
+    let operators = &parts[0]
         .tree_part()
         .expect("a periodic run has one tree")
-        .operators
-        .radii();
+        .operators;
     let (far, _) = FarImages::new(
         *cell,
         lattice,
         kernel,
         params,
-        radii.upward_equivalent,
-        radii.downward_check,
+        *operators.radii(),
+        operators.rcond(),
     )?;
     Ok(far)
 }

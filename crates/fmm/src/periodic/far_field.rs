@@ -3,10 +3,10 @@
 //! root multipole, and the constant and dipole terms (see the
 //! [module docs](super)).
 
-use ferrofmm_field::surface_points;
+use ferrofmm_field::{SurfaceRadii, surface_points};
 use ferrofmm_kernels::{
-    Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen, PeriodicStokeslet, Real,
-    RodGreen, SlabGreen, Stokes3d,
+    Helmholtz3d, Kernel, Laplace3d, ModifiedHelmholtz3d, PeriodicCell, PeriodicGreen,
+    PeriodicStokeslet, Real, RodGreen, SlabGreen, Stokes3d,
 };
 
 use super::{Periodic, PeriodicAxes, SurfaceTerm};
@@ -40,6 +40,15 @@ pub enum LatticeSum {
         /// The viscosity `mu > 0`.
         viscosity: f64,
     },
+    /// Any other kernel whose lattice sum converges absolutely (a user's
+    /// kernel, damped Helmholtz waves): summed over super-cells of images
+    /// with the kernel's own values, any charges, no surface term
+    /// ([`super::images`]). A kernel whose sum does not converge is refused
+    /// when the run is built.
+    Images {
+        /// The kernel's components `c` (2 for a complex kernel).
+        components: usize,
+    },
 }
 
 impl LatticeSum {
@@ -47,6 +56,7 @@ impl LatticeSum {
     pub fn components(self) -> usize {
         match self {
             LatticeSum::Stokes { .. } => 3,
+            LatticeSum::Images { components } => components,
             _ => 1,
         }
     }
@@ -54,8 +64,11 @@ impl LatticeSum {
 
 /// The lattice sum the periodic FMM computes for `kernel`:
 /// [`Laplace3d`], [`ModifiedHelmholtz3d`] (Yukawa, `k > 0`) and
-/// [`Stokes3d`]; `None` for any other kernel, which
-/// [`crate::FmmBuilder::periodic`] refuses.
+/// [`Stokes3d`] by their own sums; undamped Helmholtz waves
+/// ([`Helmholtz3d`] with `Im k = 0`), whose lattice sum does not converge,
+/// `None` ([`crate::FmmBuilder::periodic`] refuses it); any other kernel,
+/// damped waves and a user's own included, [`LatticeSum::Images`] (refused
+/// when the run is built should its sum not converge).
 ///
 /// ```
 /// use ferrofmm_fmm::periodic::{lattice_sum, LatticeSum};
@@ -67,6 +80,10 @@ impl LatticeSum {
 /// );
 /// assert_eq!(lattice_sum(&Stokes3d::new(0.5).unwrap()), Some(LatticeSum::Stokes { viscosity: 0.5 }));
 /// assert_eq!(lattice_sum(&Helmholtz3d::new(2.0).unwrap()), None);
+/// assert_eq!(
+///     lattice_sum(&Helmholtz3d::new_complex(2.0, 1.0).unwrap()),
+///     Some(LatticeSum::Images { components: 2 })
+/// );
 /// ```
 pub fn lattice_sum<K: Kernel>(kernel: &K) -> Option<LatticeSum> {
     let any = kernel as &dyn std::any::Any;
@@ -80,8 +97,18 @@ pub fn lattice_sum<K: Kernel>(kernel: &K) -> Option<LatticeSum> {
             LatticeSum::Yukawa { kappa: k.k }
         });
     }
-    any.downcast_ref::<Stokes3d>().map(|s| LatticeSum::Stokes {
-        viscosity: s.viscosity,
+    if let Some(s) = any.downcast_ref::<Stokes3d>() {
+        return Some(LatticeSum::Stokes {
+            viscosity: s.viscosity,
+        });
+    }
+    if let Some(h) = any.downcast_ref::<Helmholtz3d>()
+        && h.k_im == 0.0
+    {
+        return None;
+    }
+    Some(LatticeSum::Images {
+        components: kernel.components(),
     })
 }
 
@@ -101,7 +128,7 @@ pub fn lattice_screening<K: Kernel>(kernel: &K) -> Option<f64> {
     match lattice_sum(kernel)? {
         LatticeSum::Laplace => Some(0.0),
         LatticeSum::Yukawa { kappa } => Some(kappa),
-        LatticeSum::Stokes { .. } => None,
+        LatticeSum::Stokes { .. } | LatticeSum::Images { .. } => None,
     }
 }
 
@@ -130,8 +157,9 @@ pub(crate) struct FarImages {
 
 impl FarImages {
     /// `P` for `cell` at `order`, for the lattice sum `lattice`
-    /// ([`lattice_sum`]), with the root surfaces of radii
-    /// `upward_equivalent` and `downward_check` half-widths.
+    /// ([`lattice_sum`]), with the root surfaces of `radii` (half-widths)
+    /// and, for [`LatticeSum::Images`], the pseudo-inverse cutoff `rcond`
+    /// of its super-cells.
     ///
     /// `P` is kept in the operator cache of `params` (keyed by the kernel,
     /// the order, the cell's sides and axes and the surfaces), so a second
@@ -141,21 +169,32 @@ impl FarImages {
         lattice: LatticeSum,
         kernel: &K,
         params: &ferrofmm_field::OperatorParams,
-        upward_equivalent: f64,
-        downward_check: f64,
+        radii: SurfaceRadii,
+        rcond: f64,
     ) -> Result<(Self, ferrofmm_field::CacheStatus), FmmError> {
         let order = params.order;
         let half = 0.5 * cell.width();
+        let (upward_equivalent, downward_check) = (radii.upward_equivalent, radii.downward_check);
         let equivalent = surface_points::<f64>(order, [0.0; 3], half, upward_equivalent);
         let check = surface_points::<f64>(order, [0.0; 3], half, downward_check);
         let c = lattice.components();
         let len = (c * check.len() / 3) * (c * equivalent.len() / 3);
-        let description = format!(
-            "periodisation: {lattice:?}, sides {:?}, axes {}, surfaces {upward_equivalent} -> \
-             {downward_check}, tolerance {GREEN_TOLERANCE:e}",
-            cell.lengths(),
-            cell.axes()
-        );
+        let description = match lattice {
+            LatticeSum::Images { .. } => format!(
+                "periodisation by super-cells: sides {:?}, axes {}, surfaces {:?}, rcond \
+                 {rcond:e}, tolerance {:e}",
+                cell.lengths(),
+                cell.axes(),
+                radii.to_array(),
+                super::images::OPERATOR_TOLERANCE
+            ),
+            _ => format!(
+                "periodisation: {lattice:?}, sides {:?}, axes {}, surfaces {upward_equivalent} -> \
+                 {downward_check}, tolerance {GREEN_TOLERANCE:e}",
+                cell.lengths(),
+                cell.axes()
+            ),
+        };
         let mut failure = None;
         let (operator, status) = ferrofmm_field::cached_values(
             params,
@@ -164,7 +203,13 @@ impl FarImages {
             &description,
             len,
             || {
-                Self::operator(cell, lattice, &check, &equivalent).map_err(|e| {
+                let built = match lattice {
+                    LatticeSum::Images { .. } => {
+                        super::images::periodisation_operator(kernel, &cell, order, radii, rcond)
+                    }
+                    _ => Self::operator(cell, lattice, &check, &equivalent),
+                };
+                built.map_err(|e| {
                     let text = e.to_string();
                     failure = Some(e);
                     ferrofmm_field::FieldError::InvalidParams(text)
@@ -203,6 +248,11 @@ impl FarImages {
             (LatticeSum::Stokes { viscosity }, PeriodicAxes::Xyz) => {
                 PeriodicStokeslet::new(green_cell, viscosity, GREEN_TOLERANCE)?
                     .far_images_matrix(&check, &equivalent)?
+            }
+            (LatticeSum::Images { .. }, _) => {
+                return Err(FmmError::InvalidParameter(
+                    "a lattice sum by images is built by super-cells".to_string(),
+                ));
             }
             (LatticeSum::Stokes { .. }, axes) => {
                 return Err(FmmError::InvalidParameter(format!(
@@ -256,7 +306,7 @@ impl FarImages {
     ) -> (Vec<T>, [f64; 3]) {
         let mut u: Vec<f64> = root[..self.len()].iter().map(|v| v.to_f64()).collect();
         match self.lattice {
-            LatticeSum::Yukawa { .. } => (self.apply(&u), [0.0; 3]),
+            LatticeSum::Yukawa { .. } | LatticeSum::Images { .. } => (self.apply(&u), [0.0; 3]),
             LatticeSum::Stokes { viscosity } => {
                 let constant = self.stokes_constant(&u, x, centre, q, viscosity);
                 (self.apply(&u), constant)

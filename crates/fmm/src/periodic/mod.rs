@@ -121,6 +121,7 @@
 
 mod cell;
 mod far_field;
+pub(crate) mod images;
 
 pub use cell::{Periodic, PeriodicAxes, SurfaceTerm};
 pub(crate) use far_field::{FarImages, check_neutral, check_screened_tolerance, required_lattice};

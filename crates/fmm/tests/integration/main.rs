@@ -13,6 +13,7 @@ mod hostile;
 mod memory;
 mod outliers;
 mod periodic;
+mod periodic_images;
 mod periodic_slab_rod;
 mod periodic_stokes;
 mod periodic_yukawa;

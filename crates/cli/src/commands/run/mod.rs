@@ -666,6 +666,9 @@ pub(super) fn report<T: Real, K: Kernel, S: M2lScheme<T>>(
                     use ferrofmm_fmm::periodic::LatticeSum;
                     match (ferrofmm_fmm::periodic::lattice_sum(kernel), c.surface()) {
                         (Some(LatticeSum::Yukawa { .. }), _) => "screened, absolutely convergent",
+                        (Some(LatticeSum::Images { .. }), _) => {
+                            "absolutely convergent, summed over super-cells of images"
+                        }
                         (Some(LatticeSum::Stokes { .. }), _) => {
                             "Hasimoto: zero mean velocity, net force balanced by pressure"
                         }
