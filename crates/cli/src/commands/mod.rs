@@ -228,7 +228,9 @@ pub struct FmmArgs {
     /// wrapped into it. Laplace (the cell must be neutral; demo charges
     /// are made so), Yukawa (screened: any charges, no surface term) or
     /// Stokes (Hasimoto: zero mean velocity, any forces, a net force
-    /// balanced by a uniform pressure gradient) kernels, charges (point
+    /// balanced by a uniform pressure gradient) kernels, and damped
+    /// Helmholtz waves (`helmholtz:RE+IMi`, summed over super-cells of
+    /// images; refused where the damping is too weak), charges (point
     /// forces) only.
     #[arg(long = "box", value_name = "L|LX,LY,LZ")]
     pub periodic_box: Option<String>,

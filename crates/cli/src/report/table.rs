@@ -251,9 +251,10 @@ impl RunReport {
                     .direct_check_s
                     .map(|s| format!(", {}", seconds(s)))
                     .unwrap_or_default();
-                // A periodic run's truth is an Ewald sum over every image.
+                // A periodic run's truth is its lattice sum (Ewald's, Hasimoto's or
+                // the images' own) over every image.
                 let truth = if self.periodic.is_some() {
-                    "the Ewald sum"
+                    "the lattice sum"
                 } else {
                     "direct summation"
                 };

@@ -77,6 +77,10 @@ const MAX_LEVELS: usize = 40;
 /// sum that does not converge, or too slowly to sum (`r^-3` in bulk).
 const DIVERGING_RATIO: f64 = 0.9;
 
+/// A ring predicted below this share of [`OPERATOR_TOLERANCE`] (of `P`'s
+/// largest entry) is not built.
+const NEGLIGIBLE_RING: f64 = 1e-2;
+
 /// Kernel evaluations an [`ImageSum`] may spend on one call.
 const IMAGE_SUM_BUDGET: f64 = 4e10;
 
@@ -237,7 +241,21 @@ pub(crate) fn periodisation_operator<K: Kernel>(
         None => {
             let n = p.ncols();
             let mut m = Mat::<f64>::identity(n, n);
+            let mut probe = rings.probe(0);
             for j in 1..=MAX_LEVELS {
+                // A ring the kernel's decay makes negligible is not built:
+                // its size predicted from the last one's by the probes.
+                let next = rings.probe(j);
+                let predicted = if probe > 0.0 {
+                    sizes.last * next / probe
+                } else {
+                    0.0
+                };
+                probe = next;
+                if predicted <= NEGLIGIBLE_RING * OPERATOR_TOLERANCE * max_abs(&p) {
+                    break;
+                }
+                rings.check_resolved(j, predicted / max_abs(&p))?;
                 m = &rings.m2m(j)? * &m;
                 let local = &rings.m2l_local(j)? * &m;
                 let level = sum_images(
@@ -307,6 +325,55 @@ impl<'k, K: Kernel> Rings<'k, K> {
             &self.surface(js, rs),
             &[[0.0; 3]],
         )
+    }
+
+    /// How strongly ring `j` acts at most: its number of images times the
+    /// largest kernel entry at its nearest distance, `(2 - r_ue / 2) 3^j L
+    /// - (r_dc / 2) L` (the ring's equivalent points to the cell's check
+    /// points, `1.475 3^j L - 0.525 L` with the default radii; the
+    /// same geometry scaled at every level, so that the ratio of two
+    /// levels' probes follows the kernel's decay), probed along the 26
+    /// lattice directions at 1, 1.1 and 1.25 times that distance (an
+    /// oscillating kernel does not vanish at all three).
+    fn probe(&self, j: usize) -> f64 {
+        let scale = 3f64.powi(j as i32);
+        let width = 2.0 * self.half;
+        let distance = (2.0 - 0.5 * self.radii.upward_equivalent) * scale * width
+            - 0.5 * self.radii.downward_check * width;
+        let images = self.ring.len() as f64 * (self.children.len() as f64).powi(j as i32);
+        let c = self.kernel.components();
+        let mut block = vec![0.0f64; c * c];
+        let mut largest = 0.0f64;
+        for dir in lattice_images([true; 3], 1, 1) {
+            let norm = ((dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]) as f64).sqrt();
+            for stretch in [1.0, 1.1, 1.25] {
+                let r = stretch * distance / norm;
+                let at = dir.map(|d| d as f64 * r);
+                self.kernel.assemble::<f64>(&[0.0; 3], &at, &mut block);
+                largest = block.iter().fold(largest, |m, v| m.max(v.abs()));
+            }
+        }
+        images * largest
+    }
+
+    /// Refuse ring `j` of relative size `share` when its super-cell is too
+    /// many wavelengths wide for the expansion (`Re k 3^j L` above
+    /// [`crate::MAX_WAVENUMBER_WIDTH`]): weakly damped waves.
+    fn check_resolved(&self, j: usize, share: f64) -> Result<(), FmmError> {
+        let width = 3f64.powi(j as i32) * 2.0 * self.half;
+        let kw = self.kernel.wavenumber() * width;
+        if kw > crate::MAX_WAVENUMBER_WIDTH {
+            return Err(FmmError::InvalidParameter(format!(
+                "the lattice sum of {} needs super-cells {:.0} cells wide (their images still \
+                 add {share:.1e} of the total), {kw:.0} radians across, beyond the expansions' \
+                 reach (k W <= {}): the waves are damped too weakly for a periodic sum here; \
+                 a larger imaginary part of the wavenumber, or a smaller cell, makes it",
+                self.name,
+                3f64.powi(j as i32),
+                crate::MAX_WAVENUMBER_WIDTH
+            )));
+        }
+        Ok(())
     }
 
     /// `S_{j-1}`'s equivalent density to `S_j`'s (M2M from the children).

@@ -299,3 +299,19 @@ fn sums_that_do_not_converge_are_refused() {
         .unwrap();
     assert_eq!(fmm.evaluate(&q).unwrap().len(), 300);
 }
+
+/// Weakly damped waves need super-cells too many wavelengths wide: refused
+/// with the reason, never summed wrongly; strongly damped ones stop after
+/// the rings their decay leaves.
+#[test]
+fn weakly_damped_waves_are_refused() {
+    let (points, _) = random_box(200, 1.0, [0.0; 3], false, 2);
+    let e = FmmBuilder::new(&points)
+        .kernel(Helmholtz3d::new_complex(6.0, 0.05).unwrap())
+        .periodic(Periodic::cube(1.0))
+        .order(4)
+        .build_with::<FftM2l<f64>>(Default::default())
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("damped too weakly"), "{e}");
+}

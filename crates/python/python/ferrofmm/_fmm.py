@@ -227,22 +227,23 @@ class Fmm:
         (each source excluding itself); ``evaluate`` then returns them as
         ``result.at_sources``. The sources are added as targets.
     box : float or sequence of 3 floats, optional
-        Periodic boundaries (Laplace or Yukawa kernel, charges): the side ``L`` of
+        Periodic boundaries (Laplace, Yukawa or Stokes kernels, or damped
+        Helmholtz waves, ``k`` with a positive imaginary part; charges): the side ``L`` of
         the cubic cell ``[box_origin, box_origin + L)^3`` that repeats
         along ``periodic``; every target sees every image of every source
         (the Ewald convention). Points outside the cell are wrapped into
         it; results come in the caller's order. With Laplace the charges
         of each vector must sum to zero (``ValueError`` at evaluation
         otherwise); Yukawa's sum converges for any charges.
-        Three sides are accepted but only cubes run in this release; other
-        kernels, dipoles and Hessians with a box are refused
+        Three sides are accepted but only cubes run in this release;
+        undamped waves, dipoles and Hessians with a box are refused
         (``ValueError``). ``eps`` is chosen and verified as in free space,
         against an Ewald sum.
     box_origin : sequence of 3 floats, optional
         The cell's lower corner (default ``(0, 0, 0)``); needs ``box``.
     periodic : {"xyz", "xy", "x"}, optional
-        Axes that repeat (default ``"xyz"`` with ``box``); only ``"xyz"``
-        runs in this release. Needs ``box``.
+        Axes that repeat (default ``"xyz"`` with ``box``; ``"xy"`` a slab,
+        ``"x"`` a rod, not with Stokes). Needs ``box``.
     surface : {"tin-foil", "vacuum"}, optional
         How the lattice sum is closed at infinity: ``"tin-foil"``
         (default; conducting surroundings, Ewald without its ``k = 0``

@@ -449,7 +449,7 @@ where
         let sample = sample_indices(fmm.n_targets(), settings.check);
         let e = match &settings.periodic {
             Some(cell) => with_stage(
-                format!("Ewald sums on {} sampled targets", sample.len()),
+                format!("lattice sums on {} sampled targets", sample.len()),
                 || {
                     ferrofmm_fmm::relative_errors_periodic(
                         &kernel,
