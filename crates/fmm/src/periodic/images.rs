@@ -328,13 +328,13 @@ impl<'k, K: Kernel> Rings<'k, K> {
     }
 
     /// How strongly ring `j` acts at most: its number of images times the
-    /// largest kernel entry at its nearest distance, `(2 - r_ue / 2) 3^j L
-    /// - (r_dc / 2) L` (the ring's equivalent points to the cell's check
-    /// points, `1.475 3^j L - 0.525 L` with the default radii; the
-    /// same geometry scaled at every level, so that the ratio of two
-    /// levels' probes follows the kernel's decay), probed along the 26
-    /// lattice directions at 1, 1.1 and 1.25 times that distance (an
-    /// oscillating kernel does not vanish at all three).
+    /// largest kernel entry at its nearest distance,
+    /// `(2 - r_ue / 2) 3^j L - (r_dc / 2) L` (the ring's equivalent points
+    /// to the cell's check points, `1.475 3^j L - 0.525 L` with the
+    /// default radii; the same geometry scaled at every level, so that the
+    /// ratio of two levels' probes follows the kernel's decay), probed
+    /// along the 26 lattice directions at 1, 1.1 and 1.25 times that
+    /// distance (an oscillating kernel does not vanish at all three).
     fn probe(&self, j: usize) -> f64 {
         let scale = 3f64.powi(j as i32);
         let width = 2.0 * self.half;
