@@ -44,6 +44,18 @@
 //! undamped Helmholtz among them) is refused. Each ring costs `702 + 27`
 //! kernel matrices of the surface size and two pseudo-inverses.
 //!
+//! A kernel that is not homogeneous needs every ring's operators, so a
+//! ring is first priced by probes: its image count times the largest
+//! kernel entry at its nearest distance, the same geometry scaled at each
+//! level, so that two levels' probes stand in the ratio of the kernel's
+//! decay. A ring predicted below a hundredth of the tolerance (from the
+//! last ring's size and that ratio) ends the sum without being built: a
+//! screened or strongly damped kernel stops after one or two rings. An
+//! oscillating kernel ([`Kernel::wavenumber`] `k > 0`) whose next ring
+//! still matters and whose super-cell is more than
+//! [`crate::MAX_WAVENUMBER_WIDTH`] radians across is refused: the
+//! expansions cannot resolve it, and the sum would be wrong, not slow.
+//!
 //! # The image sum
 //!
 //! The reference ([`ImageSum`]) adds the images shell by shell, `|n|_inf
