@@ -43,7 +43,7 @@ pub enum LatticeSum {
     /// Any other kernel whose lattice sum converges absolutely (a user's
     /// kernel, damped Helmholtz waves): summed over super-cells of images
     /// with the kernel's own values, any charges, no surface term
-    /// ([`super::images`]). A kernel whose sum does not converge is refused
+    /// (docs/periodic.md, "Your own kernels"). A kernel whose sum does not converge is refused
     /// when the run is built.
     Images {
         /// The kernel's components `c` (2 for a complex kernel).
