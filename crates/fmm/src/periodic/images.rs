@@ -232,14 +232,8 @@ pub(crate) fn periodisation_operator<K: Kernel>(
                 &rings.matrix(1, radii.downward_check, 2, radii.downward_equivalent)?,
                 rcond,
             )?;
-            let e = sum_images(
-                kernel,
-                &rings.check,
-                &rings.surface(1, radii.downward_equivalent),
-                &[[0.0; 3]],
-            )?;
             let mut m = m2m.clone();
-            let mut down = e;
+            let mut down = rings.local_at_check(1)?;
             for j in 1..=MAX_LEVELS {
                 let level = &down * (&t * &m);
                 p += &level;
@@ -270,12 +264,7 @@ pub(crate) fn periodisation_operator<K: Kernel>(
                 rings.check_resolved(j, predicted / max_abs(&p))?;
                 m = &rings.m2m(j)? * &m;
                 let local = &rings.m2l_local(j)? * &m;
-                let level = sum_images(
-                    kernel,
-                    &rings.check,
-                    &rings.surface(j, radii.downward_equivalent),
-                    &[[0.0; 3]],
-                )? * local;
+                let level = rings.local_at_check(j)? * local;
                 p += &level;
                 if sizes.done(j, max_abs(&level), max_abs(&p), &rings)? {
                     break;
@@ -386,6 +375,17 @@ impl<'k, K: Kernel> Rings<'k, K> {
             )));
         }
         Ok(())
+    }
+
+    /// `K(the cell's check points <- S_j's downward equivalent points)`:
+    /// `S_j`'s local density evaluated where `P` is wanted.
+    fn local_at_check(&self, j: usize) -> Result<Mat<f64>, FmmError> {
+        sum_images(
+            self.kernel,
+            &self.check,
+            &self.surface(j, self.radii.downward_equivalent),
+            &[[0.0; 3]],
+        )
     }
 
     /// `S_{j-1}`'s equivalent density to `S_j`'s (M2M from the children).
