@@ -7,12 +7,13 @@
 //!
 //! ```text
 //! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
-//!     N KERNEL GEOMETRY MODE SCHEME ORDER,LEAF [ORDER,LEAF ...]
+//!     N[,N...] KERNEL GEOMETRY[,GEOMETRY...] MODE SCHEME ORDER,LEAF [ORDER,LEAF ...]
 //! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
 //!     100000 laplace cube gradient fft 6,512 8,384 6,128
 //! ```
 //!
-//! `KERNEL`: `laplace` or `helmholtz:K`; `GEOMETRY`: cube, sphere, plummer,
+//! Every setting runs on every size and geometry given. `KERNEL`:
+//! `laplace` or `helmholtz:K`; `GEOMETRY`: cube, sphere, plummer,
 //! two-clusters; `MODE`: `potential` or `gradient`; `SCHEME`: `fft`, `svd`
 //! or `both` (each setting with each scheme). Zero-mean charges; evaluation
 //! the best of two; operators from the on-disk cache
@@ -37,7 +38,7 @@ const CACHE: &str = "target/cost-check-cache";
 
 fn usage() -> ! {
     eprintln!(
-        "usage: cost_check N laplace|helmholtz:K GEOMETRY potential|gradient fft|svd ORDER,LEAF ..."
+        "usage: cost_check N[,N..] laplace|helmholtz:K GEOMETRY[,GEOMETRY..] potential|gradient fft|svd|both ORDER,LEAF ..."
     );
     std::process::exit(2);
 }
@@ -47,8 +48,14 @@ fn main() {
     if args.len() < 6 {
         usage();
     }
-    let n: usize = args[0].parse().unwrap_or_else(|_| usage());
-    let geometry = Geometry::from_name(&args[2]).unwrap_or_else(|| usage());
+    let sizes: Vec<usize> = args[0]
+        .split(',')
+        .map(|v| v.parse::<f64>().map(|x| x as usize).unwrap_or_else(|_| usage()))
+        .collect();
+    let geometries: Vec<Geometry> = args[2]
+        .split(',')
+        .map(|g| Geometry::from_name(g).unwrap_or_else(|| usage()))
+        .collect();
     let mode = match args[3].as_str() {
         "potential" => EvalMode::Potential,
         "gradient" => EvalMode::PotentialGradient,
@@ -70,29 +77,34 @@ fn main() {
             )
         })
         .collect();
-    let points: Vec<f64> = geometry.points(n, 7);
     println!(
-        "| kernel | order, leaf | depth | P2P s (model) | far s (model) | M2L s (model) | tree s (model) | total s (model) |"
+        "| N, geometry | kernel | order, leaf | depth | P2P s (model) | far s (model) | M2L s (model) | tree s (model) | total s (model) |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     let mut samples = Vec::new();
-    match args[1].split_once(':') {
-        None if args[1] == "laplace" => {
-            for &s in &settings {
-                for &fft in schemes {
-                    samples.push(row(&points, Laplace3d, mode, fft, s));
+    for &n in &sizes {
+        for &geometry in &geometries {
+            let points: Vec<f64> = geometry.points(n, 7);
+            let label = format!("{n:.0e}, {}", geometry.name());
+            match args[1].split_once(':') {
+                None if args[1] == "laplace" => {
+                    for &s in &settings {
+                        for &fft in schemes {
+                            samples.push(row(&label, &points, Laplace3d, mode, fft, s));
+                        }
+                    }
                 }
+                Some(("helmholtz", k)) => {
+                    let k: f64 = k.parse().unwrap_or_else(|_| usage());
+                    for &s in &settings {
+                        for &fft in schemes {
+                            row(&label, &points, Helmholtz3d::new(k).unwrap(), mode, fft, s);
+                        }
+                    }
+                }
+                _ => usage(),
             }
         }
-        Some(("helmholtz", k)) => {
-            let k: f64 = k.parse().unwrap_or_else(|_| usage());
-            for &s in &settings {
-                for &fft in schemes {
-                    row(&points, Helmholtz3d::new(k).unwrap(), mode, fft, s);
-                }
-            }
-        }
-        _ => usage(),
     }
     if !samples.is_empty() && mode == EvalMode::Potential {
         println!(
@@ -133,6 +145,7 @@ impl Measured {
 
 /// Measure one setting, print its row and return it as a fit sample.
 fn row<K: Kernel>(
+    label: &str,
     points: &[f64],
     kernel: K,
     mode: EvalMode,
@@ -188,7 +201,7 @@ fn row<K: Kernel>(
     let far = t.p2m + t.m2m + t.l2l + t.l2p + t.m2p + t.p2l;
     let cell = |m: f64, pr: f64| format!("{m:.3} ({pr:.3}, {:.2}x)", m / pr);
     println!(
-        "| {} {} | {order}, {leaf} | {depth} | {} | {} | {} | {} | {} |",
+        "| {label} | {} {} | {order}, {leaf} | {depth} | {} | {} | {} | {} | {} |",
         kernel.name(),
         if fft { "fft" } else { "svd" },
         cell(t.p2p.as_secs_f64(), p.p2p),
