@@ -144,7 +144,7 @@ fn measure(p: &Problem, (fmm, tree_s, choice_s): &Built, repeats: usize, model: 
     }
     let best = best.unwrap();
     let setup = fmm.setup_timings();
-    let work = WorkCounts::of_tree(fmm.tree());
+    let work = WorkCounts::of_fmm(fmm);
     let s = fmm.summary();
     let rank = fmm.m2l_scheme().rank();
     Run {

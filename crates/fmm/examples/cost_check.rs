@@ -29,6 +29,11 @@
 //! cargo run --release -p ferrofmm-fmm --features sweeps --example cost_check -- \
 //!     100000 laplace cube potential both 4,64 6,128 6,512 8,256 8,512 10,512
 //! ```
+//!
+//! With `COST_CHECK_RUNS=FILE` the runs are appended to `FILE` (one line of
+//! numbers each) and the fit takes every run in it, so that runs of
+//! several invocations (e.g. a few deep trees at a larger N) are fitted
+//! together.
 use ferrofmm_field::{FftM2l, M2lCostShape, M2lScheme, SvdM2l};
 use ferrofmm_fmm::tuning::{CostModel, CostSample, WorkCounts, default_model};
 use ferrofmm_fmm::{Charges, EvalTimings, Fmm, FmmBuilder, Geometry};
@@ -106,13 +111,94 @@ fn main() {
             }
         }
     }
-    if !samples.is_empty() && mode == EvalMode::Potential {
-        println!(
-            "\nfitted to these {} runs: {:#?}",
-            samples.len(),
-            CostModel::fit(&samples)
-        );
+    if mode != EvalMode::Potential || samples.is_empty() {
+        return;
     }
+    if let Ok(path) = std::env::var("COST_CHECK_RUNS") {
+        // Keep these runs beside earlier invocations' and fit them all.
+        let mut text = std::fs::read_to_string(&path).unwrap_or_default();
+        for s in &samples {
+            text += &to_row(s);
+            text.push('\n');
+        }
+        std::fs::write(&path, &text).expect("write COST_CHECK_RUNS");
+        samples = text.lines().filter_map(from_row).collect();
+    }
+    println!(
+        "\nfitted to {} runs: {:#?}",
+        samples.len(),
+        CostModel::fit(&samples)
+    );
+}
+
+/// One run as a line of numbers: the work counts, order, rank, scheme
+/// (1 = FFT), the timed passes and the tree, in seconds.
+fn to_row(s: &CostSample) -> String {
+    let w = &s.work;
+    let e = &s.eval;
+    let t = |d: std::time::Duration| d.as_secs_f64();
+    let v: [f64; 20] = [
+        w.n_sources as f64,
+        w.n_targets as f64,
+        w.depth as f64,
+        w.n_boxes as f64,
+        w.n_leaves as f64,
+        w.m2l_boxes as f64,
+        w.p2p_pairs,
+        w.m2l_pairs,
+        w.far_points,
+        w.u_entries,
+        s.order as f64,
+        s.rank as f64,
+        if s.shape == M2lCostShape::Fft { 1.0 } else { 0.0 },
+        t(e.p2m),
+        t(e.m2m) + t(e.l2l),
+        t(e.m2l),
+        t(e.p2l) + t(e.m2p),
+        t(e.l2p),
+        t(e.p2p),
+        s.tree_seconds,
+    ];
+    v.map(|x| format!("{x:e}")).join(" ")
+}
+
+/// The inverse of [`to_row`] (the far-field passes it merges come back in
+/// one of their fields: the fit sums them).
+fn from_row(line: &str) -> Option<CostSample> {
+    let v: Vec<f64> = line.split(' ').map(|x| x.parse().ok()).collect::<Option<_>>()?;
+    if v.len() != 20 {
+        return None;
+    }
+    let d = std::time::Duration::from_secs_f64;
+    let work = WorkCounts {
+        n_sources: v[0] as usize,
+        n_targets: v[1] as usize,
+        depth: v[2] as u32,
+        n_boxes: v[3] as usize,
+        n_leaves: v[4] as usize,
+        m2l_boxes: v[5] as usize,
+        p2p_pairs: v[6],
+        m2l_pairs: v[7],
+        far_points: v[8],
+        u_entries: v[9],
+        ..Default::default()
+    };
+    Some(CostSample {
+        work,
+        order: v[10] as usize,
+        rank: v[11] as usize,
+        shape: if v[12] == 1.0 { M2lCostShape::Fft } else { M2lCostShape::Compressed },
+        eval: EvalTimings {
+            p2m: d(v[13]),
+            m2m: d(v[14]),
+            m2l: d(v[15]),
+            p2l: d(v[16]),
+            l2p: d(v[17]),
+            p2p: d(v[18]),
+            ..Default::default()
+        },
+        tree_seconds: v[19],
+    })
 }
 
 /// One built and evaluated setting.
@@ -135,7 +221,7 @@ impl Measured {
         Measured {
             tree_s: (s.tree + s.layout).as_secs_f64(),
             eval,
-            work: WorkCounts::of_tree(f.tree()),
+            work: WorkCounts::of_fmm(f),
             depth: f.summary().depth,
             width: f.tree().domain().width,
             rank,

@@ -69,29 +69,25 @@ impl Default for CostModel {
     fn default() -> Self {
         CostModel {
             // Fitted (`CostModel::fit`, group by group, non-negative least
-            // squares of the relative error) to 132 runs of `cost_check`:
+            // squares of the relative error) to 134 runs of `cost_check`:
             // Laplace potentials, zero-mean charges, N = 1e5 and 1e6, cube,
             // sphere and Plummer, orders 3-10 at leaves 32-768, FFT and SVD
-            // each (docs/tolerance.md). The fit gives the per-pair M2L
-            // terms no weight: the FFT products run over 8 x 8 sibling
-            // blocks and the SVD's cores as one GEMM per transfer vector,
-            // both cheap per pair beside the per-box transforms and
-            // compressions, and the pairs per box vary too little between
-            // these trees to price them apart.
-            p2p_pair: 2.50e-10,
-            p2p_entry: 6.93e-8,
-            surface_point: 3.03e-10,
-            far_point: 2.71e-10,
-            dense: 6.88e-11,
-            box_surface: 1.96e-8,
-            m2l_flop: 0.0,
-            m2l_pair: 0.0,
-            m2l_box: 8.49e-10,
-            fft_pair: 0.0,
-            fft_box: 4.09e-9,
-            tree_point: 3.22e-8,
-            tree_box: 3.22e-6,
-            tree_pair: 0.0,
+            // each, and two deep uniform trees (2e6 points, leaf 32, FFT,
+            // orders 6 and 8) (docs/tolerance.md, "Fitted on this machine").
+            p2p_pair: 2.96e-10,
+            p2p_entry: 7.84e-8,
+            surface_point: 3.02e-10,
+            far_point: 3.03e-10,
+            dense: 1.15e-10,
+            box_surface: 2.58e-8,
+            m2l_flop: 5.68e-12,
+            m2l_pair: 1.08e-9,
+            m2l_box: 3.16e-10,
+            fft_pair: 1.15e-10,
+            fft_box: 3.84e-9,
+            tree_point: 3.51e-8,
+            tree_box: 2.18e-6,
+            tree_pair: 2.38e-8,
         }
     }
 }

@@ -261,10 +261,9 @@ mod tests {
         // The FFT scheme's sibling blocks are made by the first evaluation.
         fmm.evaluate(&vec![1.0; 40_000]).unwrap();
         // The built tree's V lists are handed over to the M2L
-        // interactions: their entries come from the summary.
-        let mut work = crate::tuning::WorkCounts::of_tree(fmm.tree());
-        assert_eq!(work.m2l_pairs, 0.0);
-        work.m2l_pairs = fmm.summary().list_entries[1] as f64;
+        // interactions: `of_fmm` counts them there.
+        assert_eq!(crate::tuning::WorkCounts::of_tree(fmm.tree()).m2l_pairs, 0.0);
+        let work = crate::tuning::WorkCounts::of_fmm(&fmm);
         let predicted = box_bytes(&work, n_surface_points(6), Precision::F64) as f64;
         let m: MemoryReport = fmm.memory();
         let held = (m.expansions + m.tree + m.m2l_interactions) as f64;

@@ -1,9 +1,12 @@
 //! Work counts of a built tree (the cost model's inputs).
 
+use ferrofmm_field::{M2lInteractions, M2lScheme};
+use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::Octree;
 use rayon::prelude::*;
 
 use super::occupancy::center_ratio;
+use crate::Fmm;
 
 /// The work of one evaluation, counted on a tree (exactly, with
 /// [`WorkCounts::of_tree`]) or estimated from the point distribution
@@ -42,7 +45,34 @@ pub struct WorkCounts {
 }
 
 impl WorkCounts {
-    /// Exact counts of a built tree.
+    /// Exact counts of a built FMM's main tree: [`WorkCounts::of_tree`]
+    /// with the V-list pairs taken from the FMM's M2L interactions. A built
+    /// tree hands its V lists over to them, so `of_tree` on
+    /// [`Fmm::tree`] counts no V pairs.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry, tuning::WorkCounts};
+    /// let points: Vec<f64> = Geometry::Cube.points(4000, 1);
+    /// let fmm = FmmBuilder::new(&points).order(4).leaf_size(32).build().unwrap();
+    /// let work = WorkCounts::of_fmm(&fmm);
+    /// assert_eq!(work.m2l_pairs, fmm.summary().list_entries[1] as f64);
+    /// assert!(work.m2l_pairs > 0.0);
+    /// ```
+    pub fn of_fmm<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
+        let main = fmm.main();
+        let pairs: usize = main
+            .m2l_interactions
+            .iter()
+            .map(M2lInteractions::len)
+            .sum();
+        WorkCounts {
+            m2l_pairs: pairs as f64,
+            ..Self::of_tree(&main.tree)
+        }
+    }
+
+    /// Exact counts of a tree (its V pairs from its own V lists: none once
+    /// an FMM has taken them; see [`WorkCounts::of_fmm`]).
     pub fn of_tree(tree: &Octree) -> Self {
         let n = tree.n_boxes();
         let (p2p, m2l, far, u) = (0..n)
