@@ -55,7 +55,11 @@ fn main() {
     }
     let sizes: Vec<usize> = args[0]
         .split(',')
-        .map(|v| v.parse::<f64>().map(|x| x as usize).unwrap_or_else(|_| usage()))
+        .map(|v| {
+            v.parse::<f64>()
+                .map(|x| x as usize)
+                .unwrap_or_else(|_| usage())
+        })
         .collect();
     let geometries: Vec<Geometry> = args[2]
         .split(',')
@@ -150,7 +154,11 @@ fn to_row(s: &CostSample) -> String {
         w.u_entries,
         s.order as f64,
         s.rank as f64,
-        if s.shape == M2lCostShape::Fft { 1.0 } else { 0.0 },
+        if s.shape == M2lCostShape::Fft {
+            1.0
+        } else {
+            0.0
+        },
         t(e.p2m),
         t(e.m2m) + t(e.l2l),
         t(e.m2l),
@@ -165,7 +173,10 @@ fn to_row(s: &CostSample) -> String {
 /// The inverse of [`to_row`] (the far-field passes it merges come back in
 /// one of their fields: the fit sums them).
 fn from_row(line: &str) -> Option<CostSample> {
-    let v: Vec<f64> = line.split(' ').map(|x| x.parse().ok()).collect::<Option<_>>()?;
+    let v: Vec<f64> = line
+        .split(' ')
+        .map(|x| x.parse().ok())
+        .collect::<Option<_>>()?;
     if v.len() != 20 {
         return None;
     }
@@ -187,7 +198,11 @@ fn from_row(line: &str) -> Option<CostSample> {
         work,
         order: v[10] as usize,
         rank: v[11] as usize,
-        shape: if v[12] == 1.0 { M2lCostShape::Fft } else { M2lCostShape::Compressed },
+        shape: if v[12] == 1.0 {
+            M2lCostShape::Fft
+        } else {
+            M2lCostShape::Compressed
+        },
         eval: EvalTimings {
             p2m: d(v[13]),
             m2m: d(v[14]),

@@ -262,7 +262,10 @@ mod tests {
         fmm.evaluate(&vec![1.0; 40_000]).unwrap();
         // The built tree's V lists are handed over to the M2L
         // interactions: `of_fmm` counts them there.
-        assert_eq!(crate::tuning::WorkCounts::of_tree(fmm.tree()).m2l_pairs, 0.0);
+        assert_eq!(
+            crate::tuning::WorkCounts::of_tree(fmm.tree()).m2l_pairs,
+            0.0
+        );
         let work = crate::tuning::WorkCounts::of_fmm(&fmm);
         let predicted = box_bytes(&work, n_surface_points(6), Precision::F64) as f64;
         let m: MemoryReport = fmm.memory();

@@ -53,18 +53,14 @@ impl WorkCounts {
     /// ```
     /// use ferrofmm_fmm::{FmmBuilder, Geometry, tuning::WorkCounts};
     /// let points: Vec<f64> = Geometry::Cube.points(4000, 1);
-    /// let fmm = FmmBuilder::new(&points).order(4).leaf_size(32).build().unwrap();
+    /// let fmm = FmmBuilder::new(&points).order(4).leaf_size(32).build_svd().unwrap();
     /// let work = WorkCounts::of_fmm(&fmm);
     /// assert_eq!(work.m2l_pairs, fmm.summary().list_entries[1] as f64);
     /// assert!(work.m2l_pairs > 0.0);
     /// ```
     pub fn of_fmm<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
         let main = fmm.main();
-        let pairs: usize = main
-            .m2l_interactions
-            .iter()
-            .map(M2lInteractions::len)
-            .sum();
+        let pairs: usize = main.m2l_interactions.iter().map(M2lInteractions::len).sum();
         WorkCounts {
             m2l_pairs: pairs as f64,
             ..Self::of_tree(&main.tree)
