@@ -69,6 +69,12 @@ pub(crate) struct TreePart<T: Real, S> {
 }
 
 impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
+    /// V-list pairs of every level: the tree hands its V lists over to the
+    /// M2L interactions, so they are counted there.
+    pub(crate) fn m2l_pairs(&self) -> usize {
+        self.m2l_interactions.iter().map(M2lInteractions::len).sum()
+    }
+
     /// The part of `tree` with its operators and M2L scheme: each level's
     /// V-list pairs grouped for M2L, and the points (`f64`, interleaved;
     /// `targets` `None` when they are the sources) relative to the tree's

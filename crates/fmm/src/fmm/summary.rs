@@ -77,12 +77,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             n_leaves: tree.leaves().len(),
             list_entries: [
                 count(&|b| tree.u_list(b).len()),
-                // The V entries live in the M2L interactions (the tree's
-                // V lists are handed over to them).
-                main.m2l_interactions
-                    .iter()
-                    .map(ferrofmm_field::M2lInteractions::len)
-                    .sum(),
+                main.m2l_pairs(),
                 count(&|b| tree.w_list(b).len()),
                 count(&|b| tree.x_list(b).len()),
             ],

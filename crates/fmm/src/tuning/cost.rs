@@ -9,7 +9,7 @@ use crate::EvalTimings;
 
 /// Seconds per unit of work, one coefficient per kind of work, fitted on a
 /// 2-core Intel Xeon (Sapphire Rapids, AVX-512) with 2 rayon threads
-/// (`docs/tolerance.md`, "The cost model"). Only the ratios matter to the
+/// (`docs/tolerance.md`, "Fitted on this machine"). Only the ratios matter to the
 /// choice, so another machine of the same kind chooses the same. When an
 /// operator gets faster or the machine changes, re-fit with
 /// [`CostModel::fit`] (the example `cost_check` of this crate prints a new

@@ -1,6 +1,6 @@
 //! Work counts of a built tree (the cost model's inputs).
 
-use ferrofmm_field::{M2lInteractions, M2lScheme};
+use ferrofmm_field::M2lScheme;
 use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::Octree;
 use rayon::prelude::*;
@@ -60,9 +60,8 @@ impl WorkCounts {
     /// ```
     pub fn of_fmm<T: Real, K: Kernel, S: M2lScheme<T>>(fmm: &Fmm<T, K, S>) -> Self {
         let main = fmm.main();
-        let pairs: usize = main.m2l_interactions.iter().map(M2lInteractions::len).sum();
         WorkCounts {
-            m2l_pairs: pairs as f64,
+            m2l_pairs: main.m2l_pairs() as f64,
             ..Self::of_tree(&main.tree)
         }
     }
