@@ -6,7 +6,7 @@ use std::sync::OnceLock;
 use rayon::prelude::*;
 
 use crate::FieldError;
-use crate::siblings::SiblingBlocks;
+use crate::siblings::{SiblingBlocks, block_vector};
 
 /// Number of distinct M2L transfer vectors: `7^3 - 3^3 = 316`.
 pub const N_TRANSFER_VECTORS: usize = 316;
@@ -101,16 +101,39 @@ struct Group {
 pub struct M2lInteractions {
     n_target_cols: usize,
     n_source_cols: usize,
-    chunks: Vec<Chunk>,
-    groups: Vec<Group>,
-    sources: Vec<u32>,
-    /// Target column relative to its chunk's first column.
-    local_targets: Vec<u32>,
+    /// Target columns per chunk (the last may have fewer).
+    chunk_size: usize,
+    /// Number of pairs (kept when the pair lists are released).
+    n_pairs: usize,
+    /// The grouped pairs; after [`M2lInteractions::release_pairs`] made
+    /// again from the sibling blocks on first use.
+    pairs: OnceLock<PairLists>,
     /// The pairs regrouped by parent, made on first use.
     siblings: OnceLock<SiblingBlocks>,
     /// Sibling slot (`8 group + octant`) of each target and source column,
     /// when given ([`M2lInteractions::with_sibling_slots`]).
     slots: Option<(Vec<u32>, Vec<u32>)>,
+}
+
+/// The pairs of an [`M2lInteractions`] in chunks of target columns,
+/// grouped by transfer vector within each chunk.
+#[derive(Clone, Debug)]
+struct PairLists {
+    chunks: Vec<Chunk>,
+    groups: Vec<Group>,
+    sources: Vec<u32>,
+    /// Target column relative to its chunk's first column.
+    local_targets: Vec<u32>,
+}
+
+impl PairLists {
+    fn memory_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(&self.chunks[..])
+            + size_of_val(&self.groups[..])
+            + size_of_val(&self.sources[..])
+            + size_of_val(&self.local_targets[..])
+    }
 }
 
 impl M2lInteractions {
@@ -211,58 +234,13 @@ impl M2lInteractions {
                 "more than 2^32 columns".into(),
             ));
         }
-        let n_chunks = n_target_cols.div_ceil(chunk_size);
-        let targets_of = |c: usize| c * chunk_size..((c + 1) * chunk_size).min(n_target_cols);
-        // Two passes: count each chunk's pairs, then fill each chunk's
-        // slice of the final arrays in place (no second copy of the pairs).
-        let counts: Vec<usize> = (0..n_chunks)
-            .into_par_iter()
-            .map(|c| targets_of(c).map(|t| list(t).into_iter().count()).sum())
-            .collect();
-        let total: usize = counts.iter().sum();
-        let mut sources = vec![0u32; total];
-        let mut local_targets = vec![0u32; total];
-        let mut slices = Vec::with_capacity(n_chunks);
-        let (mut s_rest, mut t_rest) = (&mut sources[..], &mut local_targets[..]);
-        for &len in &counts {
-            let (s, s_next) = s_rest.split_at_mut(len);
-            let (t, t_next) = t_rest.split_at_mut(len);
-            slices.push((s, t));
-            (s_rest, t_rest) = (s_next, t_next);
-        }
-        let chunk_groups: Vec<Vec<Group>> = slices
-            .into_par_iter()
-            .enumerate()
-            .map(|(c, (s, t))| {
-                fill_chunk(targets_of(c), (n_target_cols, n_source_cols), &list, s, t)
-            })
-            .collect::<Result<_, _>>()?;
-        let mut chunks = Vec::with_capacity(n_chunks);
-        let mut groups = Vec::new();
-        let mut base = 0;
-        for (c, (g, len)) in chunk_groups.into_iter().zip(counts).enumerate() {
-            let group_start = groups.len();
-            groups.extend(g.into_iter().map(|g| Group {
-                vector: g.vector,
-                pair_start: base + g.pair_start,
-                pair_end: base + g.pair_end,
-            }));
-            base += len;
-            let r = targets_of(c);
-            chunks.push(Chunk {
-                target_start: r.start,
-                target_end: r.end,
-                group_start,
-                group_end: groups.len(),
-            });
-        }
+        let lists = group_pairs(n_target_cols, n_source_cols, chunk_size, list)?;
         Ok(M2lInteractions {
             n_target_cols,
             n_source_cols,
-            chunks,
-            groups,
-            sources,
-            local_targets,
+            chunk_size,
+            n_pairs: lists.sources.len(),
+            pairs: OnceLock::from(lists),
             siblings: OnceLock::new(),
             slots: None,
         })
@@ -278,12 +256,12 @@ impl M2lInteractions {
 
     /// Number of `(target, source)` pairs.
     pub fn len(&self) -> usize {
-        self.sources.len()
+        self.n_pairs
     }
 
     /// True when there are no pairs.
     pub fn is_empty(&self) -> bool {
-        self.sources.is_empty()
+        self.n_pairs == 0
     }
 
     /// Number of target columns (boxes receiving M2L).
@@ -299,12 +277,12 @@ impl M2lInteractions {
     /// Number of (chunk, transfer vector) groups, i.e. matrix products per
     /// application.
     pub fn n_groups(&self) -> usize {
-        self.groups.len()
+        self.lists().groups.len()
     }
 
     /// Number of target chunks (parallel tasks).
     pub fn n_chunks(&self) -> usize {
-        self.chunks.len()
+        self.lists().chunks.len()
     }
 
     /// Say which columns are siblings: column `c` is child `slot[c] % 8` of
@@ -346,6 +324,9 @@ impl M2lInteractions {
                 )));
             }
         }
+        // Pairs released to the sibling blocks are made again first: the
+        // blocks made under the old slots go.
+        self.lists();
         self.slots = Some((target_slots, source_slots));
         self.siblings = OnceLock::new();
         Ok(self)
@@ -370,14 +351,87 @@ impl M2lInteractions {
         self.siblings.get_or_init(|| SiblingBlocks::new(self))
     }
 
-    /// Bytes held: the grouped pairs, the sibling slots, and the sibling
-    /// blocks once made ([`M2lInteractions::sibling_blocks`]).
+    /// Release the grouped pairs and keep the sibling blocks (made now if
+    /// they are not yet), which hold the same pairs in about 1/30 of the
+    /// memory on a tree level (a 16-byte block for up to 63 pairs of 8
+    /// bytes): for schemes that read only the blocks
+    /// ([`M2lScheme::reads_pair_lists`](crate::M2lScheme::reads_pair_lists),
+    /// the FFT scheme). Nothing is lost: the pair lists are made again from
+    /// the blocks, exactly as they were grouped (the same pairs in the same
+    /// chunks and groups, in target order within a group), the first time
+    /// anything reads them ([`M2lInteractions::chunk_views`]).
+    ///
+    /// ```
+    /// use ferrofmm_field::M2lInteractions;
+    /// let pairs = [(0, 1, [2, 0, 0]), (1, 0, [-2, 0, 0]), (0, 2, [0, 3, -1])];
+    /// let mut inter = M2lInteractions::new(2, 3, &pairs);
+    /// inter.release_pairs();
+    /// assert!(!inter.holds_pair_lists());
+    /// assert_eq!(inter.len(), 3);
+    /// assert_eq!(inter.chunk_views().flat_map(|c| c.groups()).count(), 3);
+    /// assert!(inter.holds_pair_lists());
+    /// ```
+    pub fn release_pairs(&mut self) {
+        self.sibling_blocks();
+        self.pairs.take();
+    }
+
+    /// Whether the grouped pairs are held (false after
+    /// [`M2lInteractions::release_pairs`] until something reads them).
+    pub fn holds_pair_lists(&self) -> bool {
+        self.pairs.get().is_some()
+    }
+
+    /// The grouped pairs, made again from the sibling blocks after
+    /// [`M2lInteractions::release_pairs`].
+    fn lists(&self) -> &PairLists {
+        self.pairs.get_or_init(|| {
+            let siblings = self
+                .siblings
+                .get()
+                .expect("pair lists are released only once the sibling blocks are made");
+            let vectors = transfer_vectors();
+            let vectors = &vectors;
+            let list = |t: usize| {
+                let slot = self.target_slot(t);
+                let (g, ct) = (slot / 8, slot % 8);
+                let from_blocks = siblings.blocks(g).iter().flat_map(move |b| {
+                    let row = (b.mask >> (8 * ct)) & 0xff;
+                    (0..8).filter(move |cs| row >> cs & 1 == 1).map(move |cs| {
+                        let s = 8 * b.source_group as usize + cs;
+                        let v = block_vector(b.offset as usize, ct, cs)
+                            .expect("a block holds V-list pairs only");
+                        (column(siblings.source_column(s)), vectors[v])
+                    })
+                });
+                let loose = siblings
+                    .loose(g)
+                    .iter()
+                    .filter(move |p| p.target as usize == slot)
+                    .map(move |p| {
+                        let s = siblings.source_column(p.source as usize);
+                        (column(s), vectors[p.vector as usize])
+                    });
+                from_blocks.chain(loose)
+            };
+            let lists = group_pairs(
+                self.n_target_cols,
+                self.n_source_cols,
+                self.chunk_size,
+                list,
+            )
+            .expect("the sibling blocks hold valid pairs");
+            debug_assert_eq!(lists.sources.len(), self.n_pairs);
+            lists
+        })
+    }
+
+    /// Bytes held: the grouped pairs (unless released), the sibling slots,
+    /// and the sibling blocks once made
+    /// ([`M2lInteractions::sibling_blocks`]).
     pub fn memory_bytes(&self) -> usize {
         use std::mem::size_of_val;
-        size_of_val(&self.chunks[..])
-            + size_of_val(&self.groups[..])
-            + size_of_val(&self.sources[..])
-            + size_of_val(&self.local_targets[..])
+        self.pairs.get().map_or(0, PairLists::memory_bytes)
             + self
                 .slots
                 .as_ref()
@@ -390,11 +444,77 @@ impl M2lInteractions {
     /// they cover `0..n_target_cols`. See
     /// [`plumbing::for_each_chunk`](crate::plumbing::for_each_chunk).
     pub fn chunk_views(&self) -> impl Iterator<Item = ChunkView<'_>> + '_ {
-        self.chunks.iter().map(move |c| ChunkView {
-            inter: self,
-            chunk: c,
-        })
+        let lists = self.lists();
+        lists
+            .chunks
+            .iter()
+            .map(move |c| ChunkView { lists, chunk: c })
     }
+}
+
+/// Read the lists of every target column, chunk by chunk in parallel, and
+/// group each chunk's pairs by transfer vector (a counting sort), filling
+/// the final arrays in place: no list of all pairs is ever held beside
+/// them. `chunk_size` is positive.
+fn group_pairs<F, I>(
+    n_target_cols: usize,
+    n_source_cols: usize,
+    chunk_size: usize,
+    list: F,
+) -> Result<PairLists, FieldError>
+where
+    F: Fn(usize) -> I + Sync,
+    I: IntoIterator<Item = (usize, [i32; 3])>,
+{
+    let n_chunks = n_target_cols.div_ceil(chunk_size);
+    let targets_of = |c: usize| c * chunk_size..((c + 1) * chunk_size).min(n_target_cols);
+    // Two passes: count each chunk's pairs, then fill each chunk's
+    // slice of the final arrays in place (no second copy of the pairs).
+    let counts: Vec<usize> = (0..n_chunks)
+        .into_par_iter()
+        .map(|c| targets_of(c).map(|t| list(t).into_iter().count()).sum())
+        .collect();
+    let total: usize = counts.iter().sum();
+    let mut sources = vec![0u32; total];
+    let mut local_targets = vec![0u32; total];
+    let mut slices = Vec::with_capacity(n_chunks);
+    let (mut s_rest, mut t_rest) = (&mut sources[..], &mut local_targets[..]);
+    for &len in &counts {
+        let (s, s_next) = s_rest.split_at_mut(len);
+        let (t, t_next) = t_rest.split_at_mut(len);
+        slices.push((s, t));
+        (s_rest, t_rest) = (s_next, t_next);
+    }
+    let chunk_groups: Vec<Vec<Group>> = slices
+        .into_par_iter()
+        .enumerate()
+        .map(|(c, (s, t))| fill_chunk(targets_of(c), (n_target_cols, n_source_cols), &list, s, t))
+        .collect::<Result<_, _>>()?;
+    let mut chunks = Vec::with_capacity(n_chunks);
+    let mut groups = Vec::new();
+    let mut base = 0;
+    for (c, (g, len)) in chunk_groups.into_iter().zip(counts).enumerate() {
+        let group_start = groups.len();
+        groups.extend(g.into_iter().map(|g| Group {
+            vector: g.vector,
+            pair_start: base + g.pair_start,
+            pair_end: base + g.pair_end,
+        }));
+        base += len;
+        let r = targets_of(c);
+        chunks.push(Chunk {
+            target_start: r.start,
+            target_end: r.end,
+            group_start,
+            group_end: groups.len(),
+        });
+    }
+    Ok(PairLists {
+        chunks,
+        groups,
+        sources,
+        local_targets,
+    })
 }
 
 /// Read the lists of `targets` and counting-sort them by transfer vector
@@ -455,6 +575,11 @@ where
     Ok(groups)
 }
 
+/// The column of a slot that holds a pair (present by construction).
+fn column(c: Option<usize>) -> usize {
+    c.expect("a slot with a pair has a column")
+}
+
 fn out_of_range(
     i: usize,
     t: usize,
@@ -474,7 +599,7 @@ fn out_of_range(
 /// vector (ascending vector index; within a group, pairs in target order).
 #[derive(Clone, Copy, Debug)]
 pub struct ChunkView<'a> {
-    inter: &'a M2lInteractions,
+    lists: &'a PairLists,
     chunk: &'a Chunk,
 }
 
@@ -516,13 +641,13 @@ impl<'a> ChunkView<'a> {
     /// The chunk's groups, one per transfer vector present, in ascending
     /// vector index.
     pub fn groups(&self) -> impl Iterator<Item = GroupView<'a>> + use<'a> {
-        let inter = self.inter;
-        inter.groups[self.chunk.group_start..self.chunk.group_end]
+        let lists = self.lists;
+        lists.groups[self.chunk.group_start..self.chunk.group_end]
             .iter()
             .map(move |g| GroupView {
                 vector: g.vector as usize,
-                sources: &inter.sources[g.pair_start..g.pair_end],
-                targets: &inter.local_targets[g.pair_start..g.pair_end],
+                sources: &lists.sources[g.pair_start..g.pair_end],
+                targets: &lists.local_targets[g.pair_start..g.pair_end],
             })
     }
 }

@@ -168,6 +168,9 @@ pub struct SiblingBlocks {
     blocks: Vec<SiblingBlock>,
     loose_starts: Vec<u32>,
     loose: Vec<LoosePair>,
+    /// Whether any pair uses each transfer vector (indexed as
+    /// [`transfer_vectors`]).
+    used_vectors: Vec<bool>,
 }
 
 const UNCLAIMED: u32 = u32::MAX;
@@ -203,6 +206,10 @@ impl SiblingBlocks {
         let mask: Vec<AtomicU64> = (0..slots).map(|_| AtomicU64::new(0)).collect();
         let vectors = transfer_vectors();
         let chunks: Vec<_> = inter.chunk_views().collect();
+        let mut used_vectors = vec![false; vectors.len()];
+        for g in chunks.iter().flat_map(|c| c.groups()) {
+            used_vectors[g.vector] = true;
+        }
         // Pass 1: each (target group, offset) slot goes to its smallest
         // source group (deterministic whatever the thread timing).
         let slots =
@@ -275,7 +282,14 @@ impl SiblingBlocks {
             blocks,
             loose_starts,
             loose,
+            used_vectors,
         }
+    }
+
+    /// Whether some pair uses transfer vector `v` (its index in
+    /// [`transfer_vectors`]).
+    pub fn uses_vector(&self, v: usize) -> bool {
+        self.used_vectors.get(v).copied().unwrap_or(false)
     }
 
     /// Bytes held by the regrouped pairs.
@@ -288,6 +302,7 @@ impl SiblingBlocks {
             + size_of_val(&self.blocks[..])
             + size_of_val(&self.loose_starts[..])
             + size_of_val(&self.loose[..])
+            + size_of_val(&self.used_vectors[..])
     }
 
     /// Number of target groups (the last target slot's group, plus one).
@@ -484,6 +499,62 @@ mod tests {
                 (near && transfer_vector_index(v).is_some()).then_some(([x, y, z], [a, b, c], v))
             })
         })
+    }
+
+    /// Pair lists released to the sibling blocks come back exactly as they
+    /// were grouped: the same chunks, groups and pairs in the same order,
+    /// with loose pairs (a misaligned and a repeated one), on a sparse
+    /// level with slots and on a plain one.
+    #[test]
+    fn released_pair_lists_come_back_as_they_were() {
+        let kept: Vec<u32> = (0..216u32).filter(|m| m % 5 != 2).collect();
+        let column = |m: u32| kept.iter().position(|&k| k == m);
+        let mut pairs: Vec<_> = grid_v_pairs()
+            .filter_map(|(t, s, v)| Some((column(slot(t))?, column(slot(s))?, v)))
+            .collect();
+        pairs.push((3, 150, [3, 3, 3]));
+        pairs.push(pairs[7]);
+        let n = kept.len();
+        let plain = M2lInteractions::with_chunk_size(n, n, &pairs, 16).unwrap();
+        let slotted = plain
+            .clone()
+            .with_sibling_slots(kept.clone(), kept.clone())
+            .unwrap();
+        let lists = |inter: &M2lInteractions| {
+            inter
+                .chunk_views()
+                .map(|c| {
+                    let groups: Vec<_> = c
+                        .groups()
+                        .map(|g| (g.vector, g.sources.to_vec(), g.targets.to_vec()))
+                        .collect();
+                    (c.first_target(), c.n_targets(), groups)
+                })
+                .collect::<Vec<_>>()
+        };
+        for inter in [plain, slotted] {
+            let before = lists(&inter);
+            let bytes = inter.memory_bytes();
+            let mut released = inter.clone();
+            released.release_pairs();
+            assert!(!released.holds_pair_lists());
+            assert_eq!(released.len(), pairs.len());
+            if released.sibling_blocks().n_loose() < 4 {
+                assert!(released.memory_bytes() < bytes);
+            }
+            assert!(
+                (0..crate::N_TRANSFER_VECTORS).any(|v| released.sibling_blocks().uses_vector(v))
+            );
+            assert_eq!(lists(&released), before);
+            assert!(released.holds_pair_lists());
+            // New slots after a release: the pairs are still all there.
+            let mut again = inter.clone();
+            again.release_pairs();
+            let reslotted = again
+                .with_sibling_slots(kept.clone(), kept.clone())
+                .unwrap();
+            assert_eq!(lists(&reslotted), before);
+        }
     }
 
     /// Morton-like slot of a child of the grid: `8 parent + octant`.

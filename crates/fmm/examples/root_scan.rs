@@ -1,7 +1,8 @@
 //! Prints the chooser's candidates on each root of `ROOT_SCALES` for a
-//! uniform cube of N points (potential + gradient, FFT, 1e-6), then the
-//! root `choose_root` takes under a memory limit (GiB, optional):
-//! `cargo run --release -p ferrofmm-fmm --example root_scan -- 100000000 12`.
+//! uniform cube of N points (potential + gradient, 1e-6, the FFT scheme or
+//! `svd`), then the root `choose_root` takes under a memory limit (GiB,
+//! optional, `-` for none):
+//! `cargo run --release -p ferrofmm-fmm --example root_scan -- 100000000 12 svd`.
 use std::sync::Arc;
 
 use ferrofmm_field::n_surface_points;
@@ -22,12 +23,16 @@ fn main() {
         .get(1)
         .and_then(|a| a.parse::<f64>().ok())
         .map(|g| (g * (1u64 << 30) as f64) as u64);
+    let shape = match args.get(2).map(String::as_str) {
+        Some("svd") => M2lCostShape::Compressed,
+        _ => M2lCostShape::Fft,
+    };
     let points: Vec<f64> = Geometry::Cube.points(n, 1);
     let tuner = Tuner::from_model(
         Arc::new(LaplaceModel),
         Precision::F64,
         EvalMode::PotentialGradient,
-        M2lCostShape::Fft,
+        shape,
     );
     let tight = Domain::from_points(&[&points]).unwrap();
     for scale in ROOT_SCALES {
@@ -40,7 +45,13 @@ fn main() {
                 c.leaf_size,
                 c.work.n_boxes,
                 c.work.p2p_pairs,
-                box_bytes(&c.work, n_surface_points(c.order), Precision::F64) as f64
+                box_bytes(
+                    &c.work,
+                    n_surface_points(c.order),
+                    Precision::F64,
+                    shape,
+                    c.estimated_rank
+                ) as f64
                     / (1u64 << 30) as f64,
                 c.predicted.total,
                 c.predicted.p2p,
@@ -57,10 +68,17 @@ fn main() {
         values_per_target: 4,
         n_vectors: 1,
     };
-    let budget = box_budget::<f64>(limit, &size, true);
+    let budget = box_budget::<f64>(limit, &size, shape == M2lCostShape::Fft);
     let fits = |c: &ferrofmm_fmm::tuning::ChosenParameters| {
         budget.is_none_or(|room| {
-            box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64) <= room
+            let bytes = box_bytes(
+                &c.estimated_work,
+                n_surface_points(c.order),
+                Precision::F64,
+                shape,
+                c.estimated_svd_rank,
+            );
+            bytes <= room
         })
     };
     let (c, root) = choose_root(&tuner, Some(1e-6), &points, None, DEEPEST_LEVEL, fits).unwrap();

@@ -20,7 +20,7 @@
 use std::borrow::Cow;
 use std::time::Instant;
 
-use ferrofmm_field::{M2lInteractions, M2lScheme, OperatorParams, Operators};
+use ferrofmm_field::{FieldError, M2lInteractions, M2lScheme, OperatorParams, Operators};
 use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
 
@@ -90,8 +90,18 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
         (has_sources, has_targets): (bool, bool),
         needs: OperatorNeeds,
     ) -> Result<Self, FmmError> {
+        // A scheme that reads only the sibling blocks (FFT) gets the
+        // levels without their pair lists, released level by level as they
+        // are made (`M2lInteractions::release_pairs`: 8 bytes a V pair).
+        let compact = !m2l.reads_pair_lists();
         let m2l_interactions = (0..=tree.depth())
-            .map(|level| level_interactions(&tree, level))
+            .map(|level| {
+                let mut inter = level_interactions(&tree, level)?;
+                if compact {
+                    inter.release_pairs();
+                }
+                Ok::<_, FieldError>(inter)
+            })
             .collect::<Result<_, _>>()?;
         let mut tree = tree;
         let centre = coordinate_origin(tree.domain());

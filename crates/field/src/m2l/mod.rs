@@ -218,6 +218,19 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
         0
     }
 
+    /// Whether [`M2lScheme::apply`] reads the pair lists of its
+    /// interactions ([`M2lInteractions::chunk_views`]). A scheme that reads
+    /// only their sibling blocks ([`M2lInteractions::sibling_blocks`], as
+    /// the FFT scheme does) says `false`, and the FMM driver then releases
+    /// the lists once the blocks are made
+    /// ([`M2lInteractions::release_pairs`]): 8 bytes a V-list pair, about
+    /// 16 bytes a point on a uniform tree of 100 points a leaf. Reading the
+    /// lists anyway stays correct (they are made again, and held again).
+    /// Default `true`.
+    fn reads_pair_lists(&self) -> bool {
+        true
+    }
+
     /// Floating-point operations of one [`M2lScheme::apply`] of
     /// `interactions` (multiply and add counted separately), for GFLOP/s
     /// figures. `0.0` when a scheme does not say.

@@ -35,6 +35,7 @@
 //! given by the caller keep the bounding cube (the caller's leaf size
 //! describes a tree on it).
 
+use ferrofmm_field::M2lCostShape;
 use ferrofmm_kernels::Precision;
 use ferrofmm_tree::Domain;
 
@@ -112,21 +113,43 @@ fn fewest_boxes_near_cheapest(weighed: Vec<RootChoice>) -> RootChoice {
 
 /// Bytes of the buffers that grow with the boxes of a tree of `work` with
 /// expansions of `expansion_len` values
-/// ([`expansion_len`](ferrofmm_field::expansion_len)): the multipole and
-/// local expansions (`2 expansion_len` values a box), the tree's per-box arrays (about
-/// 200 bytes a box), its U lists (8 bytes an entry) and the M2L
-/// interaction groups made from its V lists (8 bytes a pair; the tree's
-/// own V lists are handed over to them once the groups are made). Within a
-/// few percent of [`MemoryReport`](crate::MemoryReport)'s tree, expansions
-/// and M2L lists.
-pub fn box_bytes(work: &super::WorkCounts, expansion_len: usize, precision: Precision) -> u64 {
+/// ([`expansion_len`](ferrofmm_field::expansion_len)), for an M2L scheme
+/// of cost shape `shape` (`svd_rank`: the SVD scheme's rank, for
+/// [`M2lCostShape::Compressed`]):
+/// - the multipole and local expansions (`2 expansion_len` values a box),
+///   the tree's per-box arrays (about 200 bytes a box) and its U lists (8
+///   bytes an entry);
+/// - the M2L interactions made from the V lists (the tree's own V lists
+///   are handed over to them): 8 bytes a pair for the dense and SVD
+///   schemes, which read the pair lists; for the FFT scheme only their
+///   sibling blocks are kept (16 bytes a block of up to 63 pairs, about 58
+///   in a uniform level; about 20 bytes a box of slots and offsets), so
+///   0.3 bytes a pair and 20 a box;
+/// - the SVD scheme's compressed multipoles (`svd_rank` values a source
+///   box of the level it translates, counted for every box).
+///
+/// Within 15% of [`MemoryReport`](crate::MemoryReport)'s tree,
+/// expansions and M2L interactions (the test `box_bytes_follow_the_built_tree`).
+pub fn box_bytes(
+    work: &super::WorkCounts,
+    expansion_len: usize,
+    precision: Precision,
+    shape: M2lCostShape,
+    svd_rank: usize,
+) -> u64 {
     let n = expansion_len;
     let t = match precision {
         Precision::F32 => 4,
         Precision::F64 => 8,
     };
+    let boxes = work.n_boxes as f64;
     let per_box = (2 * n * t + 200) as f64;
-    (work.n_boxes as f64 * per_box + 8.0 * work.u_entries + 8.0 * work.m2l_pairs) as u64
+    let m2l = match shape {
+        M2lCostShape::Fft => 0.3 * work.m2l_pairs + 20.0 * boxes,
+        M2lCostShape::Compressed => 8.0 * work.m2l_pairs + (svd_rank * t) as f64 * boxes,
+        _ => 8.0 * work.m2l_pairs,
+    };
+    (boxes * per_box + 8.0 * work.u_entries + m2l) as u64
 }
 
 /// The bytes left for [`box_bytes`] under `limit` (`None`: no limit): the
@@ -171,7 +194,10 @@ pub const ROOT_SEARCH_MIN_POINTS: usize = 2_000_000;
 /// per point is flat (`a s + b / s`), while the memory of expansions,
 /// lists and tree grows with the boxes. Measured at 1e7 (uniform cube,
 /// 1e-6, potential and gradient): leaves of 76 points are predicted 2%
-/// faster than leaves of 152, with twice the boxes.
+/// faster than leaves of 152, with twice the boxes. The same slack lets
+/// the scheme chooser take the FFT scheme, which holds less memory on a
+/// large tree, over an SVD scheme predicted faster
+/// ([`Tuner::choose_scheme_for`]).
 pub const ROOT_TIME_SLACK: f64 = 0.05;
 
 #[cfg(test)]
@@ -233,7 +259,13 @@ mod tests {
         // Without room for the boxes of that choice, another is taken:
         // one that fits, or the bounding cube.
         let bytes = |c: &ChosenParameters| {
-            box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64)
+            box_bytes(
+                &c.estimated_work,
+                n_surface_points(c.order),
+                Precision::F64,
+                M2lCostShape::Fft,
+                0,
+            )
         };
         let room = bytes(&chosen) - 1;
         let (other, other_root) =
@@ -252,27 +284,51 @@ mod tests {
     #[test]
     fn box_bytes_follow_the_built_tree() {
         use crate::{FmmBuilder, MemoryReport};
+        use ferrofmm_field::{FftConfig, FftM2l, SvdConfig, SvdM2l};
         let points: Vec<f64> = Geometry::Cube.points(40_000, 7);
-        let fmm = FmmBuilder::new(&points)
-            .order(6)
-            .leaf_size(64)
-            .build_with::<ferrofmm_field::FftM2l<f64>>(ferrofmm_field::FftConfig)
-            .unwrap();
-        // The FFT scheme's sibling blocks are made by the first evaluation.
-        fmm.evaluate(&vec![1.0; 40_000]).unwrap();
+        let charges = vec![1.0; 40_000];
+        let builder = || FmmBuilder::new(&points).order(6).leaf_size(64);
+        let check = |work: crate::tuning::WorkCounts, shape, rank, m: MemoryReport| {
+            let predicted = box_bytes(&work, n_surface_points(6), Precision::F64, shape, rank);
+            let held = (m.expansions + m.tree + m.m2l_interactions) as f64;
+            let held = held
+                + match shape {
+                    // The compressed multipoles, held during the apply.
+                    M2lCostShape::Compressed => (rank * 8 * work.n_boxes) as f64,
+                    _ => 0.0,
+                };
+            assert!(
+                (predicted as f64 / held - 1.0).abs() < 0.15,
+                "{shape:?}: {predicted} against {held}"
+            );
+        };
+        let fft = builder().build_with::<FftM2l<f64>>(FftConfig).unwrap();
+        // The FFT scheme keeps the sibling blocks, not the pair lists.
+        assert!(!fft.main().m2l_interactions[fft.tree().depth() as usize].holds_pair_lists());
+        fft.evaluate(&charges).unwrap();
+        assert!(!fft.main().m2l_interactions[fft.tree().depth() as usize].holds_pair_lists());
         // The built tree's V lists are handed over to the M2L
         // interactions: `of_fmm` counts them there.
         assert_eq!(
-            crate::tuning::WorkCounts::of_tree(fmm.tree()).m2l_pairs,
+            crate::tuning::WorkCounts::of_tree(fft.tree()).m2l_pairs,
             0.0
         );
-        let work = crate::tuning::WorkCounts::of_fmm(&fmm);
-        let predicted = box_bytes(&work, n_surface_points(6), Precision::F64) as f64;
-        let m: MemoryReport = fmm.memory();
-        let held = (m.expansions + m.tree + m.m2l_interactions) as f64;
-        assert!(
-            (predicted / held - 1.0).abs() < 0.15,
-            "{predicted} against {held}"
+        check(
+            crate::tuning::WorkCounts::of_fmm(&fft),
+            M2lCostShape::Fft,
+            0,
+            fft.memory(),
+        );
+        let svd = builder()
+            .build_with::<SvdM2l<f64>>(SvdConfig::default())
+            .unwrap();
+        let rank = svd.main().m2l.rank();
+        assert!(fft.memory().m2l_interactions * 10 < svd.memory().m2l_interactions);
+        check(
+            crate::tuning::WorkCounts::of_fmm(&svd),
+            M2lCostShape::Compressed,
+            rank,
+            svd.memory(),
         );
     }
 }

@@ -455,13 +455,14 @@ impl<T: Real> FftM2l<T> {
     /// Panic unless every vector of `interactions` is in operator set
     /// `set` (the contract of [`M2lScheme::apply`]).
     fn assert_present(&self, set: usize, interactions: &M2lInteractions) {
-        for c in interactions.chunk_views() {
-            for g in c.groups() {
-                assert!(
-                    self.present[set][g.vector],
-                    "apply called with a transfer vector the scheme was not built for"
-                );
-            }
+        // From the sibling blocks: the pair lists may have been released
+        // ([`M2lScheme::reads_pair_lists`]).
+        let siblings = interactions.sibling_blocks();
+        for (v, &present) in self.present[set].iter().enumerate() {
+            assert!(
+                present || !siblings.uses_vector(v),
+                "apply called with a transfer vector the scheme was not built for"
+            );
         }
     }
 }
@@ -785,6 +786,11 @@ impl<T: Real> M2lScheme<T> for FftM2l<T> {
 
     fn cache_status(&self) -> CacheStatus {
         self.cache_status.clone()
+    }
+
+    /// `false`: the products read the sibling blocks only.
+    fn reads_pair_lists(&self) -> bool {
+        false
     }
 
     fn memory_bytes(&self) -> usize {

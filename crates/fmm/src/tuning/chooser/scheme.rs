@@ -2,12 +2,13 @@
 //! predicted faster with its precomputation ([`Tuner::choose_scheme_for`],
 //! [`choose_scheme`]).
 
-use ferrofmm_field::M2lCostShape;
+use ferrofmm_field::{M2lCostShape, SPECTRA_BUDGET_BYTES, n_surface_points};
 use ferrofmm_kernels::{EvalMode, Precision};
 use ferrofmm_tree::DEEPEST_LEVEL;
 
 use crate::FmmError;
 use crate::tuning::occupancy::Occupancy;
+use crate::tuning::{ROOT_TIME_SLACK, box_bytes};
 use crate::validate::{check_sources_and_targets, validate_tolerance};
 
 use super::{ChosenParameters, Tuner};
@@ -21,6 +22,15 @@ impl Tuner {
     /// [`estimate`](ferrofmm_field::M2lScheme::estimate)) counts unless
     /// `svd_cached` (its operators come from the cache); the FFT scheme's
     /// (316 kernel FFTs, milliseconds) is left out.
+    ///
+    /// Where the SVD scheme is predicted faster by at most
+    /// [`ROOT_TIME_SLACK`] (5%) and the FFT scheme's memory is smaller
+    /// ([`box_bytes`] of each choice, plus the FFT scheme's
+    /// [`SPECTRA_BUDGET_BYTES`]), the FFT scheme is taken: it keeps only the
+    /// sibling blocks of the V lists (the SVD scheme reads the pair lists,
+    /// 8 bytes a pair) and no compressed multipoles. On a uniform cube of
+    /// 1e8 points (root 1.26x, 95 points a leaf) that is about 25 bytes a
+    /// point.
     ///
     /// # Errors
     /// As [`Tuner::choose_with`].
@@ -58,11 +68,31 @@ impl Tuner {
             } else {
                 svd_precompute_seconds(&svd)
             };
-        Ok(if fft.predicted_seconds <= svd_total {
-            (M2lCostShape::Fft, fft)
-        } else {
-            (M2lCostShape::Compressed, svd)
-        })
+        // Memory breaks near-ties: the FFT scheme keeps no pair lists and
+        // no compressed multipoles, so on a large tree it holds less.
+        let memory = |shape, c: &ChosenParameters| {
+            let spectra = match shape {
+                M2lCostShape::Fft => SPECTRA_BUDGET_BYTES as u64,
+                _ => 0,
+            };
+            let n = n_surface_points(c.order);
+            box_bytes(
+                &c.estimated_work,
+                n,
+                self.precision,
+                shape,
+                c.estimated_svd_rank,
+            ) + spectra
+        };
+        let fft_near = fft.predicted_seconds <= (1.0 + ROOT_TIME_SLACK) * svd_total;
+        let fft_leaner = memory(M2lCostShape::Fft, &fft) < memory(M2lCostShape::Compressed, &svd);
+        Ok(
+            if fft.predicted_seconds <= svd_total || (fft_near && fft_leaner) {
+                (M2lCostShape::Fft, fft)
+            } else {
+                (M2lCostShape::Compressed, svd)
+            },
+        )
     }
 }
 
