@@ -282,7 +282,80 @@ impl M2lInteractions {
 
     /// Number of target chunks (parallel tasks).
     pub fn n_chunks(&self) -> usize {
-        self.lists().chunks.len()
+        self.n_target_cols.div_ceil(self.chunk_size)
+    }
+
+    /// Target columns per chunk (the last chunk may have fewer).
+    pub fn chunk_size(&self) -> usize {
+        self.chunk_size
+    }
+
+    /// The target columns of chunk `c`: `c * chunk_size` up to the next
+    /// chunk's first column (or the last column).
+    pub fn chunk_targets(&self, c: usize) -> Range<usize> {
+        let start = (c * self.chunk_size).min(self.n_target_cols);
+        start..(start + self.chunk_size).min(self.n_target_cols)
+    }
+
+    /// Call `f` with chunk `c` (`c < n_chunks()`). When the pair lists are
+    /// held, the chunk is a view of them; after
+    /// [`M2lInteractions::release_pairs`] only this chunk's pairs are made
+    /// from the sibling blocks, exactly as the whole lists would group them
+    /// (the same groups, pairs in target order within a group), and are
+    /// dropped when `f` returns: a scheme that reads its chunks this way
+    /// (the SVD scheme) never holds more than one chunk's pairs per thread.
+    ///
+    /// ```
+    /// use ferrofmm_field::M2lInteractions;
+    /// let pairs = [(0, 1, [2, 0, 0]), (1, 0, [-2, 0, 0]), (0, 2, [0, 3, -1])];
+    /// let mut inter = M2lInteractions::with_chunk_size(2, 3, &pairs, 1).unwrap();
+    /// let held: Vec<usize> = (0..2).map(|c| inter.with_chunk(c, |v| v.groups().count())).collect();
+    /// inter.release_pairs();
+    /// let made: Vec<usize> = (0..2).map(|c| inter.with_chunk(c, |v| v.groups().count())).collect();
+    /// assert_eq!(held, made);
+    /// assert!(!inter.holds_pair_lists());
+    /// ```
+    ///
+    /// # Panics
+    /// When `c` is not a chunk.
+    pub fn with_chunk<R>(&self, c: usize, f: impl FnOnce(ChunkView<'_>) -> R) -> R {
+        assert!(c < self.n_chunks(), "chunk {c} of {}", self.n_chunks());
+        if let Some(lists) = self.pairs.get() {
+            return f(ChunkView {
+                lists,
+                chunk: &lists.chunks[c],
+            });
+        }
+        let siblings = self.released_blocks();
+        let vectors = transfer_vectors();
+        let list = |t: usize| self.pairs_from_blocks(siblings, &vectors, t);
+        let targets = self.chunk_targets(c);
+        let count = targets.clone().map(|t| list(t).count()).sum();
+        let mut sources = vec![0u32; count];
+        let mut local_targets = vec![0u32; count];
+        let groups = fill_chunk(
+            targets.clone(),
+            (self.n_target_cols, self.n_source_cols),
+            &list,
+            &mut sources,
+            &mut local_targets,
+        )
+        .expect("the sibling blocks hold valid pairs");
+        let lists = PairLists {
+            chunks: vec![Chunk {
+                target_start: targets.start,
+                target_end: targets.end,
+                group_start: 0,
+                group_end: groups.len(),
+            }],
+            groups,
+            sources,
+            local_targets,
+        };
+        f(ChunkView {
+            lists: &lists,
+            chunk: &lists.chunks[0],
+        })
     }
 
     /// Say which columns are siblings: column `c` is child `slot[c] % 8` of
@@ -386,34 +459,9 @@ impl M2lInteractions {
     /// [`M2lInteractions::release_pairs`].
     fn lists(&self) -> &PairLists {
         self.pairs.get_or_init(|| {
-            let siblings = self
-                .siblings
-                .get()
-                .expect("pair lists are released only once the sibling blocks are made");
+            let siblings = self.released_blocks();
             let vectors = transfer_vectors();
-            let vectors = &vectors;
-            let list = |t: usize| {
-                let slot = self.target_slot(t);
-                let (g, ct) = (slot / 8, slot % 8);
-                let from_blocks = siblings.blocks(g).iter().flat_map(move |b| {
-                    let row = (b.mask >> (8 * ct)) & 0xff;
-                    (0..8).filter(move |cs| row >> cs & 1 == 1).map(move |cs| {
-                        let s = 8 * b.source_group as usize + cs;
-                        let v = block_vector(b.offset as usize, ct, cs)
-                            .expect("a block holds V-list pairs only");
-                        (column(siblings.source_column(s)), vectors[v])
-                    })
-                });
-                let loose = siblings
-                    .loose(g)
-                    .iter()
-                    .filter(move |p| p.target as usize == slot)
-                    .map(move |p| {
-                        let s = siblings.source_column(p.source as usize);
-                        (column(s), vectors[p.vector as usize])
-                    });
-                from_blocks.chain(loose)
-            };
+            let list = |t: usize| self.pairs_from_blocks(siblings, &vectors, t);
             let lists = group_pairs(
                 self.n_target_cols,
                 self.n_source_cols,
@@ -424,6 +472,44 @@ impl M2lInteractions {
             debug_assert_eq!(lists.sources.len(), self.n_pairs);
             lists
         })
+    }
+
+    /// The sibling blocks of released pair lists.
+    fn released_blocks(&self) -> &SiblingBlocks {
+        self.siblings
+            .get()
+            .expect("pair lists are released only once the sibling blocks are made")
+    }
+
+    /// The V list of target column `t` (`(source column, vector)`), read
+    /// from the sibling blocks: the block pairs in block order, then the
+    /// loose ones.
+    fn pairs_from_blocks<'s>(
+        &'s self,
+        siblings: &'s SiblingBlocks,
+        vectors: &'s [[i32; 3]],
+        t: usize,
+    ) -> impl Iterator<Item = (usize, [i32; 3])> + 's {
+        let slot = self.target_slot(t);
+        let (g, ct) = (slot / 8, slot % 8);
+        let from_blocks = siblings.blocks(g).iter().flat_map(move |b| {
+            let row = (b.mask >> (8 * ct)) & 0xff;
+            (0..8).filter(move |cs| row >> cs & 1 == 1).map(move |cs| {
+                let s = 8 * b.source_group as usize + cs;
+                let v = block_vector(b.offset as usize, ct, cs)
+                    .expect("a block holds V-list pairs only");
+                (column(siblings.source_column(s)), vectors[v])
+            })
+        });
+        let loose = siblings
+            .loose(g)
+            .iter()
+            .filter(move |p| p.target as usize == slot)
+            .map(move |p| {
+                let s = siblings.source_column(p.source as usize);
+                (column(s), vectors[p.vector as usize])
+            });
+        from_blocks.chain(loose)
     }
 
     /// Bytes held: the grouped pairs (unless released), the sibling slots,

@@ -45,13 +45,7 @@ fn main() {
                 c.leaf_size,
                 c.work.n_boxes,
                 c.work.p2p_pairs,
-                box_bytes(
-                    &c.work,
-                    n_surface_points(c.order),
-                    Precision::F64,
-                    shape,
-                    c.estimated_rank
-                ) as f64
+                box_bytes(&c.work, n_surface_points(c.order), Precision::F64) as f64
                     / (1u64 << 30) as f64,
                 c.predicted.total,
                 c.predicted.p2p,
@@ -71,13 +65,7 @@ fn main() {
     let budget = box_budget::<f64>(limit, &size, shape == M2lCostShape::Fft);
     let fits = |c: &ferrofmm_fmm::tuning::ChosenParameters| {
         budget.is_none_or(|room| {
-            let bytes = box_bytes(
-                &c.estimated_work,
-                n_surface_points(c.order),
-                Precision::F64,
-                shape,
-                c.estimated_svd_rank,
-            );
+            let bytes = box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64);
             bytes <= room
         })
     };

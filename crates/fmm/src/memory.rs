@@ -49,10 +49,10 @@ pub struct MemoryReport {
     pub points: usize,
     /// Tree structure: per-box arrays, colleague table, U/V/W/X lists.
     pub tree: usize,
-    /// M2L interactions of every level: the grouped pair lists (for the
-    /// dense and SVD schemes) or only their sibling blocks (for the FFT
-    /// scheme, which releases the lists:
-    /// [`M2lScheme::reads_pair_lists`](ferrofmm_field::M2lScheme::reads_pair_lists)).
+    /// M2L interactions of every level: their sibling blocks, with the
+    /// grouped pair lists only for a scheme that reads them whole
+    /// ([`M2lScheme::reads_pair_lists`](ferrofmm_field::M2lScheme::reads_pair_lists):
+    /// none of the built-in ones).
     pub m2l_interactions: usize,
     /// Check-to-equivalent, M2M and L2L operators.
     pub operators: usize,

@@ -90,9 +90,10 @@ impl<T: Real, S: M2lScheme<T>> TreePart<T, S> {
         (has_sources, has_targets): (bool, bool),
         needs: OperatorNeeds,
     ) -> Result<Self, FmmError> {
-        // A scheme that reads only the sibling blocks (FFT) gets the
-        // levels without their pair lists, released level by level as they
-        // are made (`M2lInteractions::release_pairs`: 8 bytes a V pair).
+        // A scheme that reads only the sibling blocks (FFT) or one chunk's
+        // pairs at a time (SVD, dense) gets the levels without their pair
+        // lists, released level by level as they are made
+        // (`M2lInteractions::release_pairs`: 8 bytes a V pair).
         let compact = !m2l.reads_pair_lists();
         let m2l_interactions = (0..=tree.depth())
             .map(|level| {

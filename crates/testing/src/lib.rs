@@ -18,6 +18,8 @@
 //! * [`errors`]: relative L2 errors (whole vectors or chosen columns of
 //!   interleaved rows), max-norm relative differences, norms;
 //! * [`scratch`]: [`TempDir`], a fresh directory removed on drop;
+//! * [`operator_cache`]: [`shared_operator_cache`], one operator cache
+//!   folder for all the tests of a test binary;
 //! * [`files`]: input files in every form the front ends read, and the
 //!   shared table of malformed files and their messages.
 //!
@@ -34,10 +36,12 @@
 pub mod charges;
 pub mod errors;
 pub mod files;
+pub mod operator_cache;
 pub mod points;
 pub mod rng;
 pub mod scratch;
 
 pub use charges::ChargeSign;
+pub use operator_cache::shared_operator_cache;
 pub use rng::{SplitMix64, seeded};
 pub use scratch::TempDir;

@@ -224,6 +224,12 @@ impl<T: Real> M2lScheme<T> for DenseM2l<T> {
         });
     }
 
+    /// `false`: chunk by chunk ([`for_each_chunk_with_progress`]), so the
+    /// FMM keeps only the sibling blocks.
+    fn reads_pair_lists(&self) -> bool {
+        false
+    }
+
     fn memory_bytes(&self) -> usize {
         self.store.data.len() * std::mem::size_of::<T>()
     }

@@ -218,15 +218,16 @@ pub trait M2lScheme<T: Real>: Sized + Send + Sync {
         0
     }
 
-    /// Whether [`M2lScheme::apply`] reads the pair lists of its
+    /// Whether [`M2lScheme::apply`] reads the whole pair lists of its
     /// interactions ([`M2lInteractions::chunk_views`]). A scheme that reads
     /// only their sibling blocks ([`M2lInteractions::sibling_blocks`], as
-    /// the FFT scheme does) says `false`, and the FMM driver then releases
-    /// the lists once the blocks are made
-    /// ([`M2lInteractions::release_pairs`]): 8 bytes a V-list pair, about
-    /// 16 bytes a point on a uniform tree of 100 points a leaf. Reading the
-    /// lists anyway stays correct (they are made again, and held again).
-    /// Default `true`.
+    /// the FFT scheme does) or one chunk at a time
+    /// ([`M2lInteractions::with_chunk`], [`for_each_chunk`], as the SVD
+    /// scheme does) says `false`, and the FMM driver then releases the
+    /// lists once the blocks are made ([`M2lInteractions::release_pairs`]):
+    /// 8 bytes a V-list pair, about 16 bytes a point on a uniform tree of
+    /// 100 points a leaf. Reading the lists anyway stays correct (they are
+    /// made again, and held again). Default `true`.
     fn reads_pair_lists(&self) -> bool {
         true
     }
@@ -376,7 +377,11 @@ pub(crate) fn level_set<T>(
 /// chunks of `inter`: each call gets the chunk and its own disjoint block
 /// of `check` (the chunk's target columns, `rows` values each, column
 /// `first_target() + t` at `t * rows`), so no two tasks write the same
-/// value. Empty chunks are skipped.
+/// value. Empty chunks are skipped. After
+/// [`M2lInteractions::release_pairs`] each task makes its chunk's pairs
+/// from the sibling blocks and drops them when done
+/// ([`M2lInteractions::with_chunk`]), so a scheme built on this loop never
+/// needs the level's whole pair lists.
 ///
 /// # Panics
 /// When `check` is shorter than `rows * inter.n_target_cols()`.
@@ -405,21 +410,23 @@ pub fn for_each_chunk_with_progress<T: Real>(
     let total = inter.len() as u64;
     let mut blocks = Vec::with_capacity(inter.n_chunks());
     let mut rest = check;
-    for c in inter.chunk_views() {
-        let (a, b) = rest.split_at_mut(c.n_targets() * rows);
+    for c in 0..inter.n_chunks() {
+        let (a, b) = rest.split_at_mut(inter.chunk_targets(c).len() * rows);
         blocks.push((c, a));
         rest = b;
     }
     blocks.into_par_iter().for_each(|(c, out)| {
-        if !c.is_empty() {
-            let pairs = if progress.is_active() {
-                c.groups().map(|g| g.sources.len() as u64).sum()
-            } else {
-                0
-            };
-            f(c, out);
-            progress.advance(pairs, total);
-        }
+        inter.with_chunk(c, |c| {
+            if !c.is_empty() {
+                let pairs = if progress.is_active() {
+                    c.groups().map(|g| g.sources.len() as u64).sum()
+                } else {
+                    0
+                };
+                f(c, out);
+                progress.advance(pairs, total);
+            }
+        });
     });
 }
 

@@ -16,12 +16,16 @@
 //! scheme built by [`M2lScheme::precompute`] and by
 //! [`M2lScheme::precompute_for`] with the levels' usage, with the default
 //! chunking and with chunks of 7 target columns (so a chunk boundary falls
-//! inside many V lists), with the boxes in lexicographic and in Morton
+//! inside many V lists) and with those chunks' pair lists released (made
+//! again from the sibling blocks, [`M2lInteractions::release_pairs`]),
+//! with the boxes in lexicographic and in Morton
 //! column order (siblings in eight consecutive columns, as in a tree level:
 //! the layout [`SiblingBlocks`](super::SiblingBlocks) files into full
 //! `8 x 8` blocks), with one Morton pair in five left out (partial
 //! blocks) and without every third box (compacted columns with their
-//! sibling slots, as a tree that leaves out empty boxes), that `apply`
+//! sibling slots, as a tree that leaves out empty boxes), that a scheme
+//! that says it reads no pair lists ([`M2lScheme::reads_pair_lists`]) does
+//! not make them again, that `apply`
 //! accumulates (the initial `check0` is kept), and
 //! that an empty interaction set changes nothing.
 //!
@@ -165,10 +169,13 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
             let small_chunks = M2lInteractions::with_chunk_size(cols, cols, pairs, 7)
                 .and_then(with_slots)
                 .map_err(|e| e.to_string())?;
+            let mut released = small_chunks.clone();
+            released.release_pairs();
             for (scheme, which) in [(&full, "precompute"), (&restricted, "precompute_for")] {
                 for (inter, chunks) in [
                     (&default_chunks, "default chunks"),
                     (&small_chunks, "chunks of 7"),
+                    (&released, "chunks of 7, pair lists released"),
                 ] {
                     let mut check = check0.clone();
                     scheme.apply(*level, inter, &multipoles, &mut check);
@@ -188,6 +195,13 @@ pub fn check_scheme<T: Real, S: M2lScheme<T>, K: Kernel>(
                     }
                     worst = worst.max(error);
                 }
+            }
+            if !full.reads_pair_lists() && released.holds_pair_lists() {
+                return Err(format!(
+                    "{} says it reads no pair lists, but its apply made them again ({layout}, \
+                     level {level})",
+                    full.name()
+                ));
             }
         }
         let (pairs, cols) = (lex_pairs, all);

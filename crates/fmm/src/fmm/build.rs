@@ -149,13 +149,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 let fits = |c: &tuning::ChosenParameters| {
                     box_budget.is_none_or(|room| {
                         let n = ferrofmm_field::expansion_len(&b.kernel, c.order);
-                        let bytes = tuning::box_bytes(
-                            &c.estimated_work,
-                            n,
-                            T::PRECISION,
-                            S::COST_SHAPE,
-                            c.estimated_svd_rank,
-                        );
+                        let bytes = tuning::box_bytes(&c.estimated_work, n, T::PRECISION);
                         bytes <= room
                     })
                 };

@@ -35,7 +35,6 @@
 //! given by the caller keep the bounding cube (the caller's leaf size
 //! describes a tree on it).
 
-use ferrofmm_field::M2lCostShape;
 use ferrofmm_kernels::Precision;
 use ferrofmm_tree::Domain;
 
@@ -113,30 +112,22 @@ fn fewest_boxes_near_cheapest(weighed: Vec<RootChoice>) -> RootChoice {
 
 /// Bytes of the buffers that grow with the boxes of a tree of `work` with
 /// expansions of `expansion_len` values
-/// ([`expansion_len`](ferrofmm_field::expansion_len)), for an M2L scheme
-/// of cost shape `shape` (`svd_rank`: the SVD scheme's rank, for
-/// [`M2lCostShape::Compressed`]):
+/// ([`expansion_len`](ferrofmm_field::expansion_len)):
 /// - the multipole and local expansions (`2 expansion_len` values a box),
 ///   the tree's per-box arrays (about 200 bytes a box) and its U lists (8
 ///   bytes an entry);
 /// - the M2L interactions made from the V lists (the tree's own V lists
-///   are handed over to them): 8 bytes a pair for the dense and SVD
-///   schemes, which read the pair lists; for the FFT scheme only their
-///   sibling blocks are kept (16 bytes a block of up to 63 pairs, about 58
-///   in a uniform level; about 20 bytes a box of slots and offsets), so
-///   0.3 bytes a pair and 20 a box;
-/// - the SVD scheme's compressed multipoles (`svd_rank` values a source
-///   box of the level it translates, counted for every box).
+///   are handed over to them): every built-in scheme reads them from their
+///   sibling blocks (16 bytes a block of up to 63 pairs, about 58 in a
+///   uniform level; about 20 bytes a box of slots and offsets), so 0.3
+///   bytes a pair and 20 a box. The pair lists themselves (8 bytes a pair)
+///   are released once the blocks are made: the FFT scheme reads only the
+///   blocks, the SVD and dense schemes make one chunk's pairs at a time
+///   ([`M2lInteractions::with_chunk`](ferrofmm_field::M2lInteractions::with_chunk)).
 ///
 /// Within 15% of [`MemoryReport`](crate::MemoryReport)'s tree,
 /// expansions and M2L interactions (the test `box_bytes_follow_the_built_tree`).
-pub fn box_bytes(
-    work: &super::WorkCounts,
-    expansion_len: usize,
-    precision: Precision,
-    shape: M2lCostShape,
-    svd_rank: usize,
-) -> u64 {
+pub fn box_bytes(work: &super::WorkCounts, expansion_len: usize, precision: Precision) -> u64 {
     let n = expansion_len;
     let t = match precision {
         Precision::F32 => 4,
@@ -144,11 +135,7 @@ pub fn box_bytes(
     };
     let boxes = work.n_boxes as f64;
     let per_box = (2 * n * t + 200) as f64;
-    let m2l = match shape {
-        M2lCostShape::Fft => 0.3 * work.m2l_pairs + 20.0 * boxes,
-        M2lCostShape::Compressed => 8.0 * work.m2l_pairs + (svd_rank * t) as f64 * boxes,
-        _ => 8.0 * work.m2l_pairs,
-    };
+    let m2l = 0.3 * work.m2l_pairs + 20.0 * boxes;
     (boxes * per_box + 8.0 * work.u_entries + m2l) as u64
 }
 
@@ -208,7 +195,7 @@ mod tests {
     use ferrofmm_kernels::{EvalMode, Precision};
     use ferrofmm_tree::DEEPEST_LEVEL;
 
-    use crate::tuning::{LaplaceModel, M2lCostShape};
+    use crate::tuning::{LaplaceModel, M2lCostShape, WorkCounts};
     use std::sync::Arc;
 
     fn tuner() -> Tuner {
@@ -259,13 +246,7 @@ mod tests {
         // Without room for the boxes of that choice, another is taken:
         // one that fits, or the bounding cube.
         let bytes = |c: &ChosenParameters| {
-            box_bytes(
-                &c.estimated_work,
-                n_surface_points(c.order),
-                Precision::F64,
-                M2lCostShape::Fft,
-                0,
-            )
+            box_bytes(&c.estimated_work, n_surface_points(c.order), Precision::F64)
         };
         let room = bytes(&chosen) - 1;
         let (other, other_root) =
@@ -288,47 +269,43 @@ mod tests {
         let points: Vec<f64> = Geometry::Cube.points(40_000, 7);
         let charges = vec![1.0; 40_000];
         let builder = || FmmBuilder::new(&points).order(6).leaf_size(64);
-        let check = |work: crate::tuning::WorkCounts, shape, rank, m: MemoryReport| {
-            let predicted = box_bytes(&work, n_surface_points(6), Precision::F64, shape, rank);
+        let check = |what: &str, work: crate::tuning::WorkCounts, m: MemoryReport| {
+            let predicted = box_bytes(&work, n_surface_points(6), Precision::F64);
             let held = (m.expansions + m.tree + m.m2l_interactions) as f64;
-            let held = held
-                + match shape {
-                    // The compressed multipoles, held during the apply.
-                    M2lCostShape::Compressed => (rank * 8 * work.n_boxes) as f64,
-                    _ => 0.0,
-                };
             assert!(
                 (predicted as f64 / held - 1.0).abs() < 0.15,
-                "{shape:?}: {predicted} against {held}"
+                "{what}: {predicted} against {held}"
             );
         };
         let fft = builder().build_with::<FftM2l<f64>>(FftConfig).unwrap();
-        // The FFT scheme keeps the sibling blocks, not the pair lists.
-        assert!(!fft.main().m2l_interactions[fft.tree().depth() as usize].holds_pair_lists());
-        fft.evaluate(&charges).unwrap();
-        assert!(!fft.main().m2l_interactions[fft.tree().depth() as usize].holds_pair_lists());
-        // The built tree's V lists are handed over to the M2L
-        // interactions: `of_fmm` counts them there.
-        assert_eq!(
-            crate::tuning::WorkCounts::of_tree(fft.tree()).m2l_pairs,
-            0.0
-        );
-        check(
-            crate::tuning::WorkCounts::of_fmm(&fft),
-            M2lCostShape::Fft,
-            0,
-            fft.memory(),
-        );
         let svd = builder()
             .build_with::<SvdM2l<f64>>(SvdConfig::default())
             .unwrap();
-        let rank = svd.main().m2l.rank();
-        assert!(fft.memory().m2l_interactions * 10 < svd.memory().m2l_interactions);
-        check(
-            crate::tuning::WorkCounts::of_fmm(&svd),
-            M2lCostShape::Compressed,
-            rank,
-            svd.memory(),
+        // Both schemes keep the sibling blocks, not the pair lists, before
+        // and after an evaluation; the SVD scheme gives the same result as
+        // with the lists held (its chunks are made exactly as they were).
+        let deepest = |m: &[ferrofmm_field::M2lInteractions]| m[m.len() - 1].holds_pair_lists();
+        assert!(!deepest(&fft.main().m2l_interactions));
+        assert!(!deepest(&svd.main().m2l_interactions));
+        fft.evaluate(&charges).unwrap();
+        let streamed = svd.evaluate(&charges).unwrap();
+        assert!(!deepest(&fft.main().m2l_interactions));
+        assert!(!deepest(&svd.main().m2l_interactions));
+        assert!(
+            svd.memory().m2l_interactions * 10 < WorkCounts::of_fmm(&svd).m2l_pairs as usize * 8
         );
+        let held = builder()
+            .build_with::<SvdM2l<f64>>(SvdConfig::default())
+            .unwrap();
+        for inter in &held.main().m2l_interactions {
+            inter.chunk_views().count();
+        }
+        assert!(deepest(&held.main().m2l_interactions));
+        assert_eq!(held.evaluate(&charges).unwrap(), streamed);
+        // The built tree's V lists are handed over to the M2L
+        // interactions: `of_fmm` counts them there.
+        assert_eq!(WorkCounts::of_tree(fft.tree()).m2l_pairs, 0.0);
+        check("fft", WorkCounts::of_fmm(&fft), fft.memory());
+        check("svd", WorkCounts::of_fmm(&svd), svd.memory());
     }
 }

@@ -45,6 +45,7 @@ fn run<K: Kernel>(
     let points: Vec<f64> = geometry.points(n, 5);
     let densities: Vec<f64> = sign.generate(n * kernel.values_per_source(kind), 6);
     let builder = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(kernel.clone())
         .order(order)
         .leaf_size(64)
@@ -184,6 +185,7 @@ fn check_helmholtz_hessians(k: f64, cases: [(usize, Scheme); 2]) {
     let densities: Vec<f64> = Charges::Signed.generate(n * kernel.values_per_source(kind), 6);
     for (order, scheme) in cases {
         let builder = FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .kernel(kernel)
             .order(order)
             .leaf_size(16)
@@ -359,6 +361,7 @@ fn fft_scheme_agrees_with_svd_for_kernels_with_components() {
         let densities: Vec<f64> = Charges::Signed.generate(n * kernel.values_per_source(kind), 12);
         let builder = || {
             FmmBuilder::new(&points)
+                .cache_dir(crate::ops_cache())
                 .kernel(kernel.clone())
                 .order(order)
                 .leaf_size(leaf)

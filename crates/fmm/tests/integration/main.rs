@@ -31,3 +31,11 @@ mod svd_truncation;
 mod tolerance;
 mod tree_fmm;
 mod wider_root;
+
+/// The operator cache that this binary's tests share: tests that build the
+/// same kernel at the same orders again (the Stokeslet at orders 3-10 on two
+/// point sets, its layers, its periodic cells) read the operators back
+/// instead of recomputing them (`ferrofmm_testing::operator_cache`).
+fn ops_cache() -> std::path::PathBuf {
+    ferrofmm_testing::shared_operator_cache(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")))
+}

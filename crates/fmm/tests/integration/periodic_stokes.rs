@@ -55,6 +55,7 @@ fn errors(values: &[f64], truth: &[f64]) -> (f64, f64) {
 
 fn periodic_stokes(points: &[f64], cell: Periodic, mu: f64) -> FmmBuilder<'_, f64, Stokes3d> {
     FmmBuilder::new(points)
+        .cache_dir(crate::ops_cache())
         .kernel(Stokes3d::new(mu).unwrap())
         .periodic(cell)
         .mode(EvalMode::PotentialGradient)
@@ -218,6 +219,7 @@ fn a_tight_cluster_in_a_large_cell_is_free_space_and_one_image_force() {
     let l = 10.0;
     let periodic = run(&points, &f, Periodic::cube(l), 1.0, 8, 20);
     let free = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(Stokes3d::new(1.0).unwrap())
         .mode(EvalMode::PotentialGradient)
         .order(8)
@@ -250,6 +252,7 @@ fn a_tight_cluster_in_a_large_cell_is_free_space_and_one_image_force() {
 fn stokes_refuses_the_vacuum_surface_term() {
     let points = [0.1, 0.2, 0.3, 0.6, 0.7, 0.8];
     let built = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(Stokes3d::new(1.0).unwrap())
         .periodic(Periodic::cube(1.0).with_surface(SurfaceTerm::Vacuum))
         .order(4)
@@ -260,6 +263,7 @@ fn stokes_refuses_the_vacuum_surface_term() {
         other => panic!("expected a refusal, got {:?}", other.map(|_| ())),
     }
     let fmm = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(Stokes3d::new(1.0).unwrap())
         .periodic(Periodic::cube(1.0))
         .order(4)

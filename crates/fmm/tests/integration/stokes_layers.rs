@@ -117,6 +117,7 @@ fn forces_and_stresslets_with_the_pressure_meet_the_tolerance() {
         let m: Vec<f64> = sign.generate(3 * n, 5);
         let nu: Vec<f64> = Charges::Signed.generate(3 * n, 6);
         let builder = FmmBuilder::new(&x)
+            .cache_dir(crate::ops_cache())
             .kernel(Stokes3d::default())
             .mode(EvalMode::PotentialGradient)
             .leaf_size(64)
@@ -221,6 +222,7 @@ fn the_sphere_identity_and_the_stokes_equations_hold() {
     ];
     let t: Vec<f64> = targets.iter().flatten().copied().collect();
     let builder = FmmBuilder::new(&x)
+        .cache_dir(crate::ops_cache())
         .targets(&t)
         .kernel(Stokes3d::default())
         .allow_direct(false)
@@ -264,6 +266,7 @@ fn the_sphere_identity_and_the_stokes_equations_hold() {
     }
     let viscosity = 0.8;
     let builder = FmmBuilder::new(&x)
+        .cache_dir(crate::ops_cache())
         .targets(&t)
         .kernel(Stokes3d::new(viscosity).unwrap())
         .mode(EvalMode::PotentialGradient)

@@ -360,10 +360,12 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
         self.store.data.len() * std::mem::size_of::<T>()
     }
 
-    /// The compressed multipoles of the level (`k` values per source
-    /// column, `k` the largest rank of the operator sets), and per thread
-    /// a chunk's compressed check potentials and products (at most 256
-    /// target columns each).
+    /// Per thread, one chunk's work (`k` the largest rank of the operator
+    /// sets): its compressed source columns (at most eight per target
+    /// column of a uniform level, or every source column), its compressed
+    /// check potentials and one group's products (at most the chunk's
+    /// columns each), and the chunk's pairs when they are made from the
+    /// sibling blocks (8 bytes each, at most 189 per target column).
     fn apply_scratch_bytes(&self, interactions: &M2lInteractions) -> usize {
         let k = self
             .store
@@ -373,9 +375,23 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
             .map(|s| s.rank)
             .max()
             .unwrap_or(0);
-        let per_thread = 2 * k * 256;
-        (k * interactions.n_source_cols() + rayon::current_num_threads() * per_thread)
-            * std::mem::size_of::<T>()
+        let cols = interactions.chunk_size().min(interactions.n_target_cols());
+        let sources = (8 * cols).min(interactions.n_source_cols());
+        let values = k * (sources + 4 * cols);
+        let pairs = if interactions.holds_pair_lists() {
+            0
+        } else {
+            8 * 189 * cols
+        };
+        let per_thread = values * std::mem::size_of::<T>() + pairs;
+        rayon::current_num_threads().min(interactions.n_chunks().max(1)) * per_thread
+    }
+
+    /// `false`: each chunk's pairs are read on their own
+    /// ([`for_each_chunk`](crate::plumbing::for_each_chunk)), so the FMM
+    /// keeps only the sibling blocks.
+    fn reads_pair_lists(&self) -> bool {
+        false
     }
 
     fn flops(&self, interactions: &M2lInteractions) -> f64 {

@@ -26,11 +26,9 @@ impl Tuner {
     /// Where the SVD scheme is predicted faster by at most
     /// [`ROOT_TIME_SLACK`] (5%) and the FFT scheme's memory is smaller
     /// ([`box_bytes`] of each choice, plus the FFT scheme's
-    /// [`SPECTRA_BUDGET_BYTES`]), the FFT scheme is taken: it keeps only the
-    /// sibling blocks of the V lists (the SVD scheme reads the pair lists,
-    /// 8 bytes a pair) and no compressed multipoles. On a uniform cube of
-    /// 1e8 points (root 1.26x, 95 points a leaf) that is about 25 bytes a
-    /// point.
+    /// [`SPECTRA_BUDGET_BYTES`]), the FFT scheme is taken. (Both keep only
+    /// the sibling blocks of the V lists, so only the trees' sizes and the
+    /// spectra differ.)
     ///
     /// # Errors
     /// As [`Tuner::choose_with`].
@@ -68,21 +66,14 @@ impl Tuner {
             } else {
                 svd_precompute_seconds(&svd)
             };
-        // Memory breaks near-ties: the FFT scheme keeps no pair lists and
-        // no compressed multipoles, so on a large tree it holds less.
+        // Memory breaks near-ties: each choice's boxes, and the FFT
+        // scheme's spectra budget.
         let memory = |shape, c: &ChosenParameters| {
             let spectra = match shape {
                 M2lCostShape::Fft => SPECTRA_BUDGET_BYTES as u64,
                 _ => 0,
             };
-            let n = n_surface_points(c.order);
-            box_bytes(
-                &c.estimated_work,
-                n,
-                self.precision,
-                shape,
-                c.estimated_svd_rank,
-            ) + spectra
+            box_bytes(&c.estimated_work, n_surface_points(c.order), self.precision) + spectra
         };
         let fft_near = fft.predicted_seconds <= (1.0 + ROOT_TIME_SLACK) * svd_total;
         let fft_leaner = memory(M2lCostShape::Fft, &fft) < memory(M2lCostShape::Compressed, &svd);
