@@ -277,7 +277,9 @@ impl M2lInteractions {
     /// Number of (chunk, transfer vector) groups, i.e. matrix products per
     /// application.
     pub fn n_groups(&self) -> usize {
-        self.lists().groups.len()
+        (0..self.n_chunks())
+            .map(|c| self.with_chunk(c, |v| v.groups().count()))
+            .sum()
     }
 
     /// Number of target chunks (parallel tasks).

@@ -502,6 +502,30 @@ pub fn for_each_vector_group<T: Real>(
     rows_in: usize,
     out: &mut [T],
     rows_out: usize,
+    product: impl FnMut(usize, &[T], &mut [T]),
+) {
+    for_each_vector_group_at(
+        chunk,
+        columns,
+        |s| s as usize,
+        rows_in,
+        out,
+        rows_out,
+        product,
+    );
+}
+
+/// [`for_each_vector_group`] with source column `s` found at column
+/// `column(s)` of `columns`: for a scheme that keeps only the columns a
+/// chunk reads (the SVD scheme's compressed multipoles).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn for_each_vector_group_at<T: Real>(
+    chunk: &ChunkView<'_>,
+    columns: &[T],
+    column: impl Fn(u32) -> usize,
+    rows_in: usize,
+    out: &mut [T],
+    rows_out: usize,
     mut product: impl FnMut(usize, &[T], &mut [T]),
 ) {
     let m = chunk.max_group_len();
@@ -510,7 +534,10 @@ pub fn for_each_vector_group<T: Real>(
     for g in chunk.groups() {
         let len = g.sources.len();
         let (src, dst) = (&mut src[..rows_in * len], &mut dst[..rows_out * len]);
-        gather(rows_in, columns, g.sources, src);
+        for (block, &s) in src.chunks_exact_mut(rows_in).zip(g.sources) {
+            let c = column(s);
+            block.copy_from_slice(&columns[c * rows_in..(c + 1) * rows_in]);
+        }
         product(g.vector, src, dst);
         scatter_add(rows_out, dst, g.targets, out);
     }

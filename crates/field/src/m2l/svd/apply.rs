@@ -30,7 +30,7 @@ use rayon::prelude::*;
 use super::SvdM2l;
 use super::store::VectorOp;
 use crate::interactions::ChunkView;
-use crate::m2l::{M2lProgress, for_each_chunk_with_progress, level_set, scatter_add};
+use crate::m2l::{M2lProgress, for_each_chunk_with_progress, for_each_vector_group_at, level_set};
 use crate::{M2lInteractions, Update, gemm, gemm_scaled};
 
 /// Columns per compression product.
@@ -106,26 +106,19 @@ impl<T: Real> SvdM2l<T> {
             let mut mc = vec![T::ZERO; k * cols.len()];
             compress_columns(k, n, vt, multipoles, &cols, &mut mc);
             let nt = chunk.n_targets();
-            let m = chunk.max_group_len();
             let mut acc = vec![T::ZERO; k * nt];
-            let mut src = vec![T::ZERO; k * m];
-            let mut dst = vec![T::ZERO; k * m];
-            let mut mid = vec![T::ZERO; max_rank * m];
-            for g in chunk.groups() {
-                let len = g.sources.len();
-                let (src, dst) = (&mut src[..k * len], &mut dst[..k * len]);
-                for (j, s) in g.sources.iter().enumerate() {
-                    let i = cols
-                        .binary_search(s)
-                        .expect("every source of the chunk was compressed");
-                    src[j * k..(j + 1) * k].copy_from_slice(&mc[i * k..(i + 1) * k]);
-                }
-                let VectorOp { offset, rank: r } = ops[g.vector];
+            let mut mid = vec![T::ZERO; max_rank * chunk.max_group_len()];
+            let column = |s: u32| {
+                cols.binary_search(&s)
+                    .expect("every source of the chunk was compressed")
+            };
+            for_each_vector_group_at(&chunk, &mc, column, k, &mut acc, k, |v, src, dst| {
+                let len = src.len() / k;
+                let VectorOp { offset, rank: r } = ops[v];
                 assert!(
                     r > 0,
-                    "M2L operator of transfer vector {} was not precomputed: \
-                     the interactions differ from the usage given to precompute_for",
-                    g.vector
+                    "M2L operator of transfer vector {v} was not precomputed: \
+                     the interactions differ from the usage given to precompute_for"
                 );
                 if r == k {
                     let cv = &store[offset..offset + k * k];
@@ -137,8 +130,7 @@ impl<T: Real> SvdM2l<T> {
                     gemm(r, len, k, bt, src, mid, Update::Overwrite);
                     gemm(k, len, r, av, mid, dst, Update::Overwrite);
                 }
-                scatter_add(k, dst, g.targets, &mut acc);
-            }
+            });
             gemm_scaled(n, nt, k, scale, u, &acc, out, Update::Accumulate);
         });
     }
