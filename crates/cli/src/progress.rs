@@ -1,9 +1,9 @@
 //! Progress display on stderr (indicatif), only when stderr is a terminal.
 //!
 //! Each long step (setup, evaluation, the direct check) shows a spinner
-//! with its name and the elapsed time; the operator precomputation and the
-//! evaluation (the FMM passes) report their progress, and their spinner
-//! becomes a bar with an ETA; `sweep` shows a bar over its
+//! with its name and the elapsed time; the setup's steps (parameters,
+//! tree, operators, layout) and the evaluation (the FMM passes) report
+//! their progress, and their spinner becomes a bar with an ETA; `sweep` shows a bar over its
 //! configurations. When
 //! stderr is redirected (a pipe, a file, a test harness, a sweep's child
 //! process), or with `--quiet` ([`set_quiet`]), nothing is drawn at all.
@@ -12,9 +12,9 @@ use std::io::IsTerminal;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::Duration;
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
-use ferrofmm_fmm::{EvalProgress, PrecomputeProgress, ProgressFn};
+use ferrofmm_fmm::{EvalProgress, ProgressFn, SetupProgress, SetupStep};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 
@@ -60,13 +60,29 @@ pub fn stage(message: impl Into<String>) -> Stage {
 }
 
 impl Stage {
-    /// A progress callback for the operator precomputation: the first
-    /// report turns the spinner into a bar over its work units with the
-    /// elapsed time and an ETA (`[elapsed < remaining]`), since at high
-    /// orders it can take minutes.
-    pub fn precompute_progress(&self) -> impl Fn(PrecomputeProgress) + Send + Sync + 'static {
-        let to_bar = self.to_bar("setup: M2L operators".to_string());
-        move |p: PrecomputeProgress| to_bar(p.done, p.total)
+    /// A progress callback for a build ([`ferrofmm_fmm::FmmBuilder::setup_progress`]):
+    /// each step (choosing the parameters, the tree, the operators, the
+    /// layout) turns the spinner into a bar of its own, labelled with the
+    /// step, with the step's elapsed time and an ETA
+    /// (`[elapsed < remaining]`); at 1e8 points each takes tens of
+    /// seconds, and the operators at high orders minutes.
+    pub fn setup_progress(&self) -> impl Fn(SetupProgress) + Send + Sync + 'static {
+        let bar = self.0.clone();
+        let current: Mutex<Option<SetupStep>> = Mutex::new(None);
+        move |p: SetupProgress| {
+            if bar.is_hidden() || p.total == 0 {
+                return;
+            }
+            let mut step = current.lock().unwrap_or_else(|e| e.into_inner());
+            if *step != Some(p.step) {
+                *step = Some(p.step);
+                bar.set_style(bar_style());
+                bar.set_message(setup_label(p.step));
+                bar.reset();
+            }
+            bar.set_length(p.total);
+            bar.set_position(p.done);
+        }
     }
 
     /// A progress callback for an evaluation (the FMM passes report their
@@ -87,12 +103,7 @@ impl Stage {
                 return;
             }
             if !switched.swap(true, Ordering::Relaxed) {
-                bar.set_style(
-                    ProgressStyle::with_template(
-                        "{msg} {bar:30} {percent:>3}% [{elapsed} < {eta}]",
-                    )
-                    .unwrap_or_else(|_| ProgressStyle::default_bar()),
-                );
+                bar.set_style(bar_style());
                 bar.set_message(message.clone());
             }
             if done == 0 {
@@ -102,6 +113,23 @@ impl Stage {
             bar.set_position(done);
         }
     }
+}
+
+/// A step's bar: label, bar, percent, `[elapsed < remaining]`.
+fn bar_style() -> ProgressStyle {
+    ProgressStyle::with_template("{msg} {bar:30} {percent:>3}% [{elapsed} < {eta}]")
+        .unwrap_or_else(|_| ProgressStyle::default_bar())
+}
+
+/// The label of a build step's bar.
+fn setup_label(step: SetupStep) -> String {
+    let what = match step {
+        SetupStep::Tuning => "choosing parameters",
+        SetupStep::Tree => "tree",
+        SetupStep::Operators => "M2L operators",
+        SetupStep::Layout => "layout",
+    };
+    format!("setup: {what}")
 }
 
 impl Drop for Stage {
@@ -143,8 +171,12 @@ mod tests {
         assert!(bar(10).is_hidden());
         let eval = s.eval_progress("evaluating".into());
         eval(EvalProgress { done: 1, total: 2 });
-        let pre = s.precompute_progress();
-        pre(PrecomputeProgress { done: 1, total: 2 });
+        let setup = s.setup_progress();
+        setup(SetupProgress {
+            step: SetupStep::Tree,
+            done: 1,
+            total: 2,
+        });
         assert_eq!((s.0.position(), s.0.length()), (0, None));
         set_quiet(false);
         assert_eq!(

@@ -71,6 +71,19 @@ impl PrecomputeMonitor {
         self
     }
 
+    /// Call `f` after each unit of work as well as the callback already
+    /// set (if any): how a driver adds its own report to a caller's
+    /// monitor.
+    pub fn and_progress(self, f: impl Fn(PrecomputeProgress) + Send + Sync + 'static) -> Self {
+        match self.progress.clone() {
+            None => self.with_progress(f),
+            Some(first) => self.with_progress(move |p| {
+                first(p);
+                f(p);
+            }),
+        }
+    }
+
     /// Whether cancellation was asked for.
     pub fn is_cancelled(&self) -> bool {
         self.cancel

@@ -131,6 +131,8 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     pub(crate) verify: bool,
     pub(crate) memory_limit: MemoryLimit,
     pub(crate) monitor: PrecomputeMonitor,
+    /// The build's progress callback ([`FmmBuilder::setup_progress`]).
+    pub(crate) setup_progress: crate::setup_progress::SetupReporter,
     pub(crate) tuning_model: Option<Arc<dyn TuningModel>>,
     /// The periodic cell ([`FmmBuilder::periodic`]), `None` for free space.
     pub(crate) periodic: Option<Periodic>,
@@ -193,6 +195,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             verify: true,
             memory_limit: MemoryLimit::Auto,
             monitor: PrecomputeMonitor::default(),
+            setup_progress: Default::default(),
             tuning_model: None,
             periodic: None,
         }
@@ -223,6 +226,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             verify: self.verify,
             memory_limit: self.memory_limit,
             monitor: self.monitor,
+            setup_progress: self.setup_progress,
             tuning_model: None,
             periodic: self.periodic,
         }
@@ -510,6 +514,37 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         self
     }
 
+    /// Call `f` as the build goes (see [`SetupProgress`](crate::SetupProgress)):
+    /// the tuning, the tree, the operators and the layout each report how
+    /// much of them is done, so that a front end can show a bar with the
+    /// time left for each. The operators' reports also reach a
+    /// [`FmmBuilder::monitor`]'s callback. Nothing changes in the result.
+    ///
+    /// ```
+    /// use std::sync::{Arc, Mutex};
+    /// use ferrofmm_fmm::{FmmBuilder, Geometry, SetupStep};
+    /// let points: Vec<f64> = Geometry::Cube.points(5000, 1);
+    /// let seen = Arc::new(Mutex::new(Vec::new()));
+    /// let log = seen.clone();
+    /// let fmm = FmmBuilder::new(&points)
+    ///     .tolerance(1e-4)
+    ///     .allow_direct(false)
+    ///     .setup_progress(move |p| log.lock().unwrap().push(p))
+    ///     .build_svd()?;
+    /// let seen = seen.lock().unwrap();
+    /// assert_eq!(seen.first().map(|p| p.step), Some(SetupStep::Tuning));
+    /// assert_eq!(seen.last().map(|p| (p.step, p.done == p.total)), Some((SetupStep::Layout, true)));
+    /// # let _ = fmm;
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn setup_progress(
+        mut self,
+        f: impl Fn(crate::SetupProgress) + Send + Sync + 'static,
+    ) -> Self {
+        self.setup_progress = crate::setup_progress::SetupReporter::new(Arc::new(f));
+        self
+    }
+
     /// Use this bounding cube instead of the points' own.
     pub fn domain(mut self, domain: Domain) -> Self {
         self.domain = Some(domain);
@@ -587,7 +622,10 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
         params.cache_dir = cache.dir().map(PathBuf::from);
         params.cache_size_limit = cache.size_limit();
         params.memory_limit = self.memory_limit;
-        params.monitor = self.monitor.clone();
+        params.monitor = match self.setup_progress.operators() {
+            Some(f) => self.monitor.clone().and_progress(f),
+            None => self.monitor.clone(),
+        };
         Ok(params)
     }
 

@@ -43,6 +43,7 @@ pub mod periodic;
 mod precompute;
 mod progress;
 mod scheme_choice;
+mod setup_progress;
 pub mod stokes_layers;
 mod timings;
 mod tree_fmm;
@@ -71,6 +72,7 @@ pub use periodic::{Periodic, PeriodicAxes, SurfaceTerm};
 pub use precompute::{first_far_level, m2l_usage};
 pub use progress::{EvalProgress, ProgressFn};
 pub use scheme_choice::SchemeChoice;
+pub use setup_progress::{SetupProgress, SetupProgressFn, SetupStep};
 pub use stokes_layers::{
     StokesErrors, StokesEvaluation, StokesLayers, StokesRequest, StokesValues,
 };

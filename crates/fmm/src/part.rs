@@ -20,6 +20,9 @@
 use std::borrow::Cow;
 use std::time::Instant;
 
+use crate::SetupStep;
+use crate::setup_progress::TREE_UNITS;
+
 use ferrofmm_field::{FieldError, M2lInteractions, M2lScheme, OperatorParams, Operators};
 use ferrofmm_kernels::{Kernel, Real};
 use ferrofmm_tree::{Cluster, DEFAULT_SEPARATION, Domain, Octree, TreeOptions, separated_clusters};
@@ -424,7 +427,11 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
         balance: true,
         periodic: b.periodic.map_or([false; 3], |cell| cell.axes().mask()),
     };
-    let tree = Octree::new(tree_src64, tree_tgt64.map(|t| &t[..]), &options)?;
+    let reporter = &b.setup_progress;
+    reporter.report(SetupStep::Tree, 0, TREE_UNITS);
+    let tree = Octree::new_reporting(tree_src64, tree_tgt64.map(|t| &t[..]), &options, &|s| {
+        reporter.tree_step(s)
+    })?;
     setup.tree += t0.elapsed();
     check_domain_width(tree.domain().width, T::PRECISION, tree.depth())?;
     let mut timings = SetupTimings::default();
@@ -440,6 +447,7 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     setup.m2l_precompute += timings.m2l_precompute;
 
     let t = Instant::now();
+    reporter.report(SetupStep::Layout, 0, 1);
     let mut part = TreePart::assemble(
         tree,
         (operators, m2l),
@@ -453,6 +461,7 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     // own V lists would be a second copy (8 bytes an entry).
     drop(part.tree.take_v_lists());
     setup.layout += t.elapsed();
+    reporter.report(SetupStep::Layout, 1, 1);
     Ok(part)
 }
 

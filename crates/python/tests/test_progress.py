@@ -1,6 +1,7 @@
 """progress= of the evaluating entry points (issue 36): a callable told
 (done, total) at a bounded rate, with the GIL held; its exceptions end the
-call; anything not callable is a TypeError before any work."""
+call; anything not callable is a TypeError before any work. The Fmm
+constructor's progress= is told (step, done, total) for each build step."""
 
 import numpy as np
 import pytest
@@ -75,3 +76,40 @@ def test_a_progress_that_cannot_be_called_is_a_type_error(rng, bad):
         ferrofmm.laplace(x, zero_mean(rng, 500), order=3, progress=bad)
     with pytest.raises(TypeError, match="progress must be a callable"):
         fmm._native.evaluate(np.zeros(500), 1, bad)
+    with pytest.raises(TypeError, match="progress must be a callable"):
+        ferrofmm.Fmm(x, order=3, progress=bad)
+
+
+STEPS = ["tuning", "tree", "operators", "layout"]
+
+
+def test_the_constructor_reports_each_build_step(rng):
+    n = 20000
+    x = cube(rng, n)
+    q = zero_mean(rng, n)
+    seen = []
+    fmm = ferrofmm.Fmm(
+        x, eps=1e-5, gradient=True, cache=False,
+        progress=lambda step, done, total: seen.append((step, done, total)),
+    )
+    steps = [s for s, _, _ in seen]
+    assert set(steps) == set(STEPS), seen
+    assert [STEPS.index(s) for s in steps] == sorted(STEPS.index(s) for s in steps), seen
+    for step in STEPS:
+        of = [(d, t) for s, d, t in seen if s == step]
+        assert all(isinstance(d, int) and isinstance(t, int) and 0 <= d <= t for d, t in of)
+        assert [d for d, _ in of] == sorted(d for d, _ in of), (step, of)
+        assert of[-1][0] == of[-1][1] > 0, (step, of)
+    plain = ferrofmm.Fmm(x, eps=1e-5, gradient=True, cache=False)
+    np.testing.assert_array_equal(fmm.evaluate(q).gradient, plain.evaluate(q).gradient)
+
+
+def test_an_exception_in_the_build_callback_ends_the_construction(rng):
+    class Stop(Exception):
+        pass
+
+    def stop(step, done, total):
+        raise Stop(step)
+
+    with pytest.raises(Stop):
+        ferrofmm.Fmm(cube(rng, 5000), eps=1e-4, progress=stop)

@@ -1,12 +1,15 @@
 //! Times tree construction (sort + refine + balance + lists) on uniform
 //! points in a cube and on a sphere surface, on clustered points and on
-//! coincident points.
+//! coincident points. Then, for each set, the share of the build's time
+//! done at the end of each step (what `TreeBuildStep::done_share` models).
 //!
 //! `cargo run --release -p ferrofmm-tree --example tree_timing [n] [leaf_size]`
 
 use std::time::Instant;
 
-use ferrofmm_tree::{Octree, TreeOptions};
+use std::sync::Mutex;
+
+use ferrofmm_tree::{Octree, TreeBuildStep, TreeOptions};
 use rand::rngs::StdRng;
 use rand::{RngExt, SeedableRng};
 
@@ -73,6 +76,20 @@ fn main() {
             tree = Some(built);
         }
         let tree = tree.expect("built");
+        let t = Instant::now();
+        let ends = Mutex::new(Vec::new());
+        Octree::new_reporting(&pts, None, &opts, &|s| {
+            ends.lock().unwrap().push((s, t.elapsed().as_secs_f64()))
+        })
+        .expect("tree");
+        let ends = ends.into_inner().unwrap();
+        let total = ends.last().map_or(1.0, |e| e.1);
+        let shares: Vec<String> = ends
+            .iter()
+            .map(|(s, e)| format!("{s:?} {:.2} (model {:.2})", e / total, s.done_share()))
+            .collect();
+        println!("{name:>15} step shares: {}", shares.join(", "));
+        assert_eq!(ends.len(), TreeBuildStep::ALL.len());
         let l = tree.interaction_lists();
         println!(
             "{name:>15} n={n} leaf={leaf_size}: {:.1} ms (best of 5) | depth {} boxes {} leaves {} | max U {} V {} W {} X {} | entries U {} V {} W {} X {}",

@@ -70,6 +70,6 @@ pub use domain::Domain;
 pub use error::{PointSet, TreeError};
 pub use lists::InteractionLists;
 pub use morton::{DEEPEST_LEVEL, FINEST_GRID, MortonKey};
-pub use octree::Octree;
+pub use octree::{Octree, TreeBuildStep};
 pub use options::TreeOptions;
 pub use shape::{MortonCodes, ShapeBox, TreeShape};

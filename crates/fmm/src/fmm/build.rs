@@ -8,7 +8,6 @@ use ferrofmm_field::{M2lScheme, surface_points};
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, Real};
 use ferrofmm_tree::Domain;
 
-use crate::FmmError;
 use crate::builder::FmmBuilder;
 use crate::coordinates::Coordinates;
 use crate::memory::MemoryReport;
@@ -18,6 +17,7 @@ use crate::precompute::build_operators;
 use crate::timings::SetupTimings;
 use crate::tuning::{self, ChosenParameters, Tuner};
 use crate::validate::{check_domain_width, check_wavenumber};
+use crate::{FmmError, SetupStep};
 
 use super::{ConfigFromChosen, Fmm};
 
@@ -79,6 +79,7 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
             T::PRECISION,
         );
         let tune = !(b.order_given && b.leaf_given && b.tolerance.is_none());
+        let reporter = b.setup_progress.clone();
         let chosen = if tune {
             let main = &clusters[0];
             let t = Instant::now();
@@ -153,20 +154,24 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                         bytes <= room
                     })
                 };
-                let (c, root) = tuning::choose_root(
+                let (c, root) = tuning::choose_root_reporting(
                     &tuner,
                     eps,
                     tune_sources,
                     tune_targets,
                     b.max_level,
                     fits,
+                    &|done, total| reporter.report(SetupStep::Tuning, done, total),
                 )?;
                 b.domain = root;
                 c
             } else {
+                reporter.report(SetupStep::Tuning, 0, 1);
                 let occupancy =
                     tuning::Occupancy::new(tune_sources, tune_targets, b.domain, b.max_level)?;
-                tuner.choose_for(eps, &occupancy)?
+                let c = tuner.choose_for(eps, &occupancy)?;
+                reporter.report(SetupStep::Tuning, 1, 1);
+                c
             };
             // A direct sum is a candidate when the leaf size is ours to
             // choose, the points are one cluster (far clusters keep their

@@ -149,7 +149,7 @@ pub use precompute_cost::{
 };
 pub use root::{
     ROOT_SCALES, ROOT_SEARCH_MIN_POINTS, ROOT_TIME_SLACK, RootChoice, box_budget, box_bytes,
-    choose_root,
+    choose_root, choose_root_reporting,
 };
 pub use scene::{SCENE_LEAF_SIZE, Scene};
 pub use work::WorkCounts;

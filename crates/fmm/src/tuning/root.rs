@@ -73,6 +73,25 @@ pub fn choose_root(
     max_level: u32,
     fits: impl Fn(&ChosenParameters) -> bool,
 ) -> Result<RootChoice, FmmError> {
+    choose_root_reporting(tuner, eps, sources, targets, max_level, fits, &|_, _| {})
+}
+
+/// [`choose_root`], calling `report(done, total)` with the roots weighed
+/// so far of the [`ROOT_SCALES`] (`total`), from 0 to `total`.
+///
+/// # Errors
+/// As [`choose_root`].
+pub fn choose_root_reporting(
+    tuner: &Tuner,
+    eps: Option<f64>,
+    sources: &[f64],
+    targets: Option<&[f64]>,
+    max_level: u32,
+    fits: impl Fn(&ChosenParameters) -> bool,
+    report: &dyn Fn(u64, u64),
+) -> Result<RootChoice, FmmError> {
+    let roots = ROOT_SCALES.len() as u64;
+    report(0, roots);
     let tight = match targets {
         Some(t) => Domain::from_points(&[sources, t])?,
         None => Domain::from_points(&[sources])?,
@@ -80,7 +99,8 @@ pub fn choose_root(
     let occupancy = Occupancy::new(sources, targets, Some(tight), max_level)?;
     let mut weighed: Vec<RootChoice> = vec![(tuner.choose_for(eps, &occupancy)?, None)];
     drop(occupancy);
-    for &scale in &ROOT_SCALES[1..] {
+    report(1, roots);
+    for (k, &scale) in ROOT_SCALES.iter().enumerate().skip(1) {
         let Ok(domain) = Domain::new(tight.origin, tight.width * scale) else {
             continue;
         };
@@ -91,7 +111,9 @@ pub fn choose_root(
             chosen.root_scale = scale;
             weighed.push((chosen, Some(domain)));
         }
+        report(k as u64 + 1, roots);
     }
+    report(roots, roots);
     Ok(fewest_boxes_near_cheapest(weighed))
 }
 

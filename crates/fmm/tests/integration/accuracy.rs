@@ -21,6 +21,7 @@ fn run<T: Real, K: Kernel>(
     let points: Vec<T> = geometry.points(n, 7);
     let q: Vec<T> = charges(n, 11);
     let builder = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(kernel.clone())
         .order(order)
         .leaf_size(64)

@@ -86,7 +86,11 @@ fn run<T: Real>(sources: &[f64], targets: Option<&[f64]>, kind: Charges) -> Run 
     let n = s.len() / 3;
     let q: Vec<T> = kind.generate(n, 11);
     let mode = EvalMode::PotentialGradient;
-    let mut builder = FmmBuilder::new(&s).order(6).leaf_size(40).mode(mode);
+    let mut builder = FmmBuilder::new(&s)
+        .cache_dir(crate::ops_cache())
+        .order(6)
+        .leaf_size(40)
+        .mode(mode);
     if let Some(t) = &t {
         builder = builder.targets(t);
     }

@@ -92,6 +92,7 @@ fn madelung_constants_of_three_lattices() {
     for (name, basis, n, d, known) in cases {
         let (points, q) = crystal(&basis, n);
         let fmm = FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .periodic(Periodic::cube(n as f64))
             .order(12)
             .leaf_size(16)
@@ -197,6 +198,7 @@ fn errors_against_ewald(
 ) -> (f64, f64) {
     let fmm = build(
         FmmBuilder::new(points)
+            .cache_dir(crate::ops_cache())
             .periodic(cell)
             .mode(EvalMode::PotentialGradient),
     )
@@ -288,6 +290,7 @@ fn lattice_shifts_and_crossing_a_face_change_nothing() {
     let (points, q) = random_box(1500, 1.0, [0.0; 3], false, 5);
     let run = |p: &[f64]| {
         FmmBuilder::new(p)
+            .cache_dir(crate::ops_cache())
             .periodic(Periodic::cube(1.0))
             .mode(EvalMode::PotentialGradient)
             .order(8)
@@ -325,6 +328,7 @@ fn a_tight_cluster_in_a_huge_box_is_nearly_free_space() {
         .evaluate(&q)
         .unwrap();
     let periodic = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .periodic(Periodic::cube(1e3).with_origin([-500.0; 3]))
         .order(8)
         .leaf_size(20)
@@ -344,6 +348,7 @@ fn vacuum_adds_the_dipole_term() {
     let (points, q) = random_box(800, 1.0, [0.0; 3], false, 13);
     let run = |s: SurfaceTerm| {
         FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .periodic(Periodic::cube(1.0).with_surface(s))
             .mode(EvalMode::PotentialGradient)
             .order(8)
@@ -427,6 +432,7 @@ fn what_periodic_runs_refuse() {
     let points = [0.1, 0.2, 0.3, 0.6, 0.7, 0.8];
     // A cell that is not neutral.
     let fmm = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .periodic(Periodic::cube(1.0))
         .order(4)
         .leaf_size(4)
@@ -458,6 +464,7 @@ fn what_periodic_runs_refuse() {
     ));
     assert!(refused(
         FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .periodic(Periodic::cube(1.0))
             .source_kind(SourceKind::Dipole)
     ));
@@ -478,6 +485,7 @@ fn a_tiny_cell_is_verified_on_every_ion() {
     // measures is the error itself (no noise margin, no endless resampling).
     let (points, q) = crystal(&nacl(), 1);
     let mut fmm = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .periodic(Periodic::cube(1.0))
         .tolerance(1e-7)
         .build_with::<FftM2l<f64>>(Default::default())

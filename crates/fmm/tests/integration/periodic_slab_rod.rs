@@ -31,6 +31,7 @@ fn reference(points: &[f64], q: &[f64], cell: Periodic, kappa: f64) -> Vec<f64> 
 
 fn run_laplace(points: &[f64], q: &[f64], cell: Periodic, order: usize) -> Vec<f64> {
     FmmBuilder::new(points)
+        .cache_dir(crate::ops_cache())
         .periodic(cell)
         .mode(EvalMode::PotentialGradient)
         .order(order)
@@ -101,6 +102,7 @@ fn a_tolerance_is_met_and_verified() {
         let truth = reference(&points, &q, cell, 0.0);
         for eps in [1e-4, 1e-8] {
             let mut fmm = FmmBuilder::new(&points)
+                .cache_dir(crate::ops_cache())
                 .periodic(cell)
                 .mode(EvalMode::PotentialGradient)
                 .tolerance(eps)
@@ -137,6 +139,7 @@ fn madelung_constants_of_a_layer_and_a_chain() {
         ),
     ] {
         let phi = FmmBuilder::new(points)
+            .cache_dir(crate::ops_cache())
             .periodic(Periodic::cube(1.0).with_axes(axes))
             .mode(EvalMode::Potential)
             .order(10)
@@ -204,6 +207,7 @@ fn slabs_and_rods_refuse_what_they_cannot_sum() {
     let mut outside = points.clone();
     outside[2] = 1.5;
     let Err(err) = FmmBuilder::new(&outside)
+        .cache_dir(crate::ops_cache())
         .periodic(slab)
         .order(4)
         .build_svd()
@@ -225,6 +229,7 @@ fn slabs_and_rods_refuse_what_they_cannot_sum() {
     );
     assert!(
         FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .periodic(slab.with_surface(SurfaceTerm::Vacuum))
             .order(4)
             .build_svd()
@@ -252,6 +257,7 @@ fn the_periodisation_operator_is_cached() {
     let cell = Periodic::cube(1.0).with_axes(PeriodicAxes::Xy);
     let run = || {
         FmmBuilder::new(&points)
+            .cache_dir(crate::ops_cache())
             .periodic(cell)
             .order(6)
             .leaf_size(24)

@@ -100,6 +100,7 @@ class NativeFmm:
         periodic: Optional[str] = ...,
         surface: Optional[str] = ...,
         layers: Optional[Tuple[bool, bool, bool]] = ...,
+        progress: Optional[Callable[[str, int, int], Any]] = ...,
     ) -> None:
         """``cell_lengths`` (one side or three), ``cell_origin``, ``periodic``
         (``"xyz"``, ``"xy"``, ``"x"``) and ``surface`` (``"tin-foil"``,
@@ -108,7 +109,8 @@ class NativeFmm:
         ``energy`` (per vector: ``1/2 sum q phi`` or ``null``).
         ``layers = (forces, stresslets, pressure)`` (``"stokes"`` only): the
         densities per source are ``[f, m, n]`` (those carried, three values
-        each) and the values per target the velocity then the pressure."""
+        each) and the values per target the velocity then the pressure.
+        ``progress(step, done, total)``: the build's progress (see ``Fmm``)."""
     def evaluate(
         self,
         charges: npt.NDArray[np.floating],

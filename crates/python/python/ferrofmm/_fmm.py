@@ -249,6 +249,16 @@ class Fmm:
         (default; conducting surroundings, Ewald without its ``k = 0``
         term, as particle-mesh Ewald codes) or ``"vacuum"`` (adds the
         cell's dipole term). Needs ``box``.
+    progress : callable, optional
+        Called as ``progress(step, done, total)`` while the FMM is built,
+        with the GIL held, at most every 0.1 s and at the end of each step:
+        ``step`` is ``"tuning"`` (choosing the order, leaf size and root),
+        ``"tree"``, ``"operators"`` or ``"layout"``, in that order (a step
+        with nothing to do may not report), and ``done`` rises to ``total``
+        within each step, so a step's time left is about
+        ``elapsed * (total - done) / done``. An exception it raises ends
+        the construction with that exception. (``evaluate`` takes its own
+        ``progress(done, total)``.)
     """
 
     def __init__(
@@ -278,7 +288,13 @@ class Fmm:
         surface: Optional[str] = None,
         stresslets: bool = False,
         pressure: bool = False,
+        progress: Optional[Callable[[str, int, int], Any]] = None,
     ) -> None:
+        if progress is not None and not callable(progress):
+            raise TypeError(
+                "progress must be a callable taking (step, done, total) or None, "
+                f"not {type(progress).__name__}"
+            )
         cell = _cell(box, box_origin, periodic, surface)
         charges, dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
         gradient, hessian = _bool("gradient", gradient), _bool("hessian", hessian)
@@ -354,6 +370,7 @@ class Fmm:
             default_cache,
             *cell,
             (charges, stresslets, pressure) if layered else None,
+            progress,
         )
         self._dtype = run
         self._kernel = kernel

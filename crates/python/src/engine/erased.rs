@@ -8,7 +8,7 @@ use ferrofmm_field::{
 };
 use ferrofmm_fmm::{
     EvalTimings, Fmm, FmmBuilder, FmmError, FmmSummary, Periodic, ProgressFn, SchemeChoice,
-    SetupTimings, StokesLayers, StokesRequest, Verification,
+    SetupProgressFn, SetupTimings, StokesLayers, StokesRequest, Verification,
 };
 use ferrofmm_kernels::{EvalMode, Kernel, KernelChoice, KernelVisitor, SourceKind, Stokes3d};
 
@@ -186,21 +186,28 @@ impl BuildOptions {
     }
 }
 
+/// What watches a build: the precomputation's cancel flag (and callback)
+/// and the build's progress callback.
+pub(super) struct Watch {
+    pub(super) monitor: PrecomputeMonitor,
+    pub(super) setup: Option<Arc<SetupProgressFn>>,
+}
+
 /// Build for float type `T` from points held in `f64`: they are rounded to
 /// `T` only relative to the tree's origin ([`FmmBuilder::from_f64`]), so an
 /// `f32` run on points far from the origin keeps their separations.
 pub(super) fn build<T: Float>(
     o: &BuildOptions,
-    monitor: PrecomputeMonitor,
+    watch: Watch,
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
     if let Some(request) = o.layers {
-        return build_layers::<T>(request, o, monitor, sources, targets);
+        return build_layers::<T>(request, o, watch, sources, targets);
     }
     o.kernel.visit(BuildWith {
         o,
-        monitor,
+        watch,
         sources,
         targets,
         float: std::marker::PhantomData::<T>,
@@ -210,7 +217,7 @@ pub(super) fn build<T: Float>(
 /// [`build`] with the kernel chosen.
 struct BuildWith<'a, T> {
     o: &'a BuildOptions,
-    monitor: PrecomputeMonitor,
+    watch: Watch,
     sources: &'a [f64],
     targets: Option<&'a [f64]>,
     float: std::marker::PhantomData<T>,
@@ -220,18 +227,18 @@ impl<T: Float> KernelVisitor for BuildWith<'_, T> {
     type Output = Result<Box<dyn Engine>, FmmError>;
 
     fn visit<K: Kernel>(self, kernel: K) -> Self::Output {
-        build_with::<T, K>(kernel, self.o, self.monitor, self.sources, self.targets)
+        build_with::<T, K>(kernel, self.o, self.watch, self.sources, self.targets)
     }
 }
 
 fn build_with<T: Float, K: Kernel>(
     kernel: K,
     o: &BuildOptions,
-    monitor: PrecomputeMonitor,
+    watch: Watch,
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
-    let b = configure(kernel, o, monitor, sources, targets);
+    let b = configure(kernel, o, watch, sources, targets);
     Ok(match resolve_scheme::<T>(o, sources, targets)? {
         SchemeChoice::Svd | SchemeChoice::Auto => Box::new(b.build_svd()?),
         SchemeChoice::Dense => Box::new(b.build_with::<DenseM2l<T>>(Default::default())?),
@@ -243,11 +250,11 @@ fn build_with<T: Float, K: Kernel>(
 fn build_layers<T: Float>(
     request: StokesRequest,
     o: &BuildOptions,
-    monitor: PrecomputeMonitor,
+    watch: Watch,
     sources: &[f64],
     targets: Option<&[f64]>,
 ) -> Result<Box<dyn Engine>, FmmError> {
-    let b = configure(Stokes3d::default(), o, monitor, sources, targets);
+    let b = configure(Stokes3d::default(), o, watch, sources, targets);
     Ok(match resolve_scheme::<T>(o, sources, targets)? {
         SchemeChoice::Svd | SchemeChoice::Auto => {
             Box::new(StokesLayers::<T, SvdM2l<T>>::build(b, request)?)
@@ -261,7 +268,7 @@ fn build_layers<T: Float>(
 fn configure<'a, T: Float, K: Kernel>(
     kernel: K,
     o: &BuildOptions,
-    monitor: PrecomputeMonitor,
+    watch: Watch,
     sources: &'a [f64],
     targets: Option<&'a [f64]>,
 ) -> FmmBuilder<'a, T, K> {
@@ -269,8 +276,11 @@ fn configure<'a, T: Float, K: Kernel>(
         .kernel(kernel)
         .mode(o.mode)
         .source_kind(o.source_kind)
-        .monitor(monitor)
+        .monitor(watch.monitor)
         .verify(o.verify);
+    if let Some(f) = watch.setup {
+        b = b.setup_progress(move |p| f(p));
+    }
     if let Some(t) = targets {
         b = b.targets_f64(t);
     }

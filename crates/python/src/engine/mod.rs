@@ -27,9 +27,9 @@ pub(crate) use arguments::{box_lengths, kernel_choice, parameters_given, source_
 pub(crate) use floats::Floats;
 
 use arguments::periodic_cell;
-use erased::{BuildOptions, Engine, build};
+use erased::{BuildOptions, Engine, Watch, build};
 use floats::Float;
-use progress::ProgressSink;
+use progress::{ProgressSink, SetupSink};
 use report::setup_seconds;
 
 /// A built FMM: tree and operators for fixed sources, targets, kernel and
@@ -54,7 +54,7 @@ pub(crate) struct NativeFmm {
 #[pymethods]
 impl NativeFmm {
     #[new]
-    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true, cell_lengths=None, cell_origin=None, periodic=None, surface=None, layers=None))]
+    #[pyo3(signature = (sources, targets, kernel, k, eps, order, leaf_size, scheme, gradient, verify, threads, cache_dir, hessian=false, source="charge", dtype=None, cache=true, cell_lengths=None, cell_origin=None, periodic=None, surface=None, layers=None, progress=None))]
     #[allow(clippy::too_many_arguments)]
     fn new(
         py: Python<'_>,
@@ -79,7 +79,20 @@ impl NativeFmm {
         periodic: Option<&str>,
         surface: Option<&str>,
         layers: Option<(bool, bool, bool)>,
+        progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
+        let progress = match progress {
+            Some(p) if !p.is_none() => {
+                if !p.is_callable() {
+                    return Err(PyTypeError::new_err(format!(
+                        "progress must be a callable taking (step, done, total) or None, not {}",
+                        p.get_type().name()?
+                    )));
+                }
+                Some(p)
+            }
+            _ => None,
+        };
         let periodic = periodic_cell(cell_lengths, cell_origin, periodic, surface)?;
         let source_kind = source_kind(source)?;
         let kernel_name = kernel;
@@ -139,19 +152,35 @@ impl NativeFmm {
             .map(|t| Floats::from_numpy("targets", t).map(f64::unwrap))
             .transpose()?;
         let cancel = Arc::new(AtomicBool::new(false));
-        let monitor = PrecomputeMonitor::new().with_cancel_flag(cancel.clone());
+        let sink = progress.as_ref().map(|_| Arc::new(SetupSink::default()));
+        let watch = Watch {
+            monitor: PrecomputeMonitor::new().with_cancel_flag(cancel.clone()),
+            setup: sink.as_ref().map(|s| s.callback()),
+        };
         let job_options = options.clone();
+        let poll = |_: Python<'_>| match (&progress, &sink) {
+            (Some(f), Some(sink)) => sink.deliver(f),
+            _ => Ok(()),
+        };
         let (dtype, engine) = if run_f32 {
             ("float32", {
-                interruptible(py, &threads, Some(&cancel), move || {
-                    build::<f32>(&job_options, monitor, &sources, targets.as_deref())
-                })?
+                interruptible_polling(
+                    py,
+                    &threads,
+                    Some(&cancel),
+                    move || build::<f32>(&job_options, watch, &sources, targets.as_deref()),
+                    poll,
+                )?
             })
         } else {
             ("float64", {
-                interruptible(py, &threads, Some(&cancel), move || {
-                    build::<f64>(&job_options, monitor, &sources, targets.as_deref())
-                })?
+                interruptible_polling(
+                    py,
+                    &threads,
+                    Some(&cancel),
+                    move || build::<f64>(&job_options, watch, &sources, targets.as_deref()),
+                    poll,
+                )?
             })
         };
         let engine = engine.map_err(fmm_error)?;

@@ -1,9 +1,10 @@
 //! [`ProgressSink`]: the progress of one Python `evaluate` call, from the
-//! FMM passes to the Python callback.
+//! FMM passes to the Python callback; [`SetupSink`]: the progress of a
+//! build (the `Fmm` constructor's `progress`).
 
 use std::sync::{Arc, Mutex};
 
-use ferrofmm_fmm::{EvalProgress, ProgressFn};
+use ferrofmm_fmm::{EvalProgress, ProgressFn, SetupProgress, SetupProgressFn};
 use pyo3::prelude::*;
 
 /// The progress of one Python `evaluate` call, written by the FMM passes
@@ -70,5 +71,39 @@ impl ProgressSink {
             (s.before + s.current.done, s.before + left * s.current.total)
         };
         f.call1((done, total)).map(drop)
+    }
+}
+
+/// The progress of one build, written by the build's steps (any thread)
+/// and handed to the Python callback by the calling thread, with the GIL
+/// held, when it wakes: `progress(step, done, total)` with the latest
+/// report, each step's last one always delivered (so every step a build
+/// runs is seen ending with `done == total`).
+#[derive(Default)]
+pub(super) struct SetupSink {
+    /// Reports not yet delivered: the latest of each step, in order.
+    pending: Mutex<Vec<SetupProgress>>,
+}
+
+impl SetupSink {
+    /// The callback for [`FmmBuilder::setup_progress`](ferrofmm_fmm::FmmBuilder::setup_progress).
+    pub(super) fn callback(self: &Arc<Self>) -> Arc<SetupProgressFn> {
+        let sink = self.clone();
+        Arc::new(move |p: SetupProgress| {
+            let mut pending = sink.pending.lock().unwrap_or_else(|e| e.into_inner());
+            match pending.last_mut() {
+                Some(last) if last.step == p.step && p.done >= last.done => *last = p,
+                _ => pending.push(p),
+            }
+        })
+    }
+
+    /// Call `f(step, done, total)` for what came since the last delivery.
+    pub(super) fn deliver(&self, f: &Bound<'_, PyAny>) -> PyResult<()> {
+        let pending = std::mem::take(&mut *self.pending.lock().unwrap_or_else(|e| e.into_inner()));
+        for p in pending {
+            f.call1((p.step.name(), p.done, p.total))?;
+        }
+        Ok(())
     }
 }

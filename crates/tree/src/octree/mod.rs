@@ -29,10 +29,12 @@ use crate::error::TreeError;
 use crate::list_rules::offset_index;
 use crate::lists::InteractionLists;
 
+mod build_step;
 mod list_access;
 use crate::morton::MortonKey;
 use crate::neighbours::ColleagueTable;
 use crate::options::TreeOptions;
+pub use build_step::TreeBuildStep;
 
 /// One point set in sorted order.
 #[derive(Clone, Debug)]
@@ -131,6 +133,35 @@ impl Octree {
         targets: Option<&[f64]>,
         options: &TreeOptions,
     ) -> Result<Self, TreeError> {
+        Self::new_reporting(sources, targets, options, &|_| {})
+    }
+
+    /// [`Octree::new`], calling `report` as each step of the build ends
+    /// (see [`TreeBuildStep`]), so that a caller can show a bar with the
+    /// time left for a tree of many millions of points.
+    ///
+    /// ```
+    /// use std::sync::Mutex;
+    /// use ferrofmm_tree::{Octree, TreeBuildStep, TreeOptions};
+    /// let pts: Vec<f64> = (0..3000).map(|i| ((i * 7919) % 1000) as f64 * 1e-3).collect();
+    /// let seen = Mutex::new(Vec::new());
+    /// let tree = Octree::new_reporting(&pts, None, &TreeOptions::adaptive(20), &|s| {
+    ///     seen.lock().unwrap().push(s)
+    /// })
+    /// .unwrap();
+    /// assert_eq!(*seen.lock().unwrap(), TreeBuildStep::ALL);
+    /// assert_eq!(TreeBuildStep::Lists.done_share(), 1.0);
+    /// # let _ = tree;
+    /// ```
+    ///
+    /// # Errors
+    /// As [`Octree::new`] (nothing is reported after an error).
+    pub fn new_reporting(
+        sources: &[f64],
+        targets: Option<&[f64]>,
+        options: &TreeOptions,
+        report: &(dyn Fn(TreeBuildStep) + Sync),
+    ) -> Result<Self, TreeError> {
         options.validate()?;
         let sets = validate_sets(sources, targets)?;
         let domain = match options.domain {
@@ -145,6 +176,7 @@ impl Octree {
             }
             None => Domain::bounding(&sets)?,
         };
+        report(TreeBuildStep::Checked);
         let (src, tgt) = rayon::join(
             || sort_points(sources, &domain),
             || targets.map(|t| sort_points(t, &domain)),
@@ -161,22 +193,27 @@ impl Octree {
                 max_level: options.max_level,
             },
         };
+        report(TreeBuildStep::Sorted);
         let mut levels = refine(&pts, rule);
+        report(TreeBuildStep::Refined);
         let adaptive = matches!(rule, Refinement::Adaptive { .. });
         if adaptive && options.balance {
             balance(&mut levels, &pts, options.periodic);
         }
+        report(TreeBuildStep::Balanced);
         let mut tree = Self::flatten(domain, &levels);
         tree.periodic = options.periodic;
         tree.sources = Sorted::new(src);
         tree.targets = tgt.map(Sorted::new);
         tree.colleagues = ColleagueTable::build(&tree);
+        report(TreeBuildStep::Colleagues);
         tree.lists = if adaptive && !options.balance {
             InteractionLists::empty(tree.n_boxes(), tree.is_periodic())
         } else {
             InteractionLists::build(&tree)
         };
         tree.balanced = !adaptive || options.balance;
+        report(TreeBuildStep::Lists);
         Ok(tree)
     }
 

@@ -70,9 +70,7 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
 
     let mut layers = {
         let stage = crate::progress::stage("setup: tree and operators");
-        let monitor = PrecomputeMonitor::new()
-            .with_cancel_flag(crate::interrupt::flag())
-            .with_progress(stage.precompute_progress());
+        let monitor = PrecomputeMonitor::new().with_cancel_flag(crate::interrupt::flag());
         let _precomputing = crate::interrupt::precomputing();
         // The source kind is set by the layers from the request.
         let builder = configured::<T, _>(
@@ -83,7 +81,8 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
             targets.as_deref(),
             settings,
         )
-        .monitor(monitor);
+        .monitor(monitor)
+        .setup_progress(stage.setup_progress());
         StokesLayers::<T, S>::build(builder, request)
     }?;
 

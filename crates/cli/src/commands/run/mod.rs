@@ -361,9 +361,7 @@ where
 
     let mut fmm = {
         let stage = crate::progress::stage("setup: tree and operators");
-        let monitor = PrecomputeMonitor::new()
-            .with_cancel_flag(crate::interrupt::flag())
-            .with_progress(stage.precompute_progress());
+        let monitor = PrecomputeMonitor::new().with_cancel_flag(crate::interrupt::flag());
         let _precomputing = crate::interrupt::precomputing();
         let builder = configured(
             kernel.clone(),
@@ -373,7 +371,8 @@ where
             targets.as_deref(),
             settings,
         )
-        .monitor(monitor);
+        .monitor(monitor)
+        .setup_progress(stage.setup_progress());
         S::build(builder)
     }?;
 
