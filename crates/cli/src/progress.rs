@@ -70,7 +70,9 @@ impl Stage {
         let bar = self.0.clone();
         let current: Mutex<Option<SetupStep>> = Mutex::new(None);
         move |p: SetupProgress| {
-            if bar.is_hidden() || p.total == 0 {
+            // After the setup (an order raised by the verification builds
+            // operators again) the stage is gone: nothing to draw.
+            if bar.is_hidden() || bar.is_finished() || p.total == 0 {
                 return;
             }
             let mut step = current.lock().unwrap_or_else(|e| e.into_inner());

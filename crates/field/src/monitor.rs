@@ -74,6 +74,28 @@ impl PrecomputeMonitor {
     /// Call `f` after each unit of work as well as the callback already
     /// set (if any): how a driver adds its own report to a caller's
     /// monitor.
+    ///
+    /// ```
+    /// use std::sync::Arc;
+    /// use std::sync::atomic::{AtomicU64, Ordering};
+    /// use ferrofmm_field::{DenseM2l, DenseConfig, M2lScheme, M2lUsage, OperatorParams, PrecomputeMonitor};
+    /// use ferrofmm_kernels::Laplace3d;
+    /// let (first, second) = (Arc::new(AtomicU64::new(0)), Arc::new(AtomicU64::new(0)));
+    /// let (a, b) = (first.clone(), second.clone());
+    /// let mut params = OperatorParams::new(3);
+    /// params.monitor = PrecomputeMonitor::new()
+    ///     .with_progress(move |_| {
+    ///         a.fetch_add(1, Ordering::Relaxed);
+    ///     })
+    ///     .and_progress(move |_| {
+    ///         b.fetch_add(1, Ordering::Relaxed);
+    ///     });
+    /// DenseM2l::<f64>::precompute_for(&Laplace3d, &params, &DenseConfig, 1.0, 3, &M2lUsage::all(3))
+    ///     .unwrap();
+    /// let n = first.load(Ordering::Relaxed);
+    /// assert!(n > 0);
+    /// assert_eq!(second.load(Ordering::Relaxed), n);
+    /// ```
     pub fn and_progress(self, f: impl Fn(PrecomputeProgress) + Send + Sync + 'static) -> Self {
         match self.progress.clone() {
             None => self.with_progress(f),

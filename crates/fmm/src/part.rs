@@ -442,7 +442,9 @@ pub(crate) fn build_tree_part<T: Real, K: Kernel, S: M2lScheme<T>>(
     let t = Instant::now();
     let needs = OperatorNeeds::of(&tree, coupled);
     setup.operators += t.elapsed();
+    reporter.report(SetupStep::Operators, 0, 1);
     let (operators, m2l) = build_operators(&b.kernel, params, config, &tree, &needs, &mut timings)?;
+    reporter.finish(SetupStep::Operators);
     setup.operators += timings.operators;
     setup.m2l_precompute += timings.m2l_precompute;
 

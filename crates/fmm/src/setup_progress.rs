@@ -2,9 +2,9 @@
 //! each step of the setup reports how much of it is done, so that a front
 //! end can show a bar with the time left for each.
 //!
-//! The steps run in the order of [`SetupStep`]; a step that has nothing to
-//! do (no tuning when the order and leaf size are given, operators read
-//! from the cache) may report only its end or nothing. A build of several
+//! The steps run in the order of [`SetupStep`], each from `done = 0` to
+//! `done == total`; a step that does not run (no tuning when the order and
+//! leaf size are given, no tree for a direct sum) reports nothing. A build of several
 //! far-separated clusters runs the tree, operator and layout steps once per
 //! cluster with a tree, each from 0 again. Within a step `done` rises from
 //! 0 to `total`:
@@ -14,14 +14,17 @@
 //!   sizes and orders; see [`tuning::choose_root`](crate::tuning::choose_root)).
 //! - [`SetupStep::Tree`]: thousandths of the tree build, at the end of each
 //!   of its steps ([`TreeBuildStep::done_share`]).
-//! - [`SetupStep::Operators`]: the operator precomputation's weighted work
-//!   units (the [`PrecomputeProgress`](ferrofmm_field::PrecomputeProgress)
-//!   of the [`PrecomputeMonitor`](ferrofmm_field::PrecomputeMonitor)).
+//! - [`SetupStep::Operators`]: `0 / 1` as it starts, then the operator
+//!   precomputation's weighted work units (the
+//!   [`PrecomputeProgress`](ferrofmm_field::PrecomputeProgress) of the
+//!   [`PrecomputeMonitor`](ferrofmm_field::PrecomputeMonitor)), if it
+//!   reports any (operators from the cache, or computed in milliseconds,
+//!   may not), and its end.
 //! - [`SetupStep::Layout`]: the points and the interaction blocks put in
 //!   tree order, from 0 to 1.
 
 use std::fmt;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use ferrofmm_tree::TreeBuildStep;
 
@@ -70,9 +73,13 @@ pub type SetupProgressFn = dyn Fn(SetupProgress) + Send + Sync;
 /// Units of the tree step ([`SetupStep::Tree`]).
 pub(crate) const TREE_UNITS: u64 = 1000;
 
-/// The builder's callback, if any (a cheap clone).
+/// The last step a [`SetupReporter`] was told, with its total.
+type LastStep = Arc<Mutex<Option<(SetupStep, u64)>>>;
+
+/// The builder's callback, if any (a cheap clone), and the last step
+/// and total it was told (so that a step can be ended on its own total).
 #[derive(Clone, Default)]
-pub(crate) struct SetupReporter(Option<Arc<SetupProgressFn>>);
+pub(crate) struct SetupReporter(Option<(Arc<SetupProgressFn>, LastStep)>);
 
 impl fmt::Debug for SetupReporter {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -86,17 +93,30 @@ impl fmt::Debug for SetupReporter {
 
 impl SetupReporter {
     pub(crate) fn new(f: Arc<SetupProgressFn>) -> Self {
-        Self(Some(f))
+        Self(Some((f, Arc::default())))
     }
 
     /// Report `done` of `total` units of `step`.
     pub(crate) fn report(&self, step: SetupStep, done: u64, total: u64) {
-        if let Some(f) = &self.0 {
+        if let Some((f, last)) = &self.0 {
+            *last.lock().unwrap_or_else(|e| e.into_inner()) = Some((step, total));
             f(SetupProgress {
                 step,
                 done: done.min(total),
                 total,
             });
+        }
+    }
+
+    /// Report that `step` ended: all of the total it was last told, or
+    /// `1 / 1` when it reported nothing since it began.
+    pub(crate) fn finish(&self, step: SetupStep) {
+        if let Some((_, last)) = &self.0 {
+            let total = match *last.lock().unwrap_or_else(|e| e.into_inner()) {
+                Some((s, total)) if s == step => total,
+                _ => 1,
+            };
+            self.report(step, total, total);
         }
     }
 
@@ -110,13 +130,10 @@ impl SetupReporter {
     pub(crate) fn operators(
         &self,
     ) -> Option<impl Fn(ferrofmm_field::PrecomputeProgress) + Send + Sync + 'static> {
-        self.0.clone().map(|f| {
+        let reporter = self.clone();
+        self.0.as_ref().map(|_| {
             move |p: ferrofmm_field::PrecomputeProgress| {
-                f(SetupProgress {
-                    step: SetupStep::Operators,
-                    done: p.done.min(p.total),
-                    total: p.total,
-                })
+                reporter.report(SetupStep::Operators, p.done, p.total)
             }
         })
     }

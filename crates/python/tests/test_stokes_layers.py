@@ -67,7 +67,7 @@ def rel(a, b):
 @pytest.mark.parametrize("positive", [False, True])
 def test_forces_and_stresslets_with_the_pressure_meet_eps(positive):
     rng = np.random.default_rng(3)
-    n = 3000 if positive else 6000
+    n = 3000 if positive else 12000
     x = rng.random((n, 3))
     if positive:
         x = 0.5 + 0.15 * rng.standard_normal((n, 3))  # clustered

@@ -69,7 +69,7 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
     let mn_ref = mn.as_ref().map(|(m, n)| (m.as_slice(), n.as_slice()));
 
     let mut layers = {
-        let stage = crate::progress::stage("setup: tree and operators");
+        let stage = crate::progress::stage("setup");
         let monitor = PrecomputeMonitor::new().with_cancel_flag(crate::interrupt::flag());
         let _precomputing = crate::interrupt::precomputing();
         // The source kind is set by the layers from the request.

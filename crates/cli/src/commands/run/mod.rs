@@ -360,7 +360,7 @@ where
     };
 
     let mut fmm = {
-        let stage = crate::progress::stage("setup: tree and operators");
+        let stage = crate::progress::stage("setup");
         let monitor = PrecomputeMonitor::new().with_cancel_flag(crate::interrupt::flag());
         let _precomputing = crate::interrupt::precomputing();
         let builder = configured(
