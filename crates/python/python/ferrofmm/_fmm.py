@@ -254,7 +254,7 @@ class Fmm:
         with the GIL held, at most every 0.1 s and at the end of each step:
         ``step`` is ``"tuning"`` (choosing the order, leaf size and root),
         ``"tree"``, ``"operators"`` or ``"layout"``, in that order (a step
-        with nothing to do may not report), and ``done`` rises to ``total``
+        that does not run reports nothing), and ``done`` rises to ``total``
         within each step, so a step's time left is about
         ``elapsed * (total - done) / done``. An exception it raises ends
         the construction with that exception. (``evaluate`` takes its own
