@@ -8,7 +8,7 @@ use std::sync::{Arc, Mutex, RwLock};
 use ferrofmm_field::{CacheLocation, CacheSetting, PrecomputeMonitor};
 use ferrofmm_fmm::{SchemeChoice, Verification};
 use ferrofmm_kernels::EvalMode;
-use pyo3::exceptions::{PyRuntimeWarning, PyTypeError, PyValueError};
+use pyo3::exceptions::{PyRuntimeWarning, PyValueError};
 use pyo3::prelude::*;
 use serde_json::{Value, json};
 
@@ -29,7 +29,7 @@ pub(crate) use floats::Floats;
 use arguments::periodic_cell;
 use erased::{BuildOptions, Engine, Watch, build};
 use floats::Float;
-use progress::{ProgressSink, SetupSink};
+use progress::{ProgressSink, SetupSink, callable_or_none};
 use report::setup_seconds;
 
 /// A built FMM: tree and operators for fixed sources, targets, kernel and
@@ -81,18 +81,7 @@ impl NativeFmm {
         layers: Option<(bool, bool, bool)>,
         progress: Option<Bound<'_, PyAny>>,
     ) -> PyResult<Self> {
-        let progress = match progress {
-            Some(p) if !p.is_none() => {
-                if !p.is_callable() {
-                    return Err(PyTypeError::new_err(format!(
-                        "progress must be a callable taking (step, done, total) or None, not {}",
-                        p.get_type().name()?
-                    )));
-                }
-                Some(p)
-            }
-            _ => None,
-        };
+        let progress = callable_or_none(progress, "(step, done, total)")?;
         let periodic = periodic_cell(cell_lengths, cell_origin, periodic, surface)?;
         let source_kind = source_kind(source)?;
         let kernel_name = kernel;
@@ -224,18 +213,7 @@ impl NativeFmm {
         n_vectors: usize,
         progress: Option<Bound<'py, PyAny>>,
     ) -> PyResult<(Bound<'py, PyAny>, String)> {
-        let progress = match progress {
-            Some(p) if !p.is_none() => {
-                if !p.is_callable() {
-                    return Err(PyTypeError::new_err(format!(
-                        "progress must be a callable taking (done, total) or None, not {}",
-                        p.get_type().name()?
-                    )));
-                }
-                Some(p)
-            }
-            _ => None,
-        };
+        let progress = callable_or_none(progress, "(done, total)")?;
         let charges = Floats::from_numpy("charges", charges)?;
         let n_sources = self.read().n_sources();
         let per = self.options.values_per_source();

@@ -5,7 +5,28 @@
 use std::sync::{Arc, Mutex};
 
 use ferrofmm_fmm::{EvalProgress, ProgressFn, SetupProgress, SetupProgressFn};
+use pyo3::exceptions::PyTypeError;
 use pyo3::prelude::*;
+
+/// A `progress` argument: `None` (or Python's `None`), or a callable; anything
+/// else is a `TypeError` naming the `arguments` it is called with.
+pub(super) fn callable_or_none<'py>(
+    progress: Option<Bound<'py, PyAny>>,
+    arguments: &str,
+) -> PyResult<Option<Bound<'py, PyAny>>> {
+    match progress {
+        Some(p) if !p.is_none() => {
+            if !p.is_callable() {
+                return Err(PyTypeError::new_err(format!(
+                    "progress must be a callable taking {arguments} or None, not {}",
+                    p.get_type().name()?
+                )));
+            }
+            Ok(Some(p))
+        }
+        _ => Ok(None),
+    }
+}
 
 /// The progress of one Python `evaluate` call, written by the FMM passes
 /// (any thread) and handed to the Python callback by the calling thread,
