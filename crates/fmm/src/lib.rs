@@ -74,7 +74,8 @@ pub use progress::{EvalProgress, ProgressFn};
 pub use scheme_choice::SchemeChoice;
 pub use setup_progress::{SetupProgress, SetupProgressFn, SetupStep};
 pub use stokes_layers::{
-    StokesErrors, StokesEvaluation, StokesLayers, StokesRequest, StokesValues,
+    LaplacePart, StokesErrors, StokesEvaluation, StokesLayerPlan, StokesLayers, StokesRequest,
+    StokesValues,
 };
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};

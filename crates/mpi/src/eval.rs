@@ -9,6 +9,7 @@ use std::path::PathBuf;
 use clap::Args;
 use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting};
 use ferrofmm_fmm::SchemeChoice;
+use ferrofmm_fmm::StokesRequest;
 use ferrofmm_kernels::{EvalMode, KernelChoice, Precision, SourceKind};
 use ferrofmm_mpi::{DistRequest, DistSolver, Geometry, agree_options, agree_text};
 use mpi::topology::SimpleCommunicator;
@@ -33,13 +34,41 @@ pub struct EvalArgs {
     /// or raw .f64. For helmholtz:K also a complex .npy array (N,
     /// complex128 or complex64: the .npy output is then complex128) or
     /// real charges alone (zero imaginary parts).
-    #[arg(long, value_name = "FILE", required_unless_present_any = ["generate", "dipoles"])]
+    /// For --kernel stokes these are the forces (N x 3).
+    #[arg(long, value_name = "FILE", required_unless_present_any = ["generate", "dipoles", "strslet"])]
     pub(crate) charges: Option<PathBuf>,
     /// Dipole vectors, one per source: .npy or .csv (N x 3, or N x 3c:
     /// nx_re, nx_im, ny_re, ... for helmholtz:K, or complex N x 3, or real
     /// vectors alone); with --charges, both.
     #[arg(long, value_name = "FILE")]
     pub(crate) dipoles: Option<PathBuf>,
+    /// `--kernel stokes` only: stresslet strengths `m` (FMM3D's
+    /// `strslet`), one 3-vector per source (.npy N x 3, .csv or raw .f64;
+    /// each rank reads its rows), with `--strsvec`. Each adds
+    /// `3 d (d . m)(d . n) / (4 pi r^5)` to the velocity (`d`: target minus
+    /// source); with `--charges` (forces) too, both. As `ferrofmm eval`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "strsvec",
+        conflicts_with = "generate"
+    )]
+    pub(crate) strslet: Option<PathBuf>,
+    /// `--kernel stokes` only: stresslet orientations `n` (FMM3D's
+    /// `strsvec`, e.g. surface normals), same format, with `--strslet`.
+    #[arg(
+        long,
+        value_name = "FILE",
+        requires = "strslet",
+        conflicts_with = "generate"
+    )]
+    pub(crate) strsvec: Option<PathBuf>,
+    /// `--kernel stokes` only: also the pressure (FMM3D's `pre`), and with
+    /// --gradients its gradient: columns `pressure` (and `pressure_grad_x,
+    /// pressure_grad_y, pressure_grad_z`) after the velocity's. As
+    /// `ferrofmm eval`.
+    #[arg(long)]
+    pub(crate) pressure: bool,
     /// Separate targets (the same formats as --sources; each rank reads
     /// its rows): the values are computed there, for the charges at the
     /// sources, and --out holds one row per target in this file's order.
@@ -147,6 +176,11 @@ struct Inputs {
     targets: Option<Vec<f64>>,
     densities: Vec<f64>,
     kind: SourceKind,
+    /// Charges (forces, for Stokes) were given or generated: with
+    /// stresslets, `densities` may be empty otherwise.
+    has_charges: bool,
+    /// Stresslet strengths and orientations (three values each per point).
+    stresslets: Option<(Vec<f64>, Vec<f64>)>,
     /// The densities came as a complex `.npy` array: a `.npy` output is
     /// complex too.
     complex: bool,
@@ -182,6 +216,8 @@ fn inputs(
             targets: None,
             densities: ferrofmm_fmm::charges(c * n, 2000 + me as u64),
             kind: SourceKind::Charge,
+            has_charges: true,
+            stresslets: None,
             complex: false,
         });
     }
@@ -216,6 +252,14 @@ fn inputs(
     };
     let charges = read(&a.charges, Contents::charges(c, complex))?;
     let dipoles = read(&a.dipoles, Contents::dipoles(c, complex))?;
+    let stresslets = match (
+        read(&a.strslet, Contents::Points)?,
+        read(&a.strsvec, Contents::Points)?,
+    ) {
+        (Some(m), Some(v)) => Some((m, v)),
+        _ => None,
+    };
+    let has_charges = charges.is_some();
     let (kind, densities) = match (charges, dipoles) {
         (Some(q), None) => (SourceKind::Charge, q),
         (None, Some(d)) => (SourceKind::Dipole, d),
@@ -226,6 +270,7 @@ fn inputs(
                 .flat_map(|(q, d)| q.iter().chain(d).copied())
                 .collect(),
         ),
+        (None, None) if stresslets.is_some() => (SourceKind::Charge, Vec::new()),
         (None, None) => return Err("give --charges or --dipoles".into()),
     };
     Ok(Inputs {
@@ -233,6 +278,8 @@ fn inputs(
         targets,
         densities,
         kind,
+        has_charges,
+        stresslets,
         complex: complex_file,
     })
 }
@@ -249,6 +296,9 @@ fn shared_options(a: &EvalArgs) -> Vec<(&'static str, String)> {
         ("--sources", path(&a.sources)),
         ("--charges", path(&a.charges)),
         ("--dipoles", path(&a.dipoles)),
+        ("--strslet", path(&a.strslet)),
+        ("--strsvec", path(&a.strsvec)),
+        ("--pressure", a.pressure.to_string()),
         ("--targets", path(&a.targets)),
         ("--out", path(&a.out)),
         ("--generate", given(a.generate.as_ref())),
@@ -281,6 +331,8 @@ fn check_output(a: &EvalArgs) -> Result<(), String> {
         ("--sources", &a.sources),
         ("--charges", &a.charges),
         ("--dipoles", &a.dipoles),
+        ("--strslet", &a.strslet),
+        ("--strsvec", &a.strsvec),
         ("--targets", &a.targets),
     ]
     .into_iter()
@@ -337,6 +389,9 @@ pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
     {
         return fail(e);
     }
+    if let Err(e) = StokesRequest::check_flags(&kernel, layered(a), a.dipoles.is_some()) {
+        return fail(e);
+    }
     // The environment may differ between ranks: agreed.
     let threads = match agree_text(world, set_threads(world, a)) {
         Ok(t) => t,
@@ -351,8 +406,30 @@ pub fn run(world: &SimpleCommunicator, a: &EvalArgs) -> i32 {
     }
 }
 
+/// Whether `eval` runs stresslets or the pressure (`--strslet`,
+/// `--pressure`): two distributed FMMs ([`crate::eval_layers`]).
+fn layered(a: &EvalArgs) -> bool {
+    a.strslet.is_some() || a.pressure
+}
+
+impl Inputs {
+    /// What a run of stresslets and the pressure reads.
+    fn into_layers(self) -> crate::eval_layers::LayerInputs {
+        crate::eval_layers::LayerInputs {
+            points: self.points,
+            targets: self.targets,
+            forces: self.has_charges.then_some(self.densities),
+            stresslets: self.stresslets,
+        }
+    }
+}
+
 /// The request of `eval`'s arguments (clap checked the names).
-fn request(a: &EvalArgs, kernel: KernelChoice, kind: SourceKind) -> Result<DistRequest, String> {
+pub(crate) fn request(
+    a: &EvalArgs,
+    kernel: KernelChoice,
+    kind: SourceKind,
+) -> Result<DistRequest, String> {
     Ok(DistRequest {
         mode: if a.gradients {
             EvalMode::PotentialGradient
@@ -396,6 +473,9 @@ fn go(
     let c = kernel.component_names().len().max(1);
     let input = agree_text(world, inputs(world, a, c, me, size))?;
     let read_s = t0.elapsed().as_secs_f64();
+    if layered(a) {
+        return crate::eval_layers::go(world, a, kernel, threads, input.into_layers(), read_s);
+    }
     let request = request(a, kernel, input.kind)?;
     let Inputs {
         points,
@@ -524,6 +604,7 @@ fn go(
                     .unwrap_or_else(|| "not needed".into()),
             },
             cache_dir: solver.cache().dir().map(|d| d.display().to_string()),
+            layers: None,
         };
         report(&info, &all, size);
     }

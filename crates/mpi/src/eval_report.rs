@@ -39,6 +39,10 @@ pub(crate) struct RunInfo<'a> {
     pub(crate) cache: String,
     /// The cache folder (`None`: none).
     pub(crate) cache_dir: Option<String>,
+    /// A run with stresslets or the pressure: lines for the table and an
+    /// object for the JSON (`layers`) on the Laplace FMM and the check
+    /// of velocity and pressure.
+    pub(crate) layers: Option<(Vec<String>, serde_json::Value)>,
 }
 
 /// Figures of one rank, gathered on all: points, ghost points, boxes of the
@@ -167,6 +171,7 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
                 "gradient_error": if info.gradients { serde_json::json!(e[1]) } else { serde_json::Value::Null },
             })),
             "per_rank": per_rank,
+            "layers": info.layers.as_ref().map(|l| l.1.clone()),
         });
         println!("{j}");
         return;
@@ -179,9 +184,15 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
         Some(dir) => println!("operator cache (rank 0): {} in {dir}", info.cache),
         None => println!("operator cache: {}", info.cache),
     }
+
     if let (Some(eps), Some(c)) = (info.tolerance, info.choice) {
         println!(
-            "tolerance {eps:e}: chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",
+            "tolerance {eps:e}: {}chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",
+            if info.layers.is_some() {
+                "Stokeslet FMM "
+            } else {
+                ""
+            },
             c.order,
             c.leaf_size,
             c.predicted_error,
@@ -193,7 +204,12 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
             }
         );
     }
-    if let Some(e) = errors {
+    if let Some((lines, _)) = &info.layers {
+        // The layers' own check replaces the Stokeslet FMM's alone.
+        for line in lines {
+            println!("{line}");
+        }
+    } else if let Some(e) = errors {
         println!(
             "check against direct summation at {} points: potential error {:.3e}{}",
             info.samples,

@@ -74,6 +74,7 @@ pub mod partition;
 pub mod solver;
 pub mod sort;
 pub mod stats;
+pub mod stokes_layers;
 mod tree;
 
 pub use accuracy::{
@@ -88,4 +89,5 @@ pub use inputs::{CHECK_GEOMETRIES, Geometry};
 pub use solver::{Attempt, DistPlan, DistRequest, DistSolution, DistSolver, VERIFY_SAMPLE};
 pub use sort::LocalPoints;
 pub use stats::{BuildStats, PHASES};
+pub use stokes_layers::{DistStokesLayers, DistStokesSolution};
 pub use tree::{DistOptions, DistTargets, DistributedTree};

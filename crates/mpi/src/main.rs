@@ -7,6 +7,7 @@ mod check;
 mod check_fmm;
 mod eval;
 mod eval_io;
+mod eval_layers;
 mod eval_report;
 mod report;
 

@@ -4,6 +4,7 @@ use std::path::PathBuf;
 
 use clap::Args;
 use ferrofmm_field::MemoryLimit;
+use ferrofmm_fmm::StokesRequest;
 
 use super::run::{Input, Settings, run};
 use super::{FmmArgs, parse_kernel};
@@ -94,19 +95,8 @@ pub fn eval(args: &EvalArgs) -> Result<()> {
         kernel.check_dipoles().map_err(CliError::InvalidArgument)?;
     }
     let layered = args.strslet.is_some() || args.pressure;
-    if layered && kernel.name() != "stokes" {
-        return Err(CliError::InvalidArgument(format!(
-            "--strslet, --strsvec and --pressure belong to --kernel stokes, not {}",
-            kernel.name()
-        )));
-    }
-    if layered && args.dipoles.is_some() {
-        return Err(CliError::InvalidArgument(
-            "--dipoles (force dipoles) do not combine with stresslets or --pressure: give \
-             stresslets as --strslet and --strsvec"
-                .to_string(),
-        ));
-    }
+    StokesRequest::check_flags(&kernel, layered, args.dipoles.is_some())
+        .map_err(CliError::InvalidArgument)?;
     if layered && args.hessians {
         return Err(CliError::InvalidArgument(
             "--kernel stokes has no Hessians".to_string(),

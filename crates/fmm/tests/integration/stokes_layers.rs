@@ -139,6 +139,14 @@ fn forces_and_stresslets_with_the_pressure_meet_the_tolerance() {
             "{:?}",
             out.laplace
         );
+        // What is delivered was checked too, at the Laplace order kept.
+        let delivered = out.delivered.as_ref().expect("the delivered check");
+        assert!(delivered.met, "{delivered:?}");
+        assert_eq!(
+            delivered.attempts.last().map(|a| a.order),
+            Some(layers.laplace().unwrap().order())
+        );
+        assert!(delivered.attempts[0].measured.potential > 0.0);
         let e = errors(&x, Some(&f), Some((&m, &nu)), &out.values, 60);
         eprintln!(
             "{} {} eps {eps:e}: orders {} / {}; u {:.2e}, grad u {:.2e}, p {:.2e}, grad p {:.2e}",
@@ -391,4 +399,96 @@ fn what_the_layers_cannot_take_is_a_clear_error() {
     .unwrap();
     assert!(plain.laplace().is_none());
     assert!(plain.evaluate(Some(&f), None).unwrap().pressure.is_none());
+}
+
+/// Velocity and pressure at targets `y` (not sources) of stresslets
+/// `(m, n)` at `x`, by FMM3D's formulas written out here.
+fn stresslets_at(x: &[f64], m: &[f64], n: &[f64], y: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let mut u = vec![0.0; y.len()];
+    let mut p = vec![0.0; y.len() / 3];
+    for (j, t) in y.chunks_exact(3).enumerate() {
+        for i in 0..x.len() / 3 {
+            let d: [f64; 3] = std::array::from_fn(|a| t[a] - x[3 * i + a]);
+            let r2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+            let (r, mi, ni) = (r2.sqrt(), &m[3 * i..3 * i + 3], &n[3 * i..3 * i + 3]);
+            let dot = |a: &[f64]| d[0] * a[0] + d[1] * a[1] + d[2] * a[2];
+            let (dm, dn, mn) = (
+                dot(mi),
+                dot(ni),
+                mi[0] * ni[0] + mi[1] * ni[1] + mi[2] * ni[2],
+            );
+            let r5 = r2 * r2 * r;
+            for a in 0..3 {
+                u[3 * j + a] += 3.0 * d[a] * dm * dn / (4.0 * PI * r5);
+            }
+            p[j] += (6.0 * dm * dn / r5 - 2.0 * mn / (r2 * r)) / (4.0 * PI);
+        }
+    }
+    (u, p)
+}
+
+/// Each FMM meeting the tolerance on its own densities is not enough: the
+/// pressure of stresslets sums derivatives of three Laplace dipole fields.
+/// At targets around the sources, starting from order 3, the Laplace FMM
+/// meets 1e-5 on its first vector at order 7 while the delivered pressure
+/// misses (1.7e-5 measured when this test was written); the check of what
+/// is delivered raises the Laplace FMM until velocity and pressure meet
+/// the tolerance against the formulas.
+#[test]
+fn what_is_delivered_is_checked_and_the_laplace_fmm_raised() {
+    let n = 1200;
+    let x: Vec<f64> = (0..3 * n)
+        .map(|i| (i as f64 * 0.754_877_666).fract())
+        .collect();
+    let t: Vec<f64> = (0..3 * 500)
+        .map(|i| 1.2 * (i as f64 * 0.569_840_29).fract() - 0.1)
+        .collect();
+    let m: Vec<f64> = Charges::Signed.generate(3 * n, 8);
+    let mut nv: Vec<f64> = Charges::Signed.generate(3 * n, 9);
+    for v in nv.chunks_exact_mut(3) {
+        let s = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt().max(1e-3);
+        v.iter_mut().for_each(|c| *c /= s);
+    }
+    let eps = 1e-5;
+    let builder = FmmBuilder::new(&x)
+        .targets(&t)
+        .cache_dir(crate::ops_cache())
+        .kernel(Stokes3d::default())
+        .order(3)
+        .leaf_size(60)
+        .tolerance(eps);
+    let request = StokesRequest {
+        forces: false,
+        stresslets: true,
+        pressure: true,
+    };
+    let mut layers = Layers::build(builder, request).unwrap();
+    let out = layers.evaluate_verified(None, Some((&m, &nv))).unwrap();
+    let delivered = out.delivered.as_ref().expect("the delivered check");
+    let orders: Vec<usize> = delivered.attempts.iter().map(|a| a.order).collect();
+    eprintln!(
+        "laplace {:?}, delivered {:?}",
+        out.laplace.as_ref().map(|l| l
+            .attempts
+            .iter()
+            .map(|a| (a.order, a.measured.worst()))
+            .collect::<Vec<_>>()),
+        delivered
+            .attempts
+            .iter()
+            .map(|a| (a.order, a.measured.worst()))
+            .collect::<Vec<_>>()
+    );
+    assert!(delivered.met, "{delivered:?}");
+    assert!(
+        orders.len() >= 2,
+        "the raise was not needed here: {orders:?}"
+    );
+    assert!(orders.windows(2).all(|w| w[1] == w[0] + 1), "{orders:?}");
+    assert_eq!(orders.last(), Some(&layers.laplace().unwrap().order()));
+    assert!(out.verification().is_some_and(|v| v.met));
+    let (u, p) = stresslets_at(&x, &m, &nv, &t);
+    let eu = relative_l2(&out.values.velocity, &u);
+    let ep = relative_l2(out.values.pressure.as_ref().unwrap(), &p);
+    assert!(eu <= eps && ep <= eps, "velocity {eu:e}, pressure {ep:e}");
 }

@@ -58,7 +58,9 @@ impl EvalStats {
         self.bytes_sent[phase] += bytes;
     }
 
-    pub(crate) fn merge(&mut self, other: &EvalStats) {
+    /// Adds `other`'s times, bytes and operator times to these (two
+    /// evaluations' figures as one).
+    pub fn merge(&mut self, other: &EvalStats) {
         for i in 0..8 {
             self.seconds[i] += other.seconds[i];
             self.bytes_sent[i] += other.bytes_sent[i];

@@ -282,14 +282,26 @@ impl<C: Communicator + 'static> DistSolver<C> {
                     verified: Some(met),
                 });
             }
-            // The tree stays; the operators are rebuilt one order up (the
-            // SVD tolerance then the order's default).
-            self.plan.order += 1;
-            self.plan.svd_tolerance = None;
-            self.engine =
-                self.engine
-                    .with_plan(comm, &self.tree, &self.plan, &self.request, &self.cache)?;
+            self.raise_order(comm)?;
         }
+    }
+
+    /// Rebuilds the FMM one order up, as a missed verification does: the
+    /// tree stays, the operators are rebuilt (the SVD tolerance then the
+    /// order's default). For a caller that checks more than this solver
+    /// sees (the Stokes layers combine two solvers' values). A collective.
+    ///
+    /// # Errors
+    /// The same [`DistError`] on every rank: an FMM setup error (the
+    /// order beyond [`ferrofmm_field::MAX_ORDER`], operators that do not
+    /// fit).
+    pub fn raise_order(&mut self, comm: &C) -> Result<(), DistError> {
+        self.plan.order += 1;
+        self.plan.svd_tolerance = None;
+        self.engine =
+            self.engine
+                .with_plan(comm, &self.tree, &self.plan, &self.request, &self.cache)?;
+        Ok(())
     }
 
     /// Relative L2 errors `[potential, gradient]` of `values` (this rank's

@@ -9,4 +9,5 @@ mod common;
 mod eval;
 mod eval_input;
 mod fmm;
+mod layers;
 mod tree;

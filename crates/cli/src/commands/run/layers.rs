@@ -136,24 +136,9 @@ pub(super) fn run<T: Real, S: BuildScheme<T>>(
     if let Some(path) = output {
         with_stage(format!("writing {}", path.display()), || {
             let mut names = output_names(mode, settings.kernel);
-            let wv = names.len();
-            let (per_target, flat) = match &values.pressure {
-                Some(p) => {
-                    names.push("pressure".to_string());
-                    if mode.has_gradient() {
-                        names.extend(["x", "y", "z"].map(|a| format!("pressure_grad_{a}")));
-                    }
-                    let wp = names.len() - wv;
-                    let flat: Vec<T> = values
-                        .velocity
-                        .chunks_exact(wv)
-                        .zip(p.chunks_exact(wp))
-                        .flat_map(|(u, p)| u.iter().chain(p).copied())
-                        .collect();
-                    (names.len(), flat)
-                }
-                None => (wv, values.velocity.clone()),
-            };
+            names.extend(layers.plan().pressure_column_names());
+            let per_target = names.len();
+            let flat = layers.plan().rows(&values);
             let names: Vec<&str> = names.iter().map(String::as_str).collect();
             match &settings.out_sources {
                 Some((at_sources, n)) => {

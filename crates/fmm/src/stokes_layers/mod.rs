@@ -40,102 +40,22 @@
 //! The Stokes FMM sees forces and the force dipoles `D`
 //! ([`SourceKind::ChargeDipole`] when both).
 //!
+//! [`StokesLayerPlan`] (module `plan`) holds the two local steps, the
+//! densities of each source and the combination at each target, so that
+//! any pair of FMMs on the same points can serve it (the distributed FMM
+//! of `ferrofmm-mpi` does).
+//!
 //! Both FMMs take the caller's builder settings (points, targets, order or
 //! tolerance, leaf size, cache, threads); each is verified on its own when
 //! a tolerance is given. Periodic cells are refused (the Laplace pieces
 //! would need their own lattice conventions).
 
-use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, Real, SourceKind, Stokes3d};
+mod plan;
+
+use ferrofmm_kernels::{Kernel, Laplace3d, Real, Stokes3d};
 
 use crate::{BuildScheme, Fmm, FmmBuilder, FmmError, Verification};
-
-/// What a Stokes evaluation carries and computes beyond the velocity.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StokesRequest {
-    /// Point forces (Stokeslets), three values per source.
-    pub forces: bool,
-    /// Stresslets: a strength `m` and an orientation `n` per source.
-    pub stresslets: bool,
-    /// The pressure (and, with gradients, its gradient) at the targets.
-    pub pressure: bool,
-}
-
-/// The Laplace companion's shape: which vectors, which kind, which mode.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-struct LaplacePlan {
-    kind: SourceKind,
-    mode: EvalMode,
-    /// Vector index of the stresslets' source flow.
-    source_flow: Option<usize>,
-    /// Vector index of the forces' pressure.
-    force_pressure: Option<usize>,
-    /// First of the three vectors of the force dipoles' pressure.
-    dipole_pressure: Option<usize>,
-    n_vectors: usize,
-}
-
-impl StokesRequest {
-    /// What the Stokes FMM's sources carry.
-    fn stokes_kind(&self) -> Result<SourceKind, FmmError> {
-        match (self.forces, self.stresslets) {
-            (true, false) => Ok(SourceKind::Charge),
-            (false, true) => Ok(SourceKind::Dipole),
-            (true, true) => Ok(SourceKind::ChargeDipole),
-            (false, false) => Err(FmmError::InvalidParameter(
-                "a Stokes evaluation needs forces, stresslets or both".into(),
-            )),
-        }
-    }
-
-    /// The Laplace FMM this request needs, if any (`gradient`: velocity
-    /// and pressure gradients are asked for).
-    fn laplace_plan(&self, gradient: bool) -> Option<LaplacePlan> {
-        let mut n_vectors = 0;
-        let mut next = |used: bool, width: usize| {
-            used.then(|| {
-                n_vectors += width;
-                n_vectors - width
-            })
-        };
-        let source_flow = next(self.stresslets, 1);
-        let force_pressure = next(self.pressure && self.forces, 1);
-        let dipole_pressure = next(self.pressure && self.stresslets, 3);
-        if n_vectors == 0 {
-            return None;
-        }
-        // Stresslets need derivatives of their Laplace fields; a force's
-        // pressure is a potential unless its gradient is asked for.
-        let mode = match (self.stresslets, gradient) {
-            (true, true) => EvalMode::PotentialGradientHessian,
-            (true, false) | (false, true) => EvalMode::PotentialGradient,
-            (false, false) => EvalMode::Potential,
-        };
-        let kind = match (source_flow.is_some(), self.pressure) {
-            (true, true) => SourceKind::ChargeDipole,
-            (true, false) => SourceKind::Charge,
-            (false, _) => SourceKind::Dipole,
-        };
-        Some(LaplacePlan {
-            kind,
-            mode,
-            source_flow,
-            force_pressure,
-            dipole_pressure,
-            n_vectors,
-        })
-    }
-}
-
-/// The results of one [`StokesLayers::evaluate`].
-#[derive(Clone, Debug, PartialEq)]
-pub struct StokesValues<T> {
-    /// Per target the velocity `[u_x, u_y, u_z]`, then with gradients
-    /// `d_c u_a` at `3 + 3 c + a` ([`Stokes3d`]'s layout): 3 or 12 values.
-    pub velocity: Vec<T>,
-    /// Per target `p`, then with gradients `[d_x p, d_y p, d_z p]`: 1 or 4
-    /// values; `None` unless [`StokesRequest::pressure`].
-    pub pressure: Option<Vec<T>>,
-}
+pub use plan::{LaplacePart, StokesLayerPlan, StokesRequest, StokesValues};
 
 /// [`StokesValues`] with their times and the verification of each FMM
 /// (the first evaluation of a tolerance; see [`Fmm::evaluate_verified`]).
@@ -150,16 +70,24 @@ pub struct StokesEvaluation<T> {
     pub stokes: Option<Verification>,
     /// The Laplace FMM's verification (when there is one).
     pub laplace: Option<Verification>,
+    /// The check of what is delivered, when both FMMs were verified:
+    /// velocity and pressure against direct sums of the same pieces at
+    /// sampled targets, one attempt per Laplace order (each attempt's
+    /// `potential` the worst of velocity and pressure, its `gradient` the
+    /// worst of their gradients).
+    pub delivered: Option<Verification>,
 }
 
 impl<T> StokesEvaluation<T> {
-    /// The check to report: the one that missed, else the Stokes one
-    /// (`None` when nothing was checked).
+    /// The check to report: the first that missed (Stokes, Laplace, then
+    /// what is delivered), else the Stokes one (`None` when nothing was
+    /// checked).
     pub fn verification(&self) -> Option<&Verification> {
-        match (&self.stokes, &self.laplace) {
-            (s, Some(l)) if !l.met && s.as_ref().is_none_or(|s| s.met) => Some(l),
-            (s, _) => s.as_ref(),
-        }
+        [&self.stokes, &self.laplace, &self.delivered]
+            .into_iter()
+            .flatten()
+            .find(|v| !v.met)
+            .or(self.stokes.as_ref())
     }
 }
 
@@ -184,9 +112,7 @@ impl<T> StokesEvaluation<T> {
 pub struct StokesLayers<T: Real, S: BuildScheme<T>> {
     stokes: Fmm<T, Stokes3d, S>,
     laplace: Option<Fmm<T, Laplace3d, S>>,
-    request: StokesRequest,
-    plan: Option<LaplacePlan>,
-    gradient: bool,
+    plan: StokesLayerPlan,
 }
 
 impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
@@ -204,39 +130,30 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         builder: FmmBuilder<'_, T, Stokes3d>,
         request: StokesRequest,
     ) -> Result<Self, FmmError> {
-        let kind = request.stokes_kind()?;
+        let plan = StokesLayerPlan::new(request, builder.mode, builder.kernel.viscosity)?;
         if builder.periodic.is_some() && (request.stresslets || request.pressure) {
             return Err(FmmError::InvalidParameter(
                 "stresslets and the pressure run in free space only (no periodic cell)".into(),
             ));
         }
-        if builder.mode.has_hessian() {
-            return Err(FmmError::InvalidParameter(
-                "the Stokes kernel has no Hessians: use potentials or gradients".into(),
-            ));
-        }
-        let gradient = builder.mode.has_gradient();
-        let plan = request.laplace_plan(gradient);
-        let laplace = match plan {
+        let laplace = match plan.laplace_part() {
             None => None,
-            Some(plan) => {
+            Some(part) => {
                 let mut b = builder
                     .clone()
                     .kernel(Laplace3d)
-                    .source_kind(plan.kind)
-                    .mode(plan.mode);
+                    .source_kind(part.sources)
+                    .mode(part.mode);
                 // A model made for the Stokeslet does not describe Laplace.
                 b.tuning_model = None;
                 Some(S::build(b)?)
             }
         };
-        let stokes = S::build(builder.source_kind(kind))?;
+        let stokes = S::build(builder.source_kind(plan.stokes_sources()))?;
         Ok(StokesLayers {
             stokes,
             laplace,
-            request,
             plan,
-            gradient,
         })
     }
 
@@ -252,12 +169,17 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
 
     /// What this evaluates.
     pub fn request(&self) -> StokesRequest {
-        self.request
+        self.plan.request()
+    }
+
+    /// The plan: what the two FMMs carry and how their values combine.
+    pub fn plan(&self) -> &StokesLayerPlan {
+        &self.plan
     }
 
     /// Whether velocity and pressure gradients are computed.
     pub fn has_gradient(&self) -> bool {
-        self.gradient
+        self.plan.has_gradient()
     }
 
     /// Report the passes' progress of both FMMs to `f`
@@ -295,11 +217,13 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         forces: Option<&[T]>,
         stresslets: Option<(&[T], &[T])>,
     ) -> Result<StokesEvaluation<T>, FmmError> {
-        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let (stokes_densities, laplace_densities) =
+            self.plan
+                .densities(self.stokes.n_sources(), forces, stresslets)?;
         let (velocity, mut timings) = self.stokes.evaluate_timed(&stokes_densities)?;
-        let laplace = match (&self.laplace, &self.plan) {
-            (Some(fmm), Some(plan)) => {
-                let per = fmm.n_sources() * plan.kind.values_per_source();
+        let laplace = match (&self.laplace, self.plan.laplace_part()) {
+            (Some(fmm), Some(part)) => {
+                let per = fmm.n_sources() * part.sources.values_per_source();
                 let mut values = Vec::new();
                 for one in laplace_densities.chunks_exact(per) {
                     let (v, t) = fmm.evaluate_timed(one)?;
@@ -311,16 +235,24 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             _ => None,
         };
         Ok(StokesEvaluation {
-            values: self.combine(velocity, laplace.as_deref(), self.stokes.n_targets()),
+            values: self
+                .plan
+                .combine(velocity, laplace.as_deref(), self.stokes.n_targets()),
             timings,
             stokes: None,
             laplace: None,
+            delivered: None,
         })
     }
 
     /// As [`StokesLayers::evaluate`], the first evaluation of a tolerance
-    /// verified (each FMM on its own, raising its order where it falls
-    /// short).
+    /// verified: each FMM on its own, raising its order where it falls
+    /// short; then what is delivered (velocity and pressure against direct
+    /// sums of the same pieces at sampled targets,
+    /// [`StokesEvaluation::delivered`]), raising the Laplace FMM while it
+    /// misses (the pressure of a stresslet sums the derivatives of three
+    /// Laplace dipole fields, whose errors need not cancel as the fields
+    /// do).
     ///
     /// # Errors
     /// As [`StokesLayers::evaluate`].
@@ -329,14 +261,16 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         forces: Option<&[T]>,
         stresslets: Option<(&[T], &[T])>,
     ) -> Result<StokesEvaluation<T>, FmmError> {
-        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let (stokes_densities, laplace_densities) =
+            self.plan
+                .densities(self.stokes.n_sources(), forces, stresslets)?;
         let stokes = self.stokes.evaluate_verified(&stokes_densities)?;
         let mut timings = stokes.timings;
-        let (laplace, laplace_check) = match (&mut self.laplace, &self.plan) {
-            (Some(fmm), Some(plan)) => {
+        let (laplace, laplace_check) = match (&mut self.laplace, self.plan.laplace_part()) {
+            (Some(fmm), Some(part)) => {
                 // The first vector is checked (it may raise the order);
                 // the others are evaluated at the order it settles on.
-                let per = fmm.n_sources() * plan.kind.values_per_source();
+                let per = fmm.n_sources() * part.sources.values_per_source();
                 let first = fmm.evaluate_verified(&laplace_densities[..per])?;
                 timings.accumulate(&first.timings);
                 let mut values = first.values;
@@ -349,102 +283,118 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             }
             _ => (None, None),
         };
+        let m = self.stokes.n_targets();
+        let mut values = self
+            .plan
+            .combine(stokes.values.clone(), laplace.as_deref(), m);
+        let delivered = match (&stokes.verification, &laplace_check) {
+            (Some(check), Some(_)) => {
+                let mut laplace = laplace.unwrap_or_default();
+                let d = self.check_delivered(
+                    forces,
+                    stresslets,
+                    check.tolerance,
+                    &stokes.values,
+                    &laplace_densities,
+                    &mut laplace,
+                    &mut values,
+                    &mut timings,
+                )?;
+                Some(d)
+            }
+            _ => None,
+        };
         Ok(StokesEvaluation {
-            values: self.combine(stokes.values, laplace.as_deref(), self.stokes.n_targets()),
+            values,
             timings,
             stokes: stokes.verification,
             laplace: laplace_check,
+            delivered,
         })
     }
 
-    /// The Stokes densities (forces, then `D = m n^T + n m^T`, per source)
-    /// and the Laplace vectors of the plan, one after another.
-    fn densities(
-        &self,
+    /// Checks `values` (combined from the Stokes FMM's `velocity` and the
+    /// Laplace FMM's `laplace` values) against direct sums at sampled
+    /// targets and, while the worst error exceeds `eps`, rebuilds the
+    /// Laplace FMM one order up and evaluates its vectors again, at most
+    /// [`MAX_VERIFY_RETRIES`](crate::verify::MAX_VERIFY_RETRIES) times.
+    #[allow(clippy::too_many_arguments)]
+    fn check_delivered(
+        &mut self,
         forces: Option<&[T]>,
         stresslets: Option<(&[T], &[T])>,
-    ) -> Result<(Vec<T>, Vec<T>), FmmError> {
-        let n = self.stokes.n_sources();
-        let check = |what: &str, given: bool, wanted: bool| {
-            if given == wanted {
-                Ok(())
-            } else if wanted {
-                Err(FmmError::InvalidParameter(format!(
-                    "this Stokes FMM's sources carry {what}: give them"
-                )))
-            } else {
-                Err(FmmError::InvalidParameter(format!(
-                    "this Stokes FMM's sources carry no {what}: build it with them"
-                )))
-            }
+        eps: f64,
+        velocity: &[T],
+        laplace_densities: &[T],
+        laplace: &mut Vec<T>,
+        values: &mut StokesValues<T>,
+        timings: &mut crate::EvalTimings,
+    ) -> Result<Verification, FmmError> {
+        let m = self.stokes.n_targets();
+        let sample = crate::sample_indices(m, crate::verify::MIN_VERIFY_SAMPLE);
+        let mut verification = Verification {
+            tolerance: eps,
+            attempts: Vec::new(),
+            met: false,
+            rebuild_s: 0.0,
         };
-        check("forces", forces.is_some(), self.request.forces)?;
-        check("stresslets", stresslets.is_some(), self.request.stresslets)?;
-        let length = |got: usize| {
-            if got == 3 * n {
-                Ok(())
-            } else {
-                Err(FmmError::DensityCount {
-                    kind: "stokes",
-                    per_source: 3,
-                    expected: 3 * n,
-                    got,
-                })
+        let mut evaluation_s = timings.total.as_secs_f64();
+        loop {
+            let t = std::time::Instant::now();
+            let e = self.relative_errors(forces, stresslets, values, &sample)?;
+            let fmm = self.laplace.as_mut().expect("a Laplace FMM");
+            let chosen = fmm.chosen.clone();
+            let worst_of = |a: Option<f64>, b: Option<f64>| match (a, b) {
+                (None, None) => None,
+                (a, b) => Some(a.unwrap_or(0.0).max(b.unwrap_or(0.0))),
+            };
+            verification
+                .attempts
+                .push(crate::verify::VerificationAttempt {
+                    order: fmm.order(),
+                    svd_tolerance: chosen.as_ref().map(|c| c.svd_tolerance),
+                    predicted_error: chosen.as_ref().map_or(0.0, |c| c.predicted_error),
+                    measured: crate::ErrorReport {
+                        n_sampled: e.n_sampled,
+                        potential: e.velocity.max(e.pressure.unwrap_or(0.0)),
+                        gradient: worst_of(e.velocity_gradient, e.pressure_gradient),
+                        hessian: None,
+                    },
+                    evaluation_s,
+                    check_s: t.elapsed().as_secs_f64(),
+                });
+            if e.worst() <= eps {
+                verification.met = true;
+                break;
             }
-        };
-        if let Some(f) = forces {
-            length(f.len())?;
+            let Some(mut raised) = chosen else { break };
+            if verification.attempts.len() > crate::verify::MAX_VERIFY_RETRIES
+                || raised.order >= ferrofmm_field::MAX_ORDER
+            {
+                break;
+            }
+            let model = fmm.error_model.clone().unwrap_or_else(|| {
+                crate::tuning::ErrorModel::laplace_for(T::PRECISION, fmm.mode())
+            });
+            raised.order += 1;
+            raised.svd_tolerance =
+                model.svd_tolerance(raised.order, eps, raised.estimated_work.rounding_ratio);
+            raised.svd_rank = None;
+            let t = std::time::Instant::now();
+            fmm.rebuild_at_order(raised)?;
+            verification.rebuild_s += t.elapsed().as_secs_f64();
+            laplace.clear();
+            let per = fmm.n_sources() * fmm.source_kind().values_per_source();
+            let t = std::time::Instant::now();
+            for one in laplace_densities.chunks_exact(per) {
+                let (v, tv) = fmm.evaluate_timed(one)?;
+                laplace.extend(v);
+                timings.accumulate(&tv);
+            }
+            evaluation_s = t.elapsed().as_secs_f64();
+            *values = self.plan.combine(velocity.to_vec(), Some(laplace), m);
         }
-        if let Some((m, v)) = stresslets {
-            length(m.len())?;
-            length(v.len())?;
-        }
-        let dipole = |i: usize| -> [T; 9] {
-            let (m, v) = stresslets.expect("checked above");
-            std::array::from_fn(|kc| {
-                let (k, c) = (kc / 3, kc % 3);
-                m[3 * i + k] * v[3 * i + c] + v[3 * i + k] * m[3 * i + c]
-            })
-        };
-        let per = 3 * self.stokes.source_kind().values_per_source();
-        let mut stokes = Vec::with_capacity(per * n);
-        for i in 0..n {
-            if let Some(f) = forces {
-                stokes.extend_from_slice(&f[3 * i..3 * i + 3]);
-            }
-            if stresslets.is_some() {
-                stokes.extend_from_slice(&dipole(i));
-            }
-        }
-        let Some(plan) = self.plan else {
-            return Ok((stokes, Vec::new()));
-        };
-        let width = plan.kind.values_per_source();
-        let mut laplace = vec![T::ZERO; plan.n_vectors * n * width];
-        let dipole_at = usize::from(plan.kind == SourceKind::ChargeDipole);
-        let inverse_viscosity = T::from_f64(1.0 / self.stokes.kernel().viscosity);
-        for i in 0..n {
-            let at = |vector: usize| (vector * n + i) * width;
-            if let (Some(v), Some((m, nu))) = (plan.source_flow, stresslets) {
-                let dot = m[3 * i] * nu[3 * i]
-                    + m[3 * i + 1] * nu[3 * i + 1]
-                    + m[3 * i + 2] * nu[3 * i + 2];
-                laplace[at(v)] = dot * inverse_viscosity;
-            }
-            if let (Some(v), Some(f)) = (plan.force_pressure, forces) {
-                let o = at(v) + dipole_at;
-                laplace[o..o + 3].copy_from_slice(&f[3 * i..3 * i + 3]);
-            }
-            if let Some(v0) = plan.dipole_pressure {
-                // The force dipole just written among the Stokes densities.
-                let d = &stokes[per * (i + 1) - 9..per * (i + 1)];
-                for k in 0..3 {
-                    let o = at(v0 + k) + dipole_at;
-                    laplace[o..o + 3].copy_from_slice(&d[3 * k..3 * k + 3]);
-                }
-            }
-        }
-        Ok((stokes, laplace))
+        Ok(verification)
     }
 
     /// Relative L2 errors of [`StokesLayers::evaluate`]'s `values` at the
@@ -461,7 +411,9 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         values: &StokesValues<T>,
         sample: &[usize],
     ) -> Result<StokesErrors, FmmError> {
-        let (stokes_densities, laplace_densities) = self.densities(forces, stresslets)?;
+        let (stokes_densities, laplace_densities) =
+            self.plan
+                .densities(self.stokes.n_sources(), forces, stresslets)?;
         let wide = |v: &[T]| v.iter().map(|x| x.to_f64()).collect::<Vec<f64>>();
         let (sources, targets) = self.stokes.points_f64();
         let targets = targets.as_deref().unwrap_or(&sources);
@@ -481,18 +433,19 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             &at,
             &mut velocity,
         );
-        let laplace = self.plan.map(|plan| {
+        let laplace = self.plan.laplace_part().map(|part| {
             let lap = wide(&laplace_densities);
-            let per = sources.len() / 3 * plan.kind.values_per_source();
-            let w = plan.mode.values_per_target();
-            let mut out = vec![0.0; plan.n_vectors * m * w];
+            let per = sources.len() / 3 * part.sources.values_per_source();
+            let w = part.mode.values_per_target();
+            let mut out = vec![0.0; part.vectors * m * w];
             for (q, o) in lap.chunks_exact(per).zip(out.chunks_exact_mut(m * w)) {
-                Laplace3d.evaluate_sources(plan.kind, plan.mode, &sources, q, &at, o);
+                Laplace3d.evaluate_sources(part.sources, part.mode, &sources, q, &at, o);
             }
             out
         });
-        let want = self.combine(velocity, laplace.as_deref(), m);
-        let wv = if self.gradient { 12 } else { 3 };
+        let want = self.plan.combine(velocity, laplace.as_deref(), m);
+        let (wv, wp) = self.plan.values_per_target();
+        let gradient = self.plan.has_gradient();
         let got_velocity: Vec<f64> = sample
             .iter()
             .flat_map(|&j| {
@@ -517,7 +470,7 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
             &part(&got_velocity, wv, 0, 3),
             &part(&want.velocity, wv, 0, 3),
         );
-        let velocity_gradient = self.gradient.then(|| {
+        let velocity_gradient = gradient.then(|| {
             error(
                 &part(&got_velocity, wv, 3, 12),
                 &part(&want.velocity, wv, 3, 12),
@@ -525,15 +478,13 @@ impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
         });
         let (pressure, pressure_gradient) = match (&values.pressure, &want.pressure) {
             (Some(p), Some(pw)) => {
-                let wp = if self.gradient { 4 } else { 1 };
                 let got: Vec<f64> = sample
                     .iter()
                     .flat_map(|&j| p[wp * j..wp * j + wp].iter().map(|x| x.to_f64()))
                     .collect();
                 (
                     Some(error(&part(&got, wp, 0, 1), &part(pw, wp, 0, 1))),
-                    self.gradient
-                        .then(|| error(&part(&got, wp, 1, 4), &part(pw, wp, 1, 4))),
+                    gradient.then(|| error(&part(&got, wp, 1, 4), &part(pw, wp, 1, 4))),
                 )
             }
             _ => (None, None),
@@ -575,74 +526,5 @@ impl StokesErrors {
         .into_iter()
         .flatten()
         .fold(self.velocity, f64::max)
-    }
-}
-
-impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
-    /// Add the Laplace fields to the Stokes velocities and form the
-    /// pressure (module docs' table).
-    fn combine<U: Real>(
-        &self,
-        mut velocity: Vec<U>,
-        laplace: Option<&[U]>,
-        m: usize,
-    ) -> StokesValues<U> {
-        let (Some(plan), Some(lap)) = (self.plan, laplace) else {
-            return StokesValues {
-                velocity,
-                pressure: None,
-            };
-        };
-        let w = plan.mode.values_per_target();
-        let field = |vector: usize, j: usize| &lap[(vector * m + j) * w..(vector * m + j + 1) * w];
-        // Hessian entry (a, b) in the order xx, yy, zz, xy, xz, yz.
-        let hess = |h: &[U], a: usize, b: usize| {
-            h[match (a.min(b), a.max(b)) {
-                (a, b) if a == b => 4 + a,
-                (0, 1) => 7,
-                (0, 2) => 8,
-                _ => 9,
-            }]
-        };
-        let wv = if self.gradient { 12 } else { 3 };
-        if let Some(v) = plan.source_flow {
-            for (j, u) in velocity.chunks_exact_mut(wv).enumerate() {
-                let phi = field(v, j);
-                for a in 0..3 {
-                    u[a] -= phi[1 + a];
-                }
-                if self.gradient {
-                    for c in 0..3 {
-                        for a in 0..3 {
-                            u[3 + 3 * c + a] -= hess(phi, a, c);
-                        }
-                    }
-                }
-            }
-        }
-        let pressure = self.request.pressure.then(|| {
-            let wp = if self.gradient { 4 } else { 1 };
-            let mut p = vec![U::ZERO; wp * m];
-            for (j, pj) in p.chunks_exact_mut(wp).enumerate() {
-                if let Some(v) = plan.force_pressure {
-                    for (o, x) in pj.iter_mut().zip(field(v, j)) {
-                        *o += *x;
-                    }
-                }
-                if let Some(v0) = plan.dipole_pressure {
-                    for k in 0..3 {
-                        let phi = field(v0 + k, j);
-                        pj[0] -= phi[1 + k];
-                        if self.gradient {
-                            for a in 0..3 {
-                                pj[1 + a] -= hess(phi, a, k);
-                            }
-                        }
-                    }
-                }
-            }
-            p
-        });
-        StokesValues { velocity, pressure }
     }
 }
