@@ -159,6 +159,27 @@ class NativeOctree:
     def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
 
 # Only in builds with MPI (HAS_MPI); the wrappers are in ferrofmm.distributed.
+def dist_stokes_layers(
+    comm: int,
+    sources: npt.NDArray[np.float64],
+    targets: Optional[npt.NDArray[np.float64]],
+    forces: Optional[npt.NDArray[np.float64]],
+    strslet: Optional[npt.NDArray[np.float64]],
+    strsvec: Optional[npt.NDArray[np.float64]],
+    pressure: bool,
+    eps: Optional[float],
+    order: Optional[int],
+    leaf_size: Optional[int],
+    scheme: str,
+    gradient: bool,
+    verify: bool,
+    samples: int,
+    threads: Optional[int],
+    cache_dir: Optional[str],
+    cache: bool,
+    dtype: str,
+) -> Tuple[npt.NDArray[np.float64], Optional[npt.NDArray[np.float64]], str]: ...
+
 class NativeDistFmm:
     def __init__(
         self,

@@ -504,12 +504,133 @@ def helmholtz(comm: Any, sources: Any, charges: Any = None, *, k: float, dipoles
                      eps=eps, order=order, gradient=gradient, **kw)
 
 
-def stokes(comm: Any, sources: Any, forces: Any, *, targets: Any = None,
+def stokes(comm: Any, sources: Any, forces: Any = None, *, strslet: Any = None,
+           strsvec: Any = None, pressure: bool = False, targets: Any = None,
            eps: Optional[float] = None, order: Optional[int] = None, gradient: bool = False,
            **kw: Any) -> FmmResult:
-    """Stokeslet velocities ``sum_i (I / r + d d^T / r^3) f_i / (8 pi)`` over all ranks'
-    points (a collective); as :func:`ferrofmm.stokes` with the communicator first:
-    ``forces`` ``(n, 3)`` in, ``potential`` (velocities, ``(n, 3)``) and ``gradient``
-    (``(n, 3, 3)``) out."""
-    return _one_call("stokes", comm, sources, forces, None, names={"charges": "forces"},
-                     targets=targets, eps=eps, order=order, gradient=gradient, **kw)
+    """Stokes flow over all ranks' points (a collective); as :func:`ferrofmm.stokes` with the
+    communicator first and each rank's own rows.
+
+    ``forces`` ``(n, 3)`` (Stokeslets ``sum_i (I / r + d d^T / r^3) f_i / (8 pi)``) and/or
+    stresslets ``strslet`` (strengths ``m``) with ``strsvec`` (orientations ``n``), each
+    ``(n, 3)``; ``potential`` (velocities, ``(m, 3)``) and ``gradient`` (``(m, 3, 3)``,
+    ``[j, a, c] = d u_a / d x_c``) out, and with ``pressure=True`` ``.pressure`` ``(m,)``
+    and, with ``gradient=True``, ``.pressure_gradient`` ``(m, 3)`` (FMM3D's ``stfmm3d``
+    conventions). Stresslets and the pressure run a distributed Laplace FMM beside the
+    Stokes one; with ``eps`` both are verified, and so is what is delivered (velocity and
+    pressure against direct sums at sampled targets, the Laplace FMM's order raised while
+    it misses). Forces alone take further keywords as :class:`Fmm`; with stresslets or the
+    pressure, one density vector per call and the keywords ``leaf_size``, ``dtype``,
+    ``threads``, ``scheme``, ``verify``, ``samples``, ``cache_dir`` and ``cache``."""
+    if strslet is None and strsvec is None and not pressure:
+        return _one_call("stokes", comm, sources, forces, None, names={"charges": "forces"},
+                         targets=targets, eps=eps, order=order, gradient=gradient, **kw)
+    return _stokes_layers(comm, sources, forces, strslet, strsvec, pressure, targets, eps,
+                          order, gradient, **kw)
+
+
+def _stokes_layers(
+    comm: Any,
+    sources: Any,
+    forces: Any,
+    strslet: Any,
+    strsvec: Any,
+    pressure: Any,
+    targets: Any,
+    eps: Optional[float],
+    order: Optional[int],
+    gradient: Any,
+    *,
+    leaf_size: Optional[int] = None,
+    dtype: Any = None,
+    threads: Optional[int] = None,
+    scheme: str = "auto",
+    verify: bool = True,
+    samples: Optional[int] = None,
+    cache_dir: Any = None,
+    cache: Any = True,
+) -> FmmResult:
+    comm = _communicator(comm)
+
+    def check() -> Dict[str, Any]:
+        src = _points("sources", sources, allow_empty=True)
+        tgt = None if targets is None else _points("targets", targets, allow_empty=True)
+        if (strslet is None) != (strsvec is None):
+            raise ValueError("give strslet and strsvec together (stresslet strengths and "
+                             "orientations, each (n, 3))")
+        if forces is None and strslet is None:
+            raise ValueError("give the forces, shape (n, 3), or stresslets (strslet and strsvec)")
+        given = [(name, "charges", v) for name, v in
+                 (("forces", forces), ("strslet", strslet), ("strsvec", strsvec))
+                 if v is not None]
+        arrays, _, batched = _check_densities("stokes", len(src), given)
+        if batched:
+            raise ValueError("with stresslets or the pressure, give one (n, 3) array each "
+                             "(evaluate vector sets one call at a time)")
+        dens = {name: np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
+                for name, a, _ in arrays}
+        for name, a in dens.items():
+            if not np.all(np.isfinite(a)):
+                raise ValueError(f"{name} holds a NaN or infinite value")
+        run = _float_dtype(dtype) or np.dtype(np.float64)
+        _check_eps_order(eps, order)
+        if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
+            raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
+        folder, default_cache = _cache(cache, cache_dir)
+        return dict(
+            src=_flat(src, _F64),
+            tgt=None if tgt is None else _flat(tgt, _F64),
+            m=len(src) if tgt is None else len(tgt),
+            dens=dens,
+            run=run,
+            eps=None if eps is None and order is not None else
+            float(DEFAULT_EPS[run] if eps is None else eps),
+            order=None if order is None else int(order),
+            leaf_size=_positive_int("leaf_size", leaf_size),
+            threads=_positive_int("threads", threads),
+            samples=_positive_int("samples", samples) or 0,
+            gradient=_bool("gradient", gradient),
+            pressure=_bool("pressure", pressure),
+            verify=_bool("verify", verify),
+            cache_dir=folder,
+            default_cache=default_cache,
+        )
+
+    a = _agreed(comm, check)
+    given = comm.allgather(a["tgt"] is not None)
+    if any(given) != all(given):
+        raise ValueError(
+            "targets must be given on every rank or on none (an empty (0, 3) array on a "
+            f"rank without targets); given on ranks {[r for r, g in enumerate(given) if g]}"
+        )
+    d = a["dens"]
+    velocity, pres, info_json = _ferrofmm.dist_stokes_layers(
+        comm.py2f(), a["src"], a["tgt"], d.get("forces"), d.get("strslet"), d.get("strsvec"),
+        a["pressure"], a["eps"], a["order"], a["leaf_size"], scheme, a["gradient"], a["verify"],
+        a["samples"], a["threads"], a["cache_dir"], a["default_cache"], str(a["run"]),
+    )
+    info = json.loads(info_json)
+    info["kernel_name"] = "stokes"
+    info["dtype"] = str(a["run"])
+    m, g = a["m"], a["gradient"]
+    if a["run"] == np.float32:
+        velocity = velocity.astype(np.float32)
+        pres = None if pres is None else pres.astype(np.float32)
+    potential, grad, _ = _shape_values("stokes", velocity, 1, m, g, False, False)
+    result = FmmResult(potential, grad, info)
+    if pres is not None:
+        p = pres.reshape(m, 4 if g else 1)
+        result.pressure = np.ascontiguousarray(p[:, 0])
+        result.pressure_gradient = np.ascontiguousarray(p[:, 1:4]) if g else None
+    if info.get("verified") is False:
+        measured = info.get("measured_error") or {}
+        warnings.warn(
+            f"the tolerance eps={info.get('eps'):g} was not met: the worst error of velocity "
+            f"and pressure measured on {measured.get('sampled_targets')} sampled targets is "
+            f"{measured.get('worst'):.2e} (Stokes order {info.get('order')}, Laplace order "
+            f"{info.get('laplace_order')}; info['verified'] is False); the results are "
+            "returned. Ask for a larger eps (or float64), or give order",
+            AccuracyWarning,
+            stacklevel=3,
+        )
+    return result

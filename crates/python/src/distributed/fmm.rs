@@ -62,39 +62,10 @@ impl NativeDistFmm {
         // Python wrapper agreed on its own checks), then every local check
         // agreed on it, so that no rank goes on alone.
         let adopted = AdoptedComm::duplicate(comm)?;
-        let local = (|| -> PyResult<DistRequest> {
-            parameters_given(eps, order, leaf_size)?;
-            let precision = match dtype {
-                "float32" => Precision::F32,
-                "float64" => Precision::F64,
-                other => {
-                    return Err(PyValueError::new_err(format!(
-                        "dtype must be \"float32\" or \"float64\", got {other:?}"
-                    )));
-                }
-            };
-            Ok(DistRequest {
-                mode: if gradient {
-                    EvalMode::PotentialGradient
-                } else {
-                    EvalMode::Potential
-                },
-                sources: source_kind(source)?,
-                precision,
-                tolerance: eps,
-                order,
-                leaf_size,
-                scheme: SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?,
-                verify,
-                samples,
-                cache: match (cache_dir, cache) {
-                    (Some(dir), _) => CacheSetting::Dir(dir),
-                    (None, true) => CacheSetting::Default,
-                    (None, false) => CacheSetting::Off,
-                },
-                ..DistRequest::new(kernel_choice(kernel, k)?)
-            })
-        })();
+        let local = dist_request(
+            kernel, k, eps, order, leaf_size, scheme, gradient, verify, samples, cache_dir, cache,
+            source, dtype,
+        );
         let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
             .map_err(PyValueError::new_err)?;
         let work = Work::new(adopted, threads)?;
@@ -221,8 +192,59 @@ impl NativeDistFmm {
     }
 }
 
+/// The request of the Python arguments (checked here, on this rank; the
+/// caller agrees on the outcome).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn dist_request(
+    kernel: &str,
+    k: Option<(f64, f64)>,
+    eps: Option<f64>,
+    order: Option<usize>,
+    leaf_size: Option<usize>,
+    scheme: &str,
+    gradient: bool,
+    verify: bool,
+    samples: usize,
+    cache_dir: Option<PathBuf>,
+    cache: bool,
+    source: &str,
+    dtype: &str,
+) -> PyResult<DistRequest> {
+    parameters_given(eps, order, leaf_size)?;
+    let precision = match dtype {
+        "float32" => Precision::F32,
+        "float64" => Precision::F64,
+        other => {
+            return Err(PyValueError::new_err(format!(
+                "dtype must be \"float32\" or \"float64\", got {other:?}"
+            )));
+        }
+    };
+    Ok(DistRequest {
+        mode: if gradient {
+            EvalMode::PotentialGradient
+        } else {
+            EvalMode::Potential
+        },
+        sources: source_kind(source)?,
+        precision,
+        tolerance: eps,
+        order,
+        leaf_size,
+        scheme: SchemeChoice::parse(scheme).map_err(PyValueError::new_err)?,
+        verify,
+        samples,
+        cache: match (cache_dir, cache) {
+            (Some(dir), _) => CacheSetting::Dir(dir),
+            (None, true) => CacheSetting::Default,
+            (None, false) => CacheSetting::Off,
+        },
+        ..DistRequest::new(kernel_choice(kernel, k)?)
+    })
+}
+
 /// What the operator cache did, in words.
-fn cache_words(solver: &DistSolver<SimpleCommunicator>) -> String {
+pub(super) fn cache_words(solver: &DistSolver<SimpleCommunicator>) -> String {
     match solver.cache() {
         CacheLocation::Off(CacheOff::Requested) => "off (cache=False)".into(),
         CacheLocation::Off(why) => why.to_string(),

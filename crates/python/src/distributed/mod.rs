@@ -10,6 +10,7 @@
 
 mod comm;
 mod fmm;
+mod layers;
 mod octree;
 
 use ferrofmm_mpi::{DistError, agree_text};
@@ -27,6 +28,7 @@ pub(crate) use octree::NativeDistOctree;
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<NativeDistFmm>()?;
     m.add_class::<NativeDistOctree>()?;
+    m.add_function(wrap_pyfunction!(layers::dist_stokes_layers, m)?)?;
     m.add("HAS_MPI", true)?;
     m.add(
         "MPI_LIBRARY",

@@ -181,6 +181,62 @@ def test_separate_targets(kernel, params):
             fd.Fmm(COMM, x, targets=y if RANK == 0 else None, order=4, cache=False)
 
 
+def _stresslet_direct(x, m, nv, f, y):
+    """Velocity and pressure at ``y`` of forces ``f`` and stresslets ``(m, nv)`` at ``x``
+    by FMM3D's ``stfmm3d`` formulas, written out here (viscosity 1)."""
+    d = y[:, None, :] - x[None, :, :]
+    r2 = np.einsum("jia,jia->ji", d, d)
+    r2[r2 == 0] = np.inf
+    r = np.sqrt(r2)
+    dm, dn, df = (np.einsum("jia,ia->ji", d, v) for v in (m, nv, f))
+    u = (f[None] / r[..., None] + d * (df / r**3)[..., None]) / (8 * np.pi)
+    u += 3 * d * (dm * dn / r**5)[..., None] / (4 * np.pi)
+    p = df / (4 * np.pi * r**3) + (6 * dm * dn / r**5 - 2 * np.sum(m * nv, 1) / r**3) / (4 * np.pi)
+    return u.sum(1), p.sum(1)
+
+
+def test_stokes_stresslets_and_the_pressure():
+    """Forces and stresslets with the pressure and gradients across the ranks (rank 1
+    without points): the tolerance verified on what is delivered; velocity and pressure
+    against the formulas, gradients against the single machine; bad input the same
+    error on every rank."""
+    rng = np.random.default_rng(70 + RANK)
+    x = local_points(1500, seed=17)
+    n = len(x)
+    f, m = rng.random((n, 3)) - 0.5, rng.random((n, 3)) - 0.5
+    nv = rng.normal(size=(n, 3))
+    nv /= np.linalg.norm(nv, axis=1)[:, None]
+    eps = 1e-6
+    r = fd.stokes(COMM, x, f, strslet=m, strsvec=nv, pressure=True, gradient=True, eps=eps,
+                  cache=False)
+    assert r.potential.shape == (n, 3) and r.gradient.shape == (n, 3, 3)
+    assert r.pressure.shape == (n,) and r.pressure_gradient.shape == (n, 3)
+    assert r.info["verified"] is True and r.info["measured_error"]["worst"] <= eps, r.info
+    X, F, M, NV = (gathered(a) for a in (x, f, m, nv))
+    sample = np.arange(0, len(X), 13)
+    u, p = _stresslet_direct(X, M, NV, F, X[sample])
+    assert rel(gathered(r.potential)[sample], u) <= eps
+    assert rel(gathered(r.pressure)[sample], p) <= eps
+    single = ferrofmm.stokes(X, F, strslet=M, strsvec=NV, pressure=True, gradient=True,
+                             eps=5e-8)
+    # (Each within eps of the truth, so within 2 eps of each other.)
+    assert rel(gathered(r.gradient), single.gradient) <= 2 * eps
+    assert rel(gathered(r.pressure_gradient), single.pressure_gradient) <= 2 * eps
+    # Stresslets alone at separate targets, the pressure without gradients.
+    y = rng.random((300, 3)) * 1.2 - 0.1
+    r = fd.stokes(COMM, x, strslet=m, strsvec=nv, targets=y, pressure=True, eps=1e-5,
+                  cache=False)
+    assert r.gradient is None and r.pressure_gradient is None and r.pressure.shape == (300,)
+    u, p = _stresslet_direct(X, M, NV, np.zeros_like(X), gathered(y))
+    assert rel(gathered(r.potential), u) <= 1e-5 and rel(gathered(r.pressure), p) <= 1e-5
+    # Bad input on one rank: the same ValueError on all of them.
+    with pytest.raises(ValueError, match="strslet and strsvec together"):
+        fd.stokes(COMM, x, strslet=m, pressure=True)
+    bad = nv[:-1] if RANK == 0 and n > 0 else nv
+    with pytest.raises(ValueError, match="strsvec"):
+        fd.stokes(COMM, x, f, strslet=m, strsvec=bad, cache=False, order=4)
+
+
 def test_charges_and_dipoles_and_batches():
     rng = np.random.default_rng(40 + RANK)
     x = local_points(3000, seed=9)
