@@ -199,21 +199,22 @@ fn per_level_operators_from_the_first_far_level() {
         let e = run::<f64, _>(
             yukawa,
             geometry,
-            6000,
+            3000,
             6,
             EvalMode::PotentialGradient,
             false,
         );
         assert_within(&format!("yukawa {geometry:?}"), &e, 1e-4, 1e-3);
     }
-    let e = run::<f32, _>(yukawa, Geometry::Cube, 6000, 4, EvalMode::Potential, true);
+    let e = run::<f32, _>(yukawa, Geometry::Cube, 3000, 4, EvalMode::Potential, true);
     assert_within("yukawa f32 dense", &e, 1e-3, 1e-2);
     // The first far level of a uniform tree is 2; its operators are built
     // for levels 2..=depth only. (Read from a tree of the same points and
     // leaf size: the FMM's own tree has handed its V lists over to the
     // M2L interactions.)
-    let points: Vec<f64> = Geometry::Cube.points(6000, 7);
+    let points: Vec<f64> = Geometry::Cube.points(3000, 7);
     let fmm = FmmBuilder::new(&points)
+        .cache_dir(crate::ops_cache())
         .kernel(yukawa)
         .order(4)
         .leaf_size(64)

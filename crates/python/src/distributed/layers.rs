@@ -49,8 +49,8 @@ pub(crate) fn dist_stokes_layers<'py>(
 )> {
     let adopted = AdoptedComm::duplicate(comm)?;
     let local = dist_request(
-        "stokes", None, eps, order, leaf_size, scheme, gradient, verify, samples, cache_dir,
-        cache, "charge", dtype,
+        "stokes", None, eps, order, leaf_size, scheme, gradient, verify, samples, cache_dir, cache,
+        "charge", dtype,
     );
     let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
         .map_err(PyValueError::new_err)?;
@@ -67,9 +67,7 @@ pub(crate) fn dist_stokes_layers<'py>(
         (Some(m), Some(n)) => Some((m, n)),
         (None, None) => None,
         _ => {
-            return Err(PyValueError::new_err(
-                "give strslet and strsvec together",
-            ));
+            return Err(PyValueError::new_err("give strslet and strsvec together"));
         }
     };
     let wanted = StokesRequest {
@@ -106,9 +104,6 @@ pub(crate) fn dist_stokes_layers<'py>(
         })
         .map_err(dist_error)?;
     let velocity = PyArray1::from_vec(py, solution.values.velocity);
-    let pressure = solution
-        .values
-        .pressure
-        .map(|p| PyArray1::from_vec(py, p));
+    let pressure = solution.values.pressure.map(|p| PyArray1::from_vec(py, p));
     Ok((velocity, pressure, info.to_string()))
 }
