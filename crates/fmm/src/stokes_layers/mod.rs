@@ -38,7 +38,7 @@
 //! Velocity gradients of stresslets, and pressure gradients of stresslets,
 //! need the Laplace Hessian; pressure gradients of forces its gradient.
 //! The Stokes FMM sees forces and the force dipoles `D`
-//! ([`SourceKind::ChargeDipole`] when both).
+//! ([`SourceKind::ChargeDipole`](ferrofmm_kernels::SourceKind::ChargeDipole) when both).
 //!
 //! [`StokesLayerPlan`] (module `plan`) holds the two local steps, the
 //! densities of each source and the combination at each target, so that
@@ -117,7 +117,8 @@ pub struct StokesLayers<T: Real, S: BuildScheme<T>> {
 
 impl<T: Real, S: BuildScheme<T>> StokesLayers<T, S> {
     /// Build from a [`Stokes3d`] builder (points, targets, mode
-    /// [`EvalMode::Potential`] or [`EvalMode::PotentialGradient`], order or
+    /// [`EvalMode::Potential`](ferrofmm_kernels::EvalMode::Potential) or
+    /// [`EvalMode::PotentialGradient`](ferrofmm_kernels::EvalMode::PotentialGradient), order or
     /// tolerance, cache, ...): its source kind is set from `request`; the
     /// Laplace FMM, when needed, takes the same settings with its own
     /// source kind and mode.
