@@ -6,7 +6,7 @@
 //! flat, C-contiguous NumPy arrays.
 //!
 //! Files are read and written by `ferrofmm-io`, the commands' own reader
-//! and writer ([`files`]: `ferrofmm.load`, `ferrofmm.save`).
+//! and writer (module `files`: `ferrofmm.load`, `ferrofmm.save`).
 //!
 //! The public Python API (`ferrofmm.laplace`, `ferrofmm.yukawa`,
 //! `ferrofmm.Fmm`, `ferrofmm.Octree`, `ferrofmm.ewald`) lives in `python/ferrofmm/__init__.py`:
@@ -18,7 +18,7 @@
 //! `ValueError` with the library's message.
 //!
 //! Every build and evaluation runs on a worker thread with the GIL
-//! released ([`run::interruptible`]); the calling thread wakes every
+//! released (`run::interruptible`); the calling thread wakes every
 //! 100 ms to let Python handle signals, so Ctrl-C raises
 //! `KeyboardInterrupt` at once (a precomputation in progress is cancelled;
 //! an evaluation in progress finishes in the background and is dropped).
