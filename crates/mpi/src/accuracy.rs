@@ -214,6 +214,40 @@ pub fn sampled_errors<C: Communicator, K: Kernel>(
     )
 }
 
+/// The `k` targets (at most all of them) spread over the global input
+/// order (`j * total / k` for `j < k`) and their values (`w` per target),
+/// from their owners to every rank: `3 k` coordinates then `w k` values
+/// (`None` when no rank has a target or `k == 0`). A collective.
+pub fn gather_sample<C: Communicator>(
+    comm: &C,
+    targets: &[f64],
+    values: &[f64],
+    w: usize,
+    k: usize,
+) -> Option<Vec<f64>> {
+    let n_local = (targets.len() / 3) as u64;
+    let mut counts = vec![0u64; comm.size() as usize];
+    comm.all_gather_into(&n_local, &mut counts[..]);
+    let first: u64 = counts[..comm.rank() as usize].iter().sum();
+    let total: u64 = counts.iter().sum();
+    let k = k.min(usize::try_from(total).unwrap_or(usize::MAX));
+    if k == 0 {
+        return None;
+    }
+    let mut mine = vec![0.0; (3 + w) * k];
+    for j in 0..k {
+        let id = j as u64 * total / k as u64;
+        if id >= first && id < first + n_local {
+            let i = (id - first) as usize;
+            mine[3 * j..3 * j + 3].copy_from_slice(&targets[3 * i..3 * i + 3]);
+            mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&values[w * i..w * (i + 1)]);
+        }
+    }
+    let mut shared = vec![0.0; mine.len()];
+    comm.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
+    Some(shared)
+}
+
 /// [`sampled_errors`] with separate targets: `values` are this rank's
 /// results at its `targets` (input order), the `k` samples are spread over
 /// the global order of the targets, and the direct sum runs over every
@@ -233,27 +267,10 @@ pub fn sampled_errors_at<C: Communicator, K: Kernel>(
 ) -> [f64; 2] {
     let w = kernel.values_per_target(mode);
     let c = kernel.components();
-    let n_local = (targets.len() / 3) as u64;
-    let mut counts = vec![0u64; comm.size() as usize];
-    comm.all_gather_into(&n_local, &mut counts[..]);
-    let first: u64 = counts[..comm.rank() as usize].iter().sum();
-    let total: u64 = counts.iter().sum();
-    let k = k.min(total as usize);
-    if k == 0 {
+    let Some(shared) = gather_sample(comm, targets, values, w, k) else {
         return [0.0, 0.0];
-    }
-    let ids: Vec<u64> = (0..k as u64).map(|j| j * total / k as u64).collect();
-    // Sample coordinates and FMM values, from their owners to all.
-    let mut mine = vec![0.0; (3 + w) * k];
-    for (j, &id) in ids.iter().enumerate() {
-        if id >= first && id < first + n_local {
-            let i = (id - first) as usize;
-            mine[3 * j..3 * j + 3].copy_from_slice(&targets[3 * i..3 * i + 3]);
-            mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&values[w * i..w * (i + 1)]);
-        }
-    }
-    let mut shared = vec![0.0; mine.len()];
-    comm.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
+    };
+    let k = shared.len() / (3 + w);
     let (sample, fmm) = shared.split_at(3 * k);
     let mut direct = vec![0.0; w * k];
     direct_sum_sources(kernel, kind, mode, sources, densities, sample, &mut direct);

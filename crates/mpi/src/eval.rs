@@ -579,34 +579,48 @@ fn go(
     world.all_gather_into(&mine[..], &mut all[..]);
     // `--quiet` silences the table, not a JSON asked for.
     if me == 0 && (a.json || !a.quiet) {
-        let plan = solver.plan();
-        let info = RunInfo {
-            json: a.json,
-            kernel: a.kernel.clone(),
-            precision: &a.precision,
-            gradients: a.gradients,
-            input: a.generate.as_deref(),
-            tolerance: plan.tolerance,
-            order: plan.order,
-            leaf_size: plan.leaf_size,
-            scheme: plan.scheme,
-            svd_tolerance: plan.svd_tolerance,
-            choice: plan.choice.as_ref(),
-            attempts: &attempts,
-            samples,
-            read_s,
-            threads,
-            cache: match solver.cache() {
-                CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
-                CacheLocation::Off(why) => why.to_string(),
-                CacheLocation::Folder { .. } => solver
-                    .cache_summary()
-                    .unwrap_or_else(|| "not needed".into()),
-            },
-            cache_dir: solver.cache().dir().map(|d| d.display().to_string()),
-            layers: None,
-        };
+        let info = run_info(a, &solver, &attempts, samples, read_s, threads, None);
         report(&info, &all, size);
     }
     Ok(())
+}
+
+/// What rank 0 reports of a run of `solver` (the Stokeslet FMM's, for a
+/// run with layers, whose lines and JSON come as `layers`).
+pub(crate) fn run_info<'a>(
+    a: &'a EvalArgs,
+    solver: &'a DistSolver<SimpleCommunicator>,
+    attempts: &'a [Attempt],
+    samples: usize,
+    read_s: f64,
+    threads: usize,
+    layers: Option<(Vec<String>, serde_json::Value)>,
+) -> RunInfo<'a> {
+    let plan = solver.plan();
+    RunInfo {
+        json: a.json,
+        kernel: a.kernel.clone(),
+        precision: &a.precision,
+        gradients: a.gradients,
+        input: a.generate.as_deref(),
+        tolerance: plan.tolerance,
+        order: plan.order,
+        leaf_size: plan.leaf_size,
+        scheme: plan.scheme,
+        svd_tolerance: plan.svd_tolerance,
+        choice: plan.choice.as_ref(),
+        attempts,
+        samples,
+        read_s,
+        threads,
+        cache: match solver.cache() {
+            CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
+            CacheLocation::Off(why) => why.to_string(),
+            CacheLocation::Folder { .. } => solver
+                .cache_summary()
+                .unwrap_or_else(|| "not needed".into()),
+        },
+        cache_dir: solver.cache().dir().map(|d| d.display().to_string()),
+        layers,
+    }
 }

@@ -6,7 +6,6 @@
 //! both FMMs added up), with a line for the Laplace FMM and, with
 //! `--check`, the errors of velocity and pressure against direct sums.
 
-use ferrofmm_field::{CacheLocation, CacheOff};
 use ferrofmm_fmm::{StokesErrors, StokesRequest};
 use ferrofmm_kernels::{KernelChoice, Precision, SourceKind};
 use ferrofmm_mpi::{DistSolver, DistStokesLayers};
@@ -15,7 +14,7 @@ use mpi::traits::*;
 
 use crate::eval::EvalArgs;
 use crate::eval_io::write_out;
-use crate::eval_report::{Attempt, FIGURES, RunInfo, figures, report};
+use crate::eval_report::{Attempt, FIGURES, figures, report};
 
 /// This rank's points and what they carry, for a run with layers.
 pub(crate) struct LayerInputs {
@@ -126,33 +125,16 @@ pub(crate) fn go(
                 })
                 .collect(),
         };
-        let plan = stokes.plan();
-        let info = RunInfo {
-            json: a.json,
-            kernel: a.kernel.clone(),
-            precision: &a.precision,
-            gradients: a.gradients,
-            input: a.generate.as_deref(),
-            tolerance: plan.tolerance,
-            order: plan.order,
-            leaf_size: plan.leaf_size,
-            scheme: plan.scheme,
-            svd_tolerance: plan.svd_tolerance,
-            choice: plan.choice.as_ref(),
-            attempts: &attempts,
-            samples: stokes.samples(),
+        let layers = Some(layers_report(&layers, check.as_ref()));
+        let info = crate::eval::run_info(
+            a,
+            stokes,
+            &attempts,
+            stokes.samples(),
             read_s,
             threads,
-            cache: match stokes.cache() {
-                CacheLocation::Off(CacheOff::Requested) => "off (--no-cache)".into(),
-                CacheLocation::Off(why) => why.to_string(),
-                CacheLocation::Folder { .. } => stokes
-                    .cache_summary()
-                    .unwrap_or_else(|| "not needed".into()),
-            },
-            cache_dir: stokes.cache().dir().map(|d| d.display().to_string()),
-            layers: Some(layers_report(&layers, check.as_ref())),
-        };
+            layers,
+        );
         report(&info, &all, size);
     }
     Ok(())

@@ -288,13 +288,7 @@ impl<C: Communicator + 'static> DistStokesLayers<C> {
         let (wv, wp) = self.plan.values_per_target();
         let w = wv + wp;
         let rows = self.plan.rows(values);
-        let n_local = (targets.len() / 3) as u64;
-        let mut counts = vec![0u64; comm.size() as usize];
-        comm.all_gather_into(&n_local, &mut counts[..]);
-        let first: u64 = counts[..comm.rank() as usize].iter().sum();
-        let total: u64 = counts.iter().sum();
-        let k = samples.min(usize::try_from(total).unwrap_or(usize::MAX));
-        if k == 0 {
+        let Some(shared) = crate::accuracy::gather_sample(comm, targets, &rows, w, samples) else {
             return Ok(StokesErrors {
                 n_sampled: 0,
                 velocity: 0.0,
@@ -302,19 +296,8 @@ impl<C: Communicator + 'static> DistStokesLayers<C> {
                 pressure: None,
                 pressure_gradient: None,
             });
-        }
-        // The sampled targets and their FMM rows, from their owners to all.
-        let mut mine = vec![0.0; (3 + w) * k];
-        for j in 0..k {
-            let id = j as u64 * total / k as u64;
-            if id >= first && id < first + n_local {
-                let i = (id - first) as usize;
-                mine[3 * j..3 * j + 3].copy_from_slice(&targets[3 * i..3 * i + 3]);
-                mine[3 * k + w * j..3 * k + w * (j + 1)].copy_from_slice(&rows[w * i..w * (i + 1)]);
-            }
-        }
-        let mut shared = vec![0.0; mine.len()];
-        comm.all_reduce_into(&mine[..], &mut shared[..], SystemOperation::sum());
+        };
+        let k = shared.len() / (3 + w);
         let (at, got) = shared.split_at(3 * k);
         // This rank's sources at the samples, then the sum over ranks.
         let mode = if self.plan.has_gradient() {

@@ -147,6 +147,22 @@ def _agreed(comm: Any, check: Callable[[], _T]) -> _T:
     return value  # type: ignore[return-value]
 
 
+def _check_scheme(scheme: Any) -> None:
+    if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
+        raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
+
+
+def _targets_everywhere_or_nowhere(comm: Any, given_here: bool) -> None:
+    """Targets given on some ranks only: the same ValueError on every rank (a
+    collective)."""
+    given = comm.allgather(given_here)
+    if any(given) != all(given):
+        raise ValueError(
+            "targets must be given on every rank or on none (an empty (0, 3) array on a "
+            f"rank without targets); given on ranks {[r for r, g in enumerate(given) if g]}"
+        )
+
+
 def _native_property(name: str, doc: str) -> property:
     """A read-only property that returns the native object's attribute ``name``."""
     return property(lambda self: getattr(self._native, name), doc=doc)
@@ -315,10 +331,7 @@ class Fmm:
             run = _float_dtype(dtype) or np.dtype(np.float64)
             _check_eps_order(eps, order)
             _kernel(kernel)
-            if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
-                raise ValueError(
-                    f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"'
-                )
+            _check_scheme(scheme)
             folder, default_cache = _cache(cache, cache_dir)
             return dict(
                 src=_flat(src, _F64),
@@ -342,12 +355,7 @@ class Fmm:
             )
 
         a = _agreed(comm, check)
-        given = comm.allgather(a["tgt"] is not None)
-        if any(given) != all(given):
-            raise ValueError(
-                "targets must be given on every rank or on none (an empty (0, 3) array on a "
-                f"rank without targets); given on ranks {[r for r, g in enumerate(given) if g]}"
-            )
+        _targets_everywhere_or_nowhere(comm, a["tgt"] is not None)
         source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
             (a["charges"], a["dipoles"])
         ]
@@ -574,8 +582,7 @@ def _stokes_layers(
                 raise ValueError(f"{name} holds a NaN or infinite value")
         run = _float_dtype(dtype) or np.dtype(np.float64)
         _check_eps_order(eps, order)
-        if not isinstance(scheme, str) or scheme not in _ferrofmm.SCHEMES:
-            raise ValueError(f'unknown M2L scheme {scheme!r}: use "auto", "svd", "dense" or "fft"')
+        _check_scheme(scheme)
         folder, default_cache = _cache(cache, cache_dir)
         return dict(
             src=_flat(src, _F64),
@@ -597,12 +604,7 @@ def _stokes_layers(
         )
 
     a = _agreed(comm, check)
-    given = comm.allgather(a["tgt"] is not None)
-    if any(given) != all(given):
-        raise ValueError(
-            "targets must be given on every rank or on none (an empty (0, 3) array on a "
-            f"rank without targets); given on ranks {[r for r, g in enumerate(given) if g]}"
-        )
+    _targets_everywhere_or_nowhere(comm, a["tgt"] is not None)
     d = a["dens"]
     velocity, pres, info_json = _ferrofmm.dist_stokes_layers(
         comm.py2f(), a["src"], a["tgt"], d.get("forces"), d.get("strslet"), d.get("strsvec"),
