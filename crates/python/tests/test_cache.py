@@ -17,9 +17,14 @@ X = rng.random((2000, 3))
 Q = rng.random(2000) - 0.5
 
 
+# Cache files of one run (SVD M2L): the operators, the SVD's bases and its
+# truncated sets.
+ENTRIES = 3
+
+
 def run(**kw):
-    # A leaf size given: a tree with its two cache files (2,000 points with
-    # an order alone would be a direct sum, with order-2 operators only).
+    # A leaf size given: a tree with its cache files (2,000 points with an
+    # order alone would be a direct sum, with order-2 operators only).
     return ferrofmm.Fmm(X, order=3, leaf_size=150, **kw).evaluate(Q)
 
 
@@ -32,7 +37,7 @@ def test_default_folder_from_ferrofmm_cache(tmp_path, monkeypatch):
     first = run()
     assert first.info["cache_dir"] == str(tmp_path / "c")
     assert first.info["cache"] == "miss (computed, saved)"
-    assert len(files(tmp_path / "c")) == 2
+    assert len(files(tmp_path / "c")) == ENTRIES
     second = run()
     assert second.info["cache"] == "hit"
     np.testing.assert_array_equal(first.potential, second.potential)
@@ -43,7 +48,7 @@ def test_default_folder_from_xdg_cache_home(tmp_path, monkeypatch):
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
     r = run()
     assert r.info["cache_dir"] == str(tmp_path / "ferrofmm")
-    assert len(files(tmp_path / "ferrofmm")) == 2
+    assert len(files(tmp_path / "ferrofmm")) == ENTRIES
 
 
 def test_cache_false_and_off_write_nothing(tmp_path, monkeypatch):
@@ -60,7 +65,7 @@ def test_cache_false_and_off_write_nothing(tmp_path, monkeypatch):
 def test_cache_path_and_cache_dir(tmp_path):
     r = run(cache=tmp_path / "p")
     assert r.info["cache_dir"] == str(tmp_path / "p")
-    assert len(files(tmp_path / "p")) == 2
+    assert len(files(tmp_path / "p")) == ENTRIES
     r = run(cache_dir=str(tmp_path / "d"), cache=True)
     assert r.info["cache_dir"] == str(tmp_path / "d")
     with pytest.raises(ValueError, match="cache=False contradicts cache_dir"):
@@ -107,7 +112,7 @@ def test_threads_fill_one_entry_at_once(tmp_path, monkeypatch):
     for r in results[1:]:
         np.testing.assert_array_equal(results[0], r)
     names = files(tmp_path)
-    assert len(names) == 2 and all(n.endswith(".ffmm") for n in names), names
+    assert len(names) == ENTRIES and all(n.endswith(".ffmm") for n in names), names
     again = run()
     assert again.info["cache"] == "hit"
     np.testing.assert_array_equal(again.potential, results[0])
@@ -123,8 +128,9 @@ def test_damaged_entry_is_recomputed(tmp_path, monkeypatch):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         second = run()
-    # Both files were damaged: each is rejected (its checksum), recomputed
-    # and saved again.
+    # Every file was damaged: the two the report names (operators, M2L) are
+    # each rejected (their checksum), recomputed and saved again; the SVD's
+    # bases, which the report does not name, are recomputed with them.
     words = second.info["cache"]
     assert words.count("recomputed (cached file rejected: checksum") == 2, words
     assert words.count("(corrupt); saved)") == 2, words

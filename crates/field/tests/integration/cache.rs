@@ -365,3 +365,78 @@ fn operators_from_a_level_equal_the_full_set_and_cache() {
     let laplace = Operators::<f64>::from_level(&Laplace3d, &plain, 1.0, 4, 2).unwrap();
     assert_eq!(laplace.first_level(), 0);
 }
+
+/// The cache files under `dir` whose name starts with `kind_`.
+fn files_of(dir: &Path, kind: &str) -> Vec<PathBuf> {
+    let mut found: Vec<PathBuf> = fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| {
+            p.file_name()
+                .and_then(|n| n.to_str())
+                .is_some_and(|n| n.starts_with(&format!("{kind}_")))
+        })
+        .collect();
+    found.sort();
+    found
+}
+
+/// The SVD scheme's bases (the TSQR and the SVDs of the stacks, most of
+/// its cost) are cached apart from its truncated sets: another tolerance
+/// or the other working type reuses them, and what it builds is bit for
+/// bit what a build without any cache gives; a kernel with operators per
+/// level has one bases file per level.
+#[test]
+fn svd_bases_are_shared_by_tolerances_and_working_types() {
+    let dir = TempDir::new("svd-bases");
+    let cached = params(5, dir.path());
+    let uncached = OperatorParams::new(5);
+    let n = Operators::<f64>::new(&Laplace3d, &uncached, 1.0, 3)
+        .unwrap()
+        .n_surface();
+    let at = |tolerance| SvdConfig {
+        rank: None,
+        tolerance,
+    };
+    let first = SvdM2l::<f64>::precompute(&Laplace3d, &cached, &at(1e-4), 1.0, 3).unwrap();
+    assert_computed(&first.cache_status(), false);
+    let bases = files_of(dir.path(), "m2l-svd-bases");
+    assert_eq!(bases.len(), 1, "{bases:?}");
+    // A hit refreshes the file's time (least recently used eviction) but
+    // never rewrites it: the same file (inode) throughout.
+    #[cfg(unix)]
+    let inode = |p: &Path| std::os::unix::fs::MetadataExt::ino(&fs::metadata(p).unwrap());
+    #[cfg(unix)]
+    let written = inode(&bases[0]);
+    for tolerance in [1e-4, 1e-3, 1e-7] {
+        let a = SvdM2l::<f64>::precompute(&Laplace3d, &cached, &at(tolerance), 1.0, 3).unwrap();
+        let b = SvdM2l::<f64>::precompute(&Laplace3d, &uncached, &at(tolerance), 1.0, 3).unwrap();
+        assert_eq!(a.rank(), b.rank(), "tolerance {tolerance:e}");
+        assert_eq!(scheme_fingerprint(&a, n), scheme_fingerprint(&b, n));
+        let c = SvdM2l::<f32>::precompute(&Laplace3d, &cached, &at(tolerance), 1.0, 3).unwrap();
+        let d = SvdM2l::<f32>::precompute(&Laplace3d, &uncached, &at(tolerance), 1.0, 3).unwrap();
+        assert_eq!(scheme_fingerprint(&c, n), scheme_fingerprint(&d, n));
+    }
+    // Still the one bases file, never rewritten.
+    assert_eq!(files_of(dir.path(), "m2l-svd-bases"), bases);
+    #[cfg(unix)]
+    assert_eq!(inode(&bases[0]), written);
+    // The truncated sets are still one file per tolerance and type.
+    assert_eq!(files_of(dir.path(), "m2l-svd").len(), 6);
+
+    // Per-level operators: one bases file per level with V lists.
+    let yukawa = ModifiedHelmholtz3d::new(3.0).unwrap();
+    let p4 = params(4, dir.path());
+    let a = SvdM2l::<f64>::precompute(&yukawa, &p4, &at(1e-5), 1.0, 4).unwrap();
+    let per_level = files_of(dir.path(), "m2l-svd-bases").len() - 1;
+    assert_eq!(per_level, 3, "levels 2..=4");
+    let b = SvdM2l::<f64>::precompute(&yukawa, &p4, &at(1e-3), 1.0, 4).unwrap();
+    let c = SvdM2l::<f64>::precompute(&yukawa, &OperatorParams::new(4), &at(1e-3), 1.0, 4).unwrap();
+    assert_eq!(files_of(dir.path(), "m2l-svd-bases").len(), 1 + per_level);
+    let n4 = Operators::<f64>::new(&yukawa, &p4, 1.0, 4)
+        .unwrap()
+        .n_surface();
+    assert_eq!(scheme_fingerprint(&b, n4), scheme_fingerprint(&c, n4));
+    assert!(a.rank() >= b.rank());
+}

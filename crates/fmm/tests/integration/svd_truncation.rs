@@ -1,6 +1,6 @@
 //! The default SVD compression of M2L costs at most 1.3x of accuracy
 //! against the dense scheme at the same order, on zero-mean and
-//! all-positive charges, at every order 3..=12 in f64 (potential and
+//! all-positive charges, at every order 3..=10 in f64 (potential and
 //! gradient) and at the orders f32 is used at, 3..=8 (potential; the f32
 //! gradient at orders 7 and 8 sits on the f32 rounding floor, where the
 //! SVD's extra products cost up to 1.5x: see docs/algorithms.md).
@@ -11,8 +11,10 @@ use ferrofmm_kernels::{EvalMode, Laplace3d, Real};
 const N: usize = 4000;
 const LOSS: f64 = 1.3;
 
+/// The binary's shared folder: the default-tolerance SVD sets here are
+/// those of the `accuracy` tests (order 10 among them).
 fn cache() -> std::path::PathBuf {
-    std::path::Path::new(env!("CARGO_TARGET_TMPDIR")).join("tolerance-operators")
+    crate::ops_cache()
 }
 
 fn losses<T: Real>(order: usize, geometry: Geometry) -> Vec<(Charges, f64, f64)> {
@@ -60,9 +62,10 @@ fn losses<T: Real>(order: usize, geometry: Geometry) -> Vec<(Charges, f64, f64)>
 
 #[test]
 fn svd_costs_at_most_1_3x_in_f64() {
-    // Every order up to 8, then 10 and 12 (9 and 11 passed too; they were
-    // a third of this test's time with a cold cache).
-    for order in [3, 4, 5, 6, 7, 8, 10, 12] {
+    // Every order up to 8, then 10 (9, 11 and 12 passed too; order 12's
+    // SVD at its default tolerance alone took 64 s to precompute on 2
+    // cores, most of this test's time in a cold CI run).
+    for order in [3, 4, 5, 6, 7, 8, 10] {
         for (kind, pot, grad) in losses::<f64>(order, Geometry::Cube) {
             assert!(
                 pot <= LOSS,

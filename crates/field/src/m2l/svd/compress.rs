@@ -17,6 +17,12 @@
 //!    `tol s_max` (`s_max` over all `C_v`): `C_v ≈ A_v B_v^T`,
 //!    `A_v = U_r S_r`, `B_v = V_r`; kept whole when `2 r_v >= k`.
 //!
+//! Step 1 is most of the cost (two QRs of `m n x n` stacks against
+//! products of `n x k` blocks) and does not depend on the tolerance or the
+//! working type: [`set_bases`] computes it once and the cache keeps it in an
+//! entry of its own ([`SvdBasesLayout`]), from which [`compress_with`]
+//! makes each truncation.
+//!
 //! Progress is counted in units roughly proportional to time
 //! ([`set_units`]).
 
@@ -25,6 +31,7 @@ use ferrofmm_kernels::Kernel;
 use rayon::prelude::*;
 
 use super::store::SvdSetInfo;
+use crate::cache::{FlatStore, StoreLayout};
 use crate::linalg::{col_major, householder_r_until, product, svd};
 use crate::m2l::m2l_matrix;
 use crate::monitor::Units;
@@ -56,17 +63,79 @@ pub(super) fn set_units(m: usize, refactor: bool) -> u64 {
     m as u64 * (TSQR_UNITS + BASES_UNITS + 1 + u64::from(refactor))
 }
 
-/// Compress the 316 operators of one set at half-width `h`: returns the
-/// summary and `[U_k, V_k^T, C_1 .. C_316]` (column-major, `f64`).
-pub(super) fn compress_set<K: Kernel>(
+/// The bases of one set (step 1): the right singular vectors and
+/// singular values of the fat stack's transpose (`u`, `s_fat`: the fat
+/// stack's left singular vectors) and of the tall stack (`v`, `s_tall`),
+/// all `n` of them. They depend on the kernel, the order, the radii, the
+/// half-width and the vectors only, not on the tolerance or the working
+/// type, so one computation serves every truncation
+/// ([`SvdBasesLayout`], cached apart from the sets).
+pub(super) struct SetBases {
+    /// Surface points `n`.
+    pub(super) n: usize,
+    /// `U` (`n x n`, column-major).
+    pub(super) u: Vec<f64>,
+    /// Singular values of the fat stack, non-increasing.
+    pub(super) s_fat: Vec<f64>,
+    /// `V` (`n x n`, column-major).
+    pub(super) v: Vec<f64>,
+    /// Singular values of the tall stack, non-increasing.
+    pub(super) s_tall: Vec<f64>,
+}
+
+/// What a cached [`SetBases`] holds: `U`, `V` (`n x n` each), then the
+/// `n` singular values of the fat and of the tall stack.
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+pub(super) struct SvdBasesLayout {
+    /// Surface points `n`.
+    pub(super) n: usize,
+}
+
+impl StoreLayout for SvdBasesLayout {
+    fn n_values(&self) -> Result<usize, String> {
+        Ok(2 * self.n * self.n + 2 * self.n)
+    }
+}
+
+impl SetBases {
+    /// As a cache payload: `[U, V, s_fat, s_tall]`.
+    pub(super) fn into_store(self) -> FlatStore<SvdBasesLayout, f64> {
+        let mut data = self.u;
+        data.extend(self.v);
+        data.extend(self.s_fat);
+        data.extend(self.s_tall);
+        FlatStore {
+            layout: SvdBasesLayout { n: self.n },
+            data,
+        }
+    }
+
+    /// Back from a cache payload (its length already checked).
+    pub(super) fn from_store(store: FlatStore<SvdBasesLayout, f64>) -> Self {
+        let n = store.layout.n;
+        let mut data = store.data;
+        let s_tall = data.split_off(2 * n * n + n);
+        let s_fat = data.split_off(2 * n * n);
+        let v = data.split_off(n * n);
+        SetBases {
+            n,
+            u: data,
+            s_fat,
+            v,
+            s_tall,
+        }
+    }
+}
+
+/// Step 1 for one set at half-width `h`: the two-level TSQR of both stacks
+/// and the SVDs of their `R` factors.
+pub(super) fn set_bases<K: Kernel>(
     kernel: &K,
     params: &OperatorParams,
     h: f64,
     used: &[usize],
-    rank: Option<usize>,
-    tolerance: f64,
     units: &Units<'_>,
-) -> Result<(SvdSetInfo, Vec<f64>), FieldError> {
+) -> Result<SetBases, FieldError> {
     let p = params.order;
     let n = expansion_len(kernel, p);
     let all = transfer_vectors();
@@ -127,6 +196,39 @@ pub(super) fn compress_set<K: Kernel>(
     let st = svd(rt.as_ref(), "the tall M2L stack")?;
     let sf = svd(rf.as_ref(), "the fat M2L stack")?;
     units.add(BASES_UNITS * vectors.len() as u64)?;
+    Ok(SetBases {
+        n,
+        u: col_major(sf.v.as_ref()),
+        s_fat: sf.s,
+        v: col_major(st.v.as_ref()),
+        s_tall: st.s,
+    })
+}
+
+/// Progress units of step 1 for `m` vectors (added at once when the bases
+/// come from the cache).
+pub(super) fn bases_units(m: usize) -> u64 {
+    m as u64 * (TSQR_UNITS + BASES_UNITS)
+}
+
+/// Steps 2 and 3 for one set at half-width `h` from its `bases`: returns
+/// the summary and `[U_k, V_k^T, C_1 .. C_316]` (column-major, `f64`).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn compress_with<K: Kernel>(
+    kernel: &K,
+    params: &OperatorParams,
+    h: f64,
+    used: &[usize],
+    bases: &SetBases,
+    rank: Option<usize>,
+    tolerance: f64,
+    units: &Units<'_>,
+) -> Result<(SvdSetInfo, Vec<f64>), FieldError> {
+    let p = params.order;
+    let n = bases.n;
+    let all = transfer_vectors();
+    let vectors: Vec<[i32; 3]> = used.iter().map(|&v| all[v]).collect();
+    let (sf_s, st_s) = (&bases.s_fat, &bases.s_tall);
     let count = |s: &[f64]| {
         s.iter()
             .take_while(|&&x| x > tolerance * s[0])
@@ -135,7 +237,7 @@ pub(super) fn compress_set<K: Kernel>(
     };
     let k = match rank {
         Some(r) => r.min(n),
-        None => count(&sf.s).max(count(&st.s)),
+        None => count(sf_s).max(count(st_s)),
     };
     let dropped = |s: &[f64]| {
         if k < s.len() && s[0] > 0.0 {
@@ -144,8 +246,8 @@ pub(super) fn compress_set<K: Kernel>(
             0.0
         }
     };
-    let uk = sf.v.as_ref().subcols(0, k);
-    let vk = st.v.as_ref().subcols(0, k);
+    let uk = MatRef::from_column_major_slice(&bases.u[..n * k], n, k);
+    let vk = MatRef::from_column_major_slice(&bases.v[..n * k], n, k);
     // C_v = U_k^T K_v V_k.
     let cs: Vec<Result<Vec<f64>, FieldError>> = vectors
         .par_iter()
@@ -195,8 +297,8 @@ pub(super) fn compress_set<K: Kernel>(
     };
     let info = SvdSetInfo {
         rank: k,
-        dropped_fat: dropped(&sf.s),
-        dropped_tall: dropped(&st.s),
+        dropped_fat: dropped(sf_s),
+        dropped_tall: dropped(st_s),
         vector_ranks: {
             let mut ranks = vec![0u32; N_TRANSFER_VECTORS];
             for (f, &v) in factored.iter().zip(used) {

@@ -13,7 +13,7 @@ mod store;
 use ferrofmm_kernels::{Kernel, Precision, Real};
 
 use super::{M2lProgress, M2lScheme, Plan, planned_sets};
-use crate::cache::{CacheKey, CacheStatus, FlatStore};
+use crate::cache::{CacheKey, CacheStatus, FlatStore, StoreLayout};
 use crate::estimate::seconds_for;
 use crate::levels::LevelMap;
 use crate::linalg::round_to;
@@ -22,7 +22,10 @@ use crate::{
     FieldError, M2lInteractions, M2lUsage, N_TRANSFER_VECTORS, OperatorParams, PrecomputeEstimate,
     expansion_len,
 };
-use compress::{RECOMPRESSION_FACTOR, TSQR_BLOCK, compress_set, set_units};
+use compress::{
+    RECOMPRESSION_FACTOR, SetBases, SvdBasesLayout, TSQR_BLOCK, bases_units, compress_with,
+    set_bases, set_units,
+};
 use store::{SvdLayout, SvdSetInfo, VectorOp};
 
 /// Configuration of [`SvdM2l`].
@@ -249,8 +252,27 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
                     continue;
                 }
                 let h = levels.set_half_width(set);
-                let (info, values) =
-                    compress_set(kernel, params, h, vs, config.rank, tolerance, &units)?;
+                let bases = set_bases_cached(
+                    &plan,
+                    kernel,
+                    params,
+                    domain_width,
+                    depth,
+                    set,
+                    h,
+                    vs,
+                    &units,
+                )?;
+                let (info, values) = compress_with(
+                    kernel,
+                    params,
+                    h,
+                    vs,
+                    &bases,
+                    config.rank,
+                    tolerance,
+                    &units,
+                )?;
                 sets.push(info);
                 data.extend(round_to::<T>(&values));
             }
@@ -401,4 +423,48 @@ impl<T: Real> M2lScheme<T> for SvdM2l<T> {
     fn cache_status(&self) -> CacheStatus {
         self.cache_status.clone()
     }
+}
+
+/// The bases of set `set` (half-width `h`, vectors `vs`): from the cache
+/// when the plan may use it (an entry of their own, `m2l-svd-bases`, in
+/// `f64` and without the tolerance, so that every truncation and both
+/// working types share one computation), else computed.
+#[allow(clippy::too_many_arguments)]
+fn set_bases_cached<K: Kernel>(
+    plan: &Plan,
+    kernel: &K,
+    params: &OperatorParams,
+    domain_width: f64,
+    depth: u32,
+    set: usize,
+    h: f64,
+    vs: &[usize],
+    units: &crate::monitor::Units<'_>,
+) -> Result<SetBases, FieldError> {
+    let n = expansion_len(kernel, params.order);
+    let key = || {
+        let mut key = CacheKey::new::<K, f64>(
+            "m2l-svd-bases",
+            kernel,
+            params.order,
+            params.radii.to_array(),
+        )
+        .for_domain(domain_width, depth);
+        key.scheme_config = format!("set={set};half_width={h:?};tsqr_block={TSQR_BLOCK}");
+        key
+    };
+    let mut computed = false;
+    let (store, _) = plan.load_or_compute::<f64, FlatStore<SvdBasesLayout, f64>>(
+        params,
+        key,
+        SvdBasesLayout { n }.accept(),
+        || {
+            computed = true;
+            Ok(set_bases(kernel, params, h, vs, units)?.into_store())
+        },
+    )?;
+    if !computed {
+        units.add(bases_units(vs.len()))?;
+    }
+    Ok(SetBases::from_store(store))
 }
