@@ -5,18 +5,11 @@
 //! ~1e-8..1e-9), and the promises (p = 6: 1e-4 potential, 1e-3
 //! gradient; p = 10: 1e-6) leave a margin for the geometry.
 
+use crate::Scheme;
 use ferrofmm_fmm::{ErrorReport, FmmBuilder, Geometry, charges, relative_errors, sample_indices};
 use ferrofmm_kernels::{EvalMode, Kernel, Laplace3d, ModifiedHelmholtz3d, Real};
 
 const N: usize = 20_000;
-
-/// The M2L scheme of a run.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Scheme {
-    Svd,
-    Dense,
-    Fft,
-}
 
 fn run<T: Real, K: Kernel>(
     kernel: K,
@@ -34,15 +27,7 @@ fn run<T: Real, K: Kernel>(
         .order(order)
         .leaf_size(64)
         .mode(mode);
-    let values = match scheme {
-        Scheme::Dense => builder.build_dense().unwrap().evaluate(&q).unwrap(),
-        Scheme::Svd => builder.build_svd().unwrap().evaluate(&q).unwrap(),
-        Scheme::Fft => builder
-            .build_with::<ferrofmm_field::FftM2l<T>>(Default::default())
-            .unwrap()
-            .evaluate(&q)
-            .unwrap(),
-    };
+    let values = scheme.evaluate(builder, &q);
     let report = relative_errors(
         &kernel,
         mode,

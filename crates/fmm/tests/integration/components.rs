@@ -9,6 +9,7 @@
 //! 6x per order, and a larger `k` costs up to a few times more at a given
 //! order inside the low-frequency limit.
 
+use crate::Scheme;
 use ferrofmm_field::FftM2l;
 use ferrofmm_fmm::tuning::MAX_TUNED_ORDER;
 use ferrofmm_fmm::{
@@ -20,15 +21,6 @@ use ferrofmm_kernels::{EvalMode, Helmholtz3d, Kernel, SourceKind, Stokes3d};
 /// Error bound at order `p` for outputs whose order-4 error is `at4`.
 fn bound(at4: f64, p: usize) -> f64 {
     at4 * 6f64.powi(4 - p as i32)
-}
-
-/// The M2L scheme of a case: SVD, or FFT (exact operators, precomputed
-/// in milliseconds where SVD's factorisations of `c n` rows take the
-/// seconds of these tests).
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Scheme {
-    Svd,
-    Fft,
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -51,14 +43,7 @@ fn run<K: Kernel>(
         .leaf_size(64)
         .mode(mode)
         .source_kind(kind);
-    let values = match scheme {
-        Scheme::Svd => builder.build_svd().unwrap().evaluate(&densities),
-        Scheme::Fft => builder
-            .build_with::<FftM2l<f64>>(Default::default())
-            .unwrap()
-            .evaluate(&densities),
-    }
-    .unwrap();
+    let values = scheme.evaluate(builder, &densities);
     assert_eq!(values.len(), n * kernel.values_per_target(mode));
     let sample = sample_indices(n, 300);
     let e = relative_errors_sources(
@@ -191,14 +176,7 @@ fn check_helmholtz_hessians(k: f64, cases: [(usize, Scheme); 2]) {
             .leaf_size(16)
             .mode(mode)
             .source_kind(kind);
-        let values = match scheme {
-            Scheme::Svd => builder.build_svd().unwrap().evaluate(&densities),
-            Scheme::Fft => builder
-                .build_with::<FftM2l<f64>>(Default::default())
-                .unwrap()
-                .evaluate(&densities),
-        }
-        .unwrap();
+        let values = scheme.evaluate(builder, &densities);
         assert_eq!(values.len(), 20 * n);
         let sample = sample_indices(n, 300);
         let e = relative_errors_sources(

@@ -39,3 +39,32 @@ mod wider_root;
 fn ops_cache() -> std::path::PathBuf {
     ferrofmm_testing::shared_operator_cache(std::path::Path::new(env!("CARGO_TARGET_TMPDIR")))
 }
+
+/// The M2L scheme of a test run: SVD, dense (the reference), or FFT (exact
+/// operators, precomputed in milliseconds where the SVD's factorisations
+/// take seconds).
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Scheme {
+    Svd,
+    Dense,
+    Fft,
+}
+
+impl Scheme {
+    /// Build `builder` with this scheme and evaluate `densities`.
+    fn evaluate<T: ferrofmm_kernels::Real, K: ferrofmm_kernels::Kernel>(
+        self,
+        builder: ferrofmm_fmm::FmmBuilder<'_, T, K>,
+        densities: &[T],
+    ) -> Vec<T> {
+        match self {
+            Scheme::Svd => builder.build_svd().unwrap().evaluate(densities),
+            Scheme::Dense => builder.build_dense().unwrap().evaluate(densities),
+            Scheme::Fft => builder
+                .build_with::<ferrofmm_field::FftM2l<T>>(Default::default())
+                .unwrap()
+                .evaluate(densities),
+        }
+        .unwrap()
+    }
+}

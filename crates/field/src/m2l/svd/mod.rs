@@ -453,17 +453,13 @@ fn set_bases_cached<K: Kernel>(
         key.scheme_config = format!("set={set};half_width={h:?};tsqr_block={TSQR_BLOCK}");
         key
     };
-    let mut computed = false;
-    let (store, _) = plan.load_or_compute::<f64, FlatStore<SvdBasesLayout, f64>>(
+    let (store, status) = plan.load_or_compute::<f64, FlatStore<SvdBasesLayout, f64>>(
         params,
         key,
         SvdBasesLayout { n }.accept(),
-        || {
-            computed = true;
-            Ok(set_bases(kernel, params, h, vs, units)?.into_store())
-        },
+        || Ok(set_bases(kernel, params, h, vs, units)?.into_store()),
     )?;
-    if !computed {
+    if status.is_hit() {
         units.add(bases_units(vs.len()))?;
     }
     Ok(SetBases::from_store(store))
