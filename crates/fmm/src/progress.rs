@@ -296,6 +296,18 @@ mod tests {
     /// the level's end.
     #[test]
     fn the_m2l_reports_within_a_level() {
+        // One thread: chunks that end together on two threads may reach
+        // the callback as one step (the earlier value is not reported
+        // after the later), which would measure the threads, not the
+        // reporting. The many-thread order is checked above.
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
+        pool.install(m2l_reports_within_a_level_on_this_pool);
+    }
+
+    fn m2l_reports_within_a_level_on_this_pool() {
         use ferrofmm_field::FftM2l;
 
         fn steps<K: ferrofmm_kernels::Kernel, S: M2lScheme<f64>>(

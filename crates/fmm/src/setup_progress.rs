@@ -73,8 +73,9 @@ pub type SetupProgressFn = dyn Fn(SetupProgress) + Send + Sync;
 /// Units of the tree step ([`SetupStep::Tree`]).
 pub(crate) const TREE_UNITS: u64 = 1000;
 
-/// The last step a [`SetupReporter`] was told, with its total.
-type LastStep = Arc<Mutex<Option<(SetupStep, u64)>>>;
+/// The last report a [`SetupReporter`] passed on: its step, total and
+/// units done.
+type LastStep = Arc<Mutex<Option<(SetupStep, u64, u64)>>>;
 
 /// The builder's callback, if any (a cheap clone), and the last step
 /// and total it was told (so that a step can be ended on its own total).
@@ -97,14 +98,27 @@ impl SetupReporter {
     }
 
     /// Report `done` of `total` units of `step`.
+    ///
+    /// Threads (the operator precomputation's) report under one lock, so
+    /// the callback is never run twice at once, and a report of the same
+    /// step and total below the last one passed on (a thread that counted
+    /// before another but reached the lock after it) is dropped: `done`
+    /// never falls within a step. A report of 0 always passes (a step
+    /// starting again, for the next cluster).
     pub(crate) fn report(&self, step: SetupStep, done: u64, total: u64) {
         if let Some((f, last)) = &self.0 {
-            *last.lock().unwrap_or_else(|e| e.into_inner()) = Some((step, total));
-            f(SetupProgress {
-                step,
-                done: done.min(total),
-                total,
-            });
+            let done = done.min(total);
+            let mut last = last.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some((s, t, d)) = *last
+                && s == step
+                && t == total
+                && done != 0
+                && done < d
+            {
+                return;
+            }
+            *last = Some((step, total, done));
+            f(SetupProgress { step, done, total });
         }
     }
 
@@ -113,7 +127,7 @@ impl SetupReporter {
     pub(crate) fn finish(&self, step: SetupStep) {
         if let Some((_, last)) = &self.0 {
             let total = match *last.lock().unwrap_or_else(|e| e.into_inner()) {
-                Some((s, total)) if s == step => total,
+                Some((s, total, _)) if s == step => total,
                 _ => 1,
             };
             self.report(step, total, total);
