@@ -159,26 +159,37 @@ class NativeOctree:
     def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
 
 # Only in builds with MPI (HAS_MPI); the wrappers are in ferrofmm.distributed.
-def dist_stokes_layers(
-    comm: int,
-    sources: npt.NDArray[np.float64],
-    targets: Optional[npt.NDArray[np.float64]],
-    forces: Optional[npt.NDArray[np.float64]],
-    strslet: Optional[npt.NDArray[np.float64]],
-    strsvec: Optional[npt.NDArray[np.float64]],
-    pressure: bool,
-    eps: Optional[float],
-    order: Optional[int],
-    leaf_size: Optional[int],
-    scheme: str,
-    gradient: bool,
-    verify: bool,
-    samples: int,
-    threads: Optional[int],
-    cache_dir: Optional[str],
-    cache: bool,
-    dtype: str,
-) -> Tuple[npt.NDArray[np.float64], Optional[npt.NDArray[np.float64]], str]: ...
+class NativeDistStokesLayers:
+    def __init__(
+        self,
+        comm: int,
+        sources: npt.NDArray[np.float64],
+        targets: Optional[npt.NDArray[np.float64]],
+        eps: Optional[float],
+        order: Optional[int],
+        leaf_size: Optional[int],
+        scheme: str,
+        gradient: bool,
+        verify: bool,
+        samples: int,
+        threads: Optional[int],
+        cache_dir: Optional[str],
+        cache: bool,
+        dtype: str,
+        forces: bool,
+        stresslets: bool,
+        pressure: bool,
+    ) -> None: ...
+    def evaluate(
+        self,
+        forces: Optional[npt.NDArray[np.float64]],
+        strslet: Optional[npt.NDArray[np.float64]],
+        strsvec: Optional[npt.NDArray[np.float64]],
+    ) -> Tuple[npt.NDArray[np.float64], Optional[npt.NDArray[np.float64]], str]: ...
+    n_sources: int
+    n_targets: int
+    input_counts: List[int]
+    carries: Tuple[bool, bool, bool]
 
 class NativeDistFmm:
     def __init__(

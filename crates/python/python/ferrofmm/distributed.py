@@ -273,6 +273,13 @@ class Fmm:
     rank passes its own ``sources`` (``(n, 3)``, any ``n`` including 0) and, optionally,
     its own ``targets``. Not (yet): Hessians, periodic boxes, ``at_sources``.
 
+    For ``"stokes"``, ``stresslets=True`` (sources with stresslets, given to
+    :meth:`evaluate` as ``strslet`` and ``strsvec``) and ``pressure=True`` (the pressure, and
+    its gradient with ``gradient=True``) run a distributed Laplace FMM beside the Stokes one,
+    as :class:`ferrofmm.Fmm` does; with ``eps`` the first evaluation checks both FMMs and what
+    is delivered (velocity and pressure against direct sums at sampled targets), raising the
+    Laplace order while it misses.
+
     Parameters
     ----------
     comm : mpi4py.MPI.Intracomm
@@ -286,7 +293,7 @@ class Fmm:
         or on none. Each rank gets the values at its own targets, in their order.
     kernel : {"laplace", "yukawa", "helmholtz", "stokes"}
         As :class:`ferrofmm.Fmm`; ``k`` for yukawa and helmholtz.
-    eps, order, leaf_size, scheme, verify, gradient, charges, dipoles, cache, cache_dir
+    eps, order, leaf_size, scheme, verify, gradient, charges, dipoles, stresslets, pressure, cache, cache_dir
         As :class:`ferrofmm.Fmm` (``eps`` chosen from a sample of at most 200,000 points
         gathered on rank 0, verified on the first evaluation against direct summation
         over all ranks at ``samples`` sampled points, default 200).
@@ -319,6 +326,8 @@ class Fmm:
         cache: Any = True,
         charges: bool = True,
         dipoles: bool = False,
+        stresslets: bool = False,
+        pressure: bool = False,
     ) -> None:
         comm = _communicator(comm)
 
@@ -326,11 +335,22 @@ class Fmm:
             src = _points("sources", sources, allow_empty=True)
             tgt = None if targets is None else _points("targets", targets, allow_empty=True)
             with_charges, with_dipoles = _bool("charges", charges), _bool("dipoles", dipoles)
-            if not (with_charges or with_dipoles):
+            with_stresslets = _bool("stresslets", stresslets)
+            with_pressure = _bool("pressure", pressure)
+            if not (with_charges or with_dipoles or with_stresslets):
                 raise ValueError("the sources carry nothing: set charges=True or dipoles=True")
+            _kernel(kernel)
+            if (with_stresslets or with_pressure) and kernel != "stokes":
+                raise ValueError(
+                    f"stresslets and pressure belong to the stokes kernel, not {kernel!r}"
+                )
+            if (with_stresslets or with_pressure) and with_dipoles:
+                raise ValueError(
+                    "force dipoles (dipoles=True) do not combine with stresslets or the "
+                    "pressure: give stresslets with stresslets=True"
+                )
             run = _float_dtype(dtype) or np.dtype(np.float64)
             _check_eps_order(eps, order)
-            _kernel(kernel)
             _check_scheme(scheme)
             folder, default_cache = _cache(cache, cache_dir)
             return dict(
@@ -350,21 +370,32 @@ class Fmm:
                 verify=_bool("verify", verify),
                 charges=with_charges,
                 dipoles=with_dipoles,
+                stresslets=with_stresslets,
+                pressure=with_pressure,
                 cache_dir=folder,
                 default_cache=default_cache,
             )
 
         a = _agreed(comm, check)
         _targets_everywhere_or_nowhere(comm, a["tgt"] is not None)
-        source = {(True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"}[
-            (a["charges"], a["dipoles"])
-        ]
         self._comm = comm
-        self._native = _ferrofmm.NativeDistFmm(
-            comm.py2f(), a["src"], a["tgt"], kernel, a["k"], a["eps"], a["order"], a["leaf_size"], scheme,
-            a["gradient"], a["verify"], a["samples"], a["threads"], a["cache_dir"],
-            a["default_cache"], source, str(a["run"]),
-        )
+        # Stresslets or the pressure: the Stokes and Laplace FMMs together.
+        self._layered = a["stresslets"] or a["pressure"]
+        if self._layered:
+            self._native = _ferrofmm.NativeDistStokesLayers(
+                comm.py2f(), a["src"], a["tgt"], a["eps"], a["order"], a["leaf_size"], scheme,
+                a["gradient"], a["verify"], a["samples"], a["threads"], a["cache_dir"],
+                a["default_cache"], str(a["run"]), a["charges"], a["stresslets"], a["pressure"],
+            )
+        else:
+            source = {
+                (True, False): "charge", (False, True): "dipole", (True, True): "charge+dipole"
+            }[(a["charges"], a["dipoles"])]
+            self._native = _ferrofmm.NativeDistFmm(
+                comm.py2f(), a["src"], a["tgt"], kernel, a["k"], a["eps"], a["order"],
+                a["leaf_size"], scheme, a["gradient"], a["verify"], a["samples"], a["threads"],
+                a["cache_dir"], a["default_cache"], source, str(a["run"]),
+            )
         self._n = a["n"]
         self._m = a["m"]
         self._dtype = a["run"]
@@ -372,6 +403,8 @@ class Fmm:
         self._gradient = a["gradient"]
         self._charges = a["charges"]
         self._dipoles = a["dipoles"]
+        self._stresslets = a["stresslets"]
+        self._pressure = a["pressure"]
         self._last_info: Optional[Dict[str, Any]] = None
 
     @property
@@ -394,32 +427,62 @@ class Fmm:
         """Sources each rank passed, in rank order."""
         return np.array(self._native.input_counts, dtype=np.int64)
 
-    def evaluate(self, charges: Any = None, dipoles: Any = None) -> FmmResult:
+    def evaluate(
+        self,
+        charges: Any = None,
+        dipoles: Any = None,
+        *,
+        strslet: Any = None,
+        strsvec: Any = None,
+    ) -> FmmResult:
         """Potentials (and gradients) at this rank's targets for the densities of its
         sources (a collective: every rank passes its own).
 
         ``charges`` is ``(n,)`` or ``(k, n)`` for ``k`` vectors (evaluated one after
-        another); ``dipoles`` ``(n, 3)`` or ``(k, n, 3)``, as :meth:`ferrofmm.Fmm.evaluate`.
+        another); ``dipoles`` ``(n, 3)`` or ``(k, n, 3)``; ``strslet`` and ``strsvec`` (the
+        stresslets' strengths and orientations) ``(n, 3)`` or ``(k, n, 3)`` each, as
+        :meth:`ferrofmm.Fmm.evaluate`. With ``pressure=True`` the result also holds
+        ``pressure`` (and ``pressure_gradient`` with ``gradient=True``).
         """
-        return self._evaluate(charges, dipoles, None)
+        return self._evaluate(charges, dipoles, None, strslet, strsvec)
 
-    def _evaluate(self, charges: Any, dipoles: Any, names: Optional[Dict[str, str]]) -> FmmResult:
+    def _given(
+        self, names: Optional[Dict[str, str]], **values: Any
+    ) -> List[Tuple[str, str, Any]]:
+        """The densities given, each checked against what the sources carry:
+        ``(name shown, key, value)``."""
+        carried = {"charges": self._charges, "dipoles": self._dipoles,
+                   "strslet": self._stresslets, "strsvec": self._stresslets}
+        flag = {"strslet": "stresslets", "strsvec": "stresslets"}
+        given = []
+        for key, value in values.items():
+            shown = (names or {}).get(key, key)
+            if value is None:
+                if carried[key]:
+                    raise ValueError(f"this Fmm's sources carry {shown}: give {shown}")
+                continue
+            if not carried[key]:
+                raise ValueError(
+                    f"this Fmm's sources carry no {shown}: build it with "
+                    f"{flag.get(key, key)}=True"
+                )
+            given.append((shown, key, value))
+        return given
+
+    def _evaluate(
+        self,
+        charges: Any,
+        dipoles: Any,
+        names: Optional[Dict[str, str]],
+        strslet: Any = None,
+        strsvec: Any = None,
+    ) -> FmmResult:
+        if self._layered:
+            return self._evaluate_layers(charges, strslet, strsvec, names)
+
         def check() -> Tuple[np.ndarray, int, bool]:
-            given = []
-            for key, value, wanted in (
-                ("charges", charges, self._charges),
-                ("dipoles", dipoles, self._dipoles),
-            ):
-                shown = (names or {}).get(key, key)
-                if value is None:
-                    if wanted:
-                        raise ValueError(f"this Fmm's sources carry {shown}: give {shown}")
-                    continue
-                if not wanted:
-                    raise ValueError(
-                        f"this Fmm's sources carry no {shown}: build it with {key}=True"
-                    )
-                given.append((shown, key, value))
+            given = self._given(names, charges=charges, dipoles=dipoles, strslet=strslet,
+                                strsvec=strsvec)
             arrays, k, batched = _check_densities(self._kernel, self._n, given)
             dens = _pack_densities(self._kernel, self._dtype, arrays, self._n, batched)
             return np.ascontiguousarray(dens, dtype=np.float64), k, batched
@@ -453,6 +516,65 @@ class Fmm:
             self._kernel, flat, k, self._m, self._gradient, False, batched
         )
         return FmmResult(potential, gradient, info)
+
+    def _evaluate_layers(
+        self, forces: Any, strslet: Any, strsvec: Any, names: Optional[Dict[str, str]]
+    ) -> FmmResult:
+        """Forces and/or stresslets with the pressure: each vector set through both FMMs."""
+
+        def check() -> Tuple[Dict[str, np.ndarray], int, bool]:
+            given = self._given(names, charges=forces, strslet=strslet, strsvec=strsvec)
+            arrays, k, batched = _check_densities("stokes", self._n, given)
+            dens = {}
+            for (_, key, _), (shown, a, _) in zip(given, arrays):
+                flat = np.ascontiguousarray(a, dtype=np.float64).reshape(k, -1)
+                if not np.all(np.isfinite(flat)):
+                    raise ValueError(f"{shown} holds a NaN or infinite value")
+                dens[key] = flat
+            return dens, k, batched
+
+        dens, k, batched = _agreed(self._comm, check)
+        velocities, pressures = [], []
+        info: Dict[str, Any] = {}
+        for i in range(k):
+            one = {key: d[i] for key, d in dens.items()}
+            v, p, info_json = self._native.evaluate(
+                one.get("charges"), one.get("strslet"), one.get("strsvec")
+            )
+            velocities.append(v)
+            if p is not None:
+                pressures.append(p)
+            if i == 0:
+                info = json.loads(info_json)
+        info["kernel_name"] = "stokes"
+        info["dtype"] = str(self._dtype)
+        self._last_info = info
+        m, g = self._m, self._gradient
+        velocity = np.concatenate(velocities) if velocities else np.zeros(0)
+        if self._dtype == np.float32:
+            velocity = velocity.astype(np.float32)
+        potential, grad, _ = _shape_values("stokes", velocity, k, m, g, False, batched)
+        result = FmmResult(potential, grad, info)
+        if self._pressure:
+            p = np.concatenate(pressures).reshape(k, m, 4 if g else 1)
+            if self._dtype == np.float32:
+                p = p.astype(np.float32)
+            if not batched:
+                p = p[0]
+            result.pressure = np.ascontiguousarray(p[..., 0])
+            result.pressure_gradient = np.ascontiguousarray(p[..., 1:4]) if g else None
+        if info.get("verified") is False:
+            measured = info.get("measured_error") or {}
+            warnings.warn(
+                f"the tolerance eps={info.get('eps'):g} was not met: the worst error of "
+                f"velocity and pressure measured on {measured.get('sampled_targets')} sampled "
+                f"targets is {measured.get('worst'):.2e} (Stokes order {info.get('order')}, "
+                f"Laplace order {info.get('laplace_order')}; info['verified'] is False); the "
+                "results are returned. Ask for a larger eps (or float64), or give order",
+                AccuracyWarning,
+                stacklevel=4,
+            )
+        return result
 
     def __repr__(self) -> str:
         return (
@@ -521,118 +643,25 @@ def stokes(comm: Any, sources: Any, forces: Any = None, *, strslet: Any = None,
 
     ``forces`` ``(n, 3)`` (Stokeslets ``sum_i (I / r + d d^T / r^3) f_i / (8 pi)``) and/or
     stresslets ``strslet`` (strengths ``m``) with ``strsvec`` (orientations ``n``), each
-    ``(n, 3)``; ``potential`` (velocities, ``(m, 3)``) and ``gradient`` (``(m, 3, 3)``,
-    ``[j, a, c] = d u_a / d x_c``) out, and with ``pressure=True`` ``.pressure`` ``(m,)``
-    and, with ``gradient=True``, ``.pressure_gradient`` ``(m, 3)`` (FMM3D's ``stfmm3d``
-    conventions). Stresslets and the pressure run a distributed Laplace FMM beside the
-    Stokes one; with ``eps`` both are verified, and so is what is delivered (velocity and
-    pressure against direct sums at sampled targets, the Laplace FMM's order raised while
-    it misses). Forces alone take further keywords as :class:`Fmm`; with stresslets or the
-    pressure, one density vector per call and the keywords ``leaf_size``, ``dtype``,
-    ``threads``, ``scheme``, ``verify``, ``samples``, ``cache_dir`` and ``cache``."""
-    if strslet is None and strsvec is None and not pressure:
-        return _one_call("stokes", comm, sources, forces, None, names={"charges": "forces"},
-                         targets=targets, eps=eps, order=order, gradient=gradient, **kw)
-    return _stokes_layers(comm, sources, forces, strslet, strsvec, pressure, targets, eps,
-                          order, gradient, **kw)
-
-
-def _stokes_layers(
-    comm: Any,
-    sources: Any,
-    forces: Any,
-    strslet: Any,
-    strsvec: Any,
-    pressure: Any,
-    targets: Any,
-    eps: Optional[float],
-    order: Optional[int],
-    gradient: Any,
-    *,
-    leaf_size: Optional[int] = None,
-    dtype: Any = None,
-    threads: Optional[int] = None,
-    scheme: str = "auto",
-    verify: bool = True,
-    samples: Optional[int] = None,
-    cache_dir: Any = None,
-    cache: Any = True,
-) -> FmmResult:
+    ``(n, 3)`` (or ``(k, n, 3)`` for ``k`` vector sets); ``potential`` (velocities,
+    ``(m, 3)``) and ``gradient`` (``(m, 3, 3)``, ``[j, a, c] = d u_a / d x_c``) out, and with
+    ``pressure=True`` ``.pressure`` ``(m,)`` and, with ``gradient=True``,
+    ``.pressure_gradient`` ``(m, 3)`` (FMM3D's ``stfmm3d`` conventions). Stresslets and the
+    pressure run a distributed Laplace FMM beside the Stokes one; with ``eps`` both are
+    verified, and so is what is delivered (velocity and pressure against direct sums at
+    sampled targets, the Laplace FMM's order raised while it misses). Further keywords as
+    :class:`Fmm`."""
     comm = _communicator(comm)
 
-    def check() -> Dict[str, Any]:
-        src = _points("sources", sources, allow_empty=True)
-        tgt = None if targets is None else _points("targets", targets, allow_empty=True)
+    def given() -> None:
         if (strslet is None) != (strsvec is None):
             raise ValueError("give strslet and strsvec together (stresslet strengths and "
                              "orientations, each (n, 3))")
         if forces is None and strslet is None:
             raise ValueError("give the forces, shape (n, 3), or stresslets (strslet and strsvec)")
-        given = [(name, "charges", v) for name, v in
-                 (("forces", forces), ("strslet", strslet), ("strsvec", strsvec))
-                 if v is not None]
-        arrays, _, batched = _check_densities("stokes", len(src), given)
-        if batched:
-            raise ValueError("with stresslets or the pressure, give one (n, 3) array each "
-                             "(evaluate vector sets one call at a time)")
-        dens = {name: np.ascontiguousarray(a, dtype=np.float64).reshape(-1)
-                for name, a, _ in arrays}
-        for name, a in dens.items():
-            if not np.all(np.isfinite(a)):
-                raise ValueError(f"{name} holds a NaN or infinite value")
-        run = _float_dtype(dtype) or np.dtype(np.float64)
-        _check_eps_order(eps, order)
-        _check_scheme(scheme)
-        folder, default_cache = _cache(cache, cache_dir)
-        return dict(
-            src=_flat(src, _F64),
-            tgt=None if tgt is None else _flat(tgt, _F64),
-            m=len(src) if tgt is None else len(tgt),
-            dens=dens,
-            run=run,
-            eps=None if eps is None and order is not None else
-            float(DEFAULT_EPS[run] if eps is None else eps),
-            order=None if order is None else int(order),
-            leaf_size=_positive_int("leaf_size", leaf_size),
-            threads=_positive_int("threads", threads),
-            samples=_positive_int("samples", samples) or 0,
-            gradient=_bool("gradient", gradient),
-            pressure=_bool("pressure", pressure),
-            verify=_bool("verify", verify),
-            cache_dir=folder,
-            default_cache=default_cache,
-        )
 
-    a = _agreed(comm, check)
-    _targets_everywhere_or_nowhere(comm, a["tgt"] is not None)
-    d = a["dens"]
-    velocity, pres, info_json = _ferrofmm.dist_stokes_layers(
-        comm.py2f(), a["src"], a["tgt"], d.get("forces"), d.get("strslet"), d.get("strsvec"),
-        a["pressure"], a["eps"], a["order"], a["leaf_size"], scheme, a["gradient"], a["verify"],
-        a["samples"], a["threads"], a["cache_dir"], a["default_cache"], str(a["run"]),
-    )
-    info = json.loads(info_json)
-    info["kernel_name"] = "stokes"
-    info["dtype"] = str(a["run"])
-    m, g = a["m"], a["gradient"]
-    if a["run"] == np.float32:
-        velocity = velocity.astype(np.float32)
-        pres = None if pres is None else pres.astype(np.float32)
-    potential, grad, _ = _shape_values("stokes", velocity, 1, m, g, False, False)
-    result = FmmResult(potential, grad, info)
-    if pres is not None:
-        p = pres.reshape(m, 4 if g else 1)
-        result.pressure = np.ascontiguousarray(p[:, 0])
-        result.pressure_gradient = np.ascontiguousarray(p[:, 1:4]) if g else None
-    if info.get("verified") is False:
-        measured = info.get("measured_error") or {}
-        warnings.warn(
-            f"the tolerance eps={info.get('eps'):g} was not met: the worst error of velocity "
-            f"and pressure measured on {measured.get('sampled_targets')} sampled targets is "
-            f"{measured.get('worst'):.2e} (Stokes order {info.get('order')}, Laplace order "
-            f"{info.get('laplace_order')}; info['verified'] is False); the results are "
-            "returned. Ask for a larger eps (or float64), or give order",
-            AccuracyWarning,
-            stacklevel=3,
-        )
-    return result
+    _agreed(comm, given)
+    fmm = Fmm(comm, sources, targets, "stokes", eps=eps, order=order, gradient=gradient,
+              charges=forces is not None, stresslets=strslet is not None,
+              pressure=pressure, **kw)
+    return fmm._evaluate(forces, None, {"charges": "forces"}, strslet, strsvec)

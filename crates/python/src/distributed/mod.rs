@@ -22,13 +22,14 @@ use pyo3::prelude::*;
 
 use comm::AdoptedComm;
 pub(crate) use fmm::NativeDistFmm;
+pub(crate) use layers::NativeDistStokesLayers;
 pub(crate) use octree::NativeDistOctree;
 
 /// Registers the classes (called by the module's init).
 pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<NativeDistFmm>()?;
     m.add_class::<NativeDistOctree>()?;
-    m.add_function(wrap_pyfunction!(layers::dist_stokes_layers, m)?)?;
+    m.add_class::<NativeDistStokesLayers>()?;
     m.add("HAS_MPI", true)?;
     m.add(
         "MPI_LIBRARY",

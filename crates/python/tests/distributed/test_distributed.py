@@ -237,6 +237,66 @@ def test_stokes_stresslets_and_the_pressure():
         fd.stokes(COMM, x, f, strslet=m, strsvec=bad, cache=False, order=4)
 
 
+def test_stokes_layers_built_once_evaluated_many_times():
+    """``Fmm(..., "stokes", stresslets=True, pressure=True)``: built once, the first
+    evaluation verified, a second density set and a batch of two through the same FMMs,
+    each against the formulas; what the sources carry is checked on every rank."""
+    rng = np.random.default_rng(80 + RANK)
+    x = local_points(1200, seed=23)
+    n = len(x)
+    eps = 1e-5
+    fmm = fd.Fmm(COMM, x, kernel="stokes", charges=False, stresslets=True, pressure=True,
+                 eps=eps, cache=False)
+    assert fmm.n_sources == n and list(fmm.input_counts) == [len(a) for a in COMM.allgather(x)]
+    X = gathered(x)
+    sample = np.arange(0, len(X), 7)
+
+    def stresslets():
+        m = rng.random((n, 3)) - 0.5
+        nv = rng.normal(size=(n, 3))
+        return m, nv / np.linalg.norm(nv, axis=1)[:, None]
+
+    sets = [stresslets() for _ in range(2)]
+    for i, (m, nv) in enumerate(sets):
+        r = fmm.evaluate(strslet=m, strsvec=nv)
+        # The first evaluation of a tolerance is verified, the next ones not.
+        assert r.info["verified"] is (True if i == 0 else None), r.info
+        assert r.potential.shape == (n, 3) and r.pressure.shape == (n,)
+        assert r.gradient is None and r.pressure_gradient is None
+        u, p = _stresslet_direct(X, gathered(m), gathered(nv), np.zeros_like(X), X[sample])
+        assert rel(gathered(r.potential)[sample], u) <= eps
+        assert rel(gathered(r.pressure)[sample], p) <= eps
+        sets[i] = (m, nv, r)
+    batch = fmm.evaluate(strslet=np.stack([s[0] for s in sets]),
+                         strsvec=np.stack([s[1] for s in sets]))
+    assert batch.potential.shape == (2, n, 3) and batch.pressure.shape == (2, n)
+    for i, (_, _, r) in enumerate(sets):
+        assert np.allclose(batch.potential[i], r.potential, rtol=1e-12, atol=0)
+        assert np.allclose(batch.pressure[i], r.pressure, rtol=1e-12, atol=0)
+    # Forces with stresslets, the pressure gradient, an order instead of eps.
+    both = fd.Fmm(COMM, x, kernel="stokes", stresslets=True, pressure=True, gradient=True,
+                  order=7, cache=False)
+    f = rng.random((n, 3)) - 0.5
+    m, nv, _ = sets[0]
+    r = both.evaluate(f, strslet=m, strsvec=nv)
+    assert r.gradient.shape == (n, 3, 3) and r.pressure_gradient.shape == (n, 3)
+    u, p = _stresslet_direct(X, gathered(m), gathered(nv), gathered(f), X[sample])
+    assert rel(gathered(r.potential)[sample], u) <= 1e-4
+    assert rel(gathered(r.pressure)[sample], p) <= 1e-4
+    # What the sources carry, the same error on every rank.
+    with pytest.raises(ValueError, match="carry strsvec"):
+        fmm.evaluate(strslet=m)
+    with pytest.raises(ValueError, match="carry no charges"):
+        fmm.evaluate(f, strslet=m, strsvec=nv)
+    with pytest.raises(ValueError, match="carry no strslet"):
+        fd.Fmm(COMM, x, kernel="stokes", order=4, cache=False).evaluate(f, strslet=m,
+                                                                         strsvec=nv)
+    with pytest.raises(ValueError, match="belong to the stokes kernel"):
+        fd.Fmm(COMM, x, kernel="laplace", stresslets=True)
+    with pytest.raises(ValueError, match="do not combine"):
+        fd.Fmm(COMM, x, kernel="stokes", dipoles=True, pressure=True)
+
+
 def test_charges_and_dipoles_and_batches():
     rng = np.random.default_rng(40 + RANK)
     x = local_points(3000, seed=9)
