@@ -33,6 +33,7 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+use commands::calibrate::CalibrateArgs;
 use commands::demo::DemoArgs;
 use commands::eval::EvalArgs;
 use commands::sweep::SweepArgs;
@@ -114,6 +115,17 @@ enum Command {
     /// potential_error, gradient_error, peak_rss_mib, m2l_mib) and the charts
     /// time_vs_error, operators and error_vs_order as PNG and SVG.
     Sweep(SweepArgs),
+    /// Measure this machine's cost model and save it where the chooser finds it.
+    ///
+    /// Times a few Laplace FMMs (uniform cube, both M2L schemes, small and
+    /// large leaves) and saves, for each kind of work (P2P, far field, SVD
+    /// and FFT M2L, tree), the measured over the predicted seconds in the
+    /// operator cache folder (machine-calibration.txt). Runs with that
+    /// cache folder, on this processor, with the same number of threads,
+    /// then choose their leaf size and scheme with this machine's costs.
+    /// Takes seconds to a minute; run it again after changing the machine
+    /// or --threads.
+    Calibrate(CalibrateArgs),
 }
 
 fn main() -> ExitCode {
@@ -178,5 +190,6 @@ fn run(cli: Cli) -> Result<()> {
         Command::Demo(args) => commands::demo::demo(args),
         Command::Eval(args) => commands::eval::eval(args),
         Command::Sweep(args) => commands::sweep::sweep(args, cli.threads),
+        Command::Calibrate(args) => commands::calibrate::calibrate(args),
     }
 }

@@ -14,7 +14,7 @@ use ferrofmm_tree::{DEEPEST_LEVEL, Domain};
 use crate::coordinates::Coordinates;
 use crate::fmm::ChosenScheme;
 use crate::periodic::Periodic;
-use crate::tuning::{ChosenParameters, TuningModel};
+use crate::tuning::{CalibrationSetting, ChosenParameters, MachineCalibration, TuningModel};
 use crate::{Fmm, FmmError, validate};
 
 pub use ferrofmm_field::{MAX_ORDER, MIN_ORDER};
@@ -134,6 +134,8 @@ pub struct FmmBuilder<'a, T: Real, K: Kernel> {
     /// The build's progress callback ([`FmmBuilder::setup_progress`]).
     pub(crate) setup_progress: crate::setup_progress::SetupReporter,
     pub(crate) tuning_model: Option<Arc<dyn TuningModel>>,
+    /// The cost model's calibration ([`FmmBuilder::calibration`]).
+    pub(crate) calibration: CalibrationSetting,
     /// The periodic cell ([`FmmBuilder::periodic`]), `None` for free space.
     pub(crate) periodic: Option<Periodic>,
 }
@@ -197,6 +199,7 @@ impl<'a, T: Real> FmmBuilder<'a, T, Laplace3d> {
             monitor: PrecomputeMonitor::default(),
             setup_progress: Default::default(),
             tuning_model: None,
+            calibration: CalibrationSetting::FromCache,
             periodic: None,
         }
     }
@@ -228,6 +231,7 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
             monitor: self.monitor,
             setup_progress: self.setup_progress,
             tuning_model: None,
+            calibration: self.calibration,
             periodic: self.periodic,
         }
     }
@@ -441,6 +445,40 @@ impl<'a, T: Real, K: Kernel> FmmBuilder<'a, T, K> {
     pub fn cache(mut self, setting: CacheSetting) -> Self {
         self.cache = setting;
         self
+    }
+
+    /// Which calibration of the cost model the parameter chooser uses
+    /// (with a tolerance, or an order without a leaf size):
+    /// [`CalibrationSetting::FromCache`] (the default) takes the one
+    /// `ferrofmm calibrate` (or [`MachineCalibration::save`](crate::tuning::MachineCalibration::save))
+    /// left in the operator cache folder for this processor and number of
+    /// threads, if any; without a cache folder, or without a calibration
+    /// for this machine there, the built-in model is used
+    /// ([`crate::tuning::calibration`](crate::tuning::MachineCalibration)).
+    ///
+    /// ```
+    /// use ferrofmm_fmm::{CalibrationSetting, FmmBuilder, Geometry};
+    /// let points = Geometry::Cube.points(3_000, 1);
+    /// // The built-in cost model, whatever the cache folder holds.
+    /// let fmm = FmmBuilder::<f64, _>::new(&points)
+    ///     .tolerance(1e-4)
+    ///     .calibration(CalibrationSetting::Off)
+    ///     .build_with::<ferrofmm_field::FftM2l<f64>>(Default::default())?;
+    /// assert!(!fmm.chosen_parameters().unwrap().model.contains("calibrated"));
+    /// # Ok::<(), ferrofmm_fmm::FmmError>(())
+    /// ```
+    pub fn calibration(mut self, setting: CalibrationSetting) -> Self {
+        self.calibration = setting;
+        self
+    }
+
+    /// The calibration the chooser uses ([`FmmBuilder::calibration`]).
+    pub(crate) fn machine_calibration(&self) -> Option<MachineCalibration> {
+        match &self.calibration {
+            CalibrationSetting::Off => None,
+            CalibrationSetting::Given(c) => Some(c.clone()),
+            CalibrationSetting::FromCache => MachineCalibration::from_cache(&self.cache),
+        }
     }
 
     /// Use the default on-disk cache, as the command-line tools do:

@@ -79,6 +79,6 @@ pub use stokes_layers::{
 };
 pub use timings::{EvalTimings, SetupTimings};
 pub use tree_fmm::{LocalTree, TreeFmm};
-pub use tuning::{ChosenParameters, f32_reaches};
+pub use tuning::{CalibrationSetting, ChosenParameters, f32_reaches};
 pub use validate::check_representable;
 pub use verify::{Evaluation, Verification, VerificationAttempt};

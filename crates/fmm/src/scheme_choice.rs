@@ -20,7 +20,7 @@
 //! let auto: SchemeChoice = "auto".parse().unwrap();
 //! let stokes = KernelChoice::parse("stokes").unwrap();
 //! let resolved = auto
-//!     .resolve(stokes, None, None, None, EvalMode::Potential, Precision::F64, false)
+//!     .resolve(stokes, None, None, None, EvalMode::Potential, Precision::F64, false, None)
 //!     .unwrap();
 //! assert_eq!(resolved, SchemeChoice::Fft);
 //! assert_eq!(SchemeChoice::Svd.name(), "svd");
@@ -34,7 +34,7 @@ use ferrofmm_kernels::{AutoScheme, EvalMode, Kernel, KernelChoice, Precision};
 use serde::{Deserialize, Serialize};
 
 use crate::FmmError;
-use crate::tuning::choose_scheme_for;
+use crate::tuning::{MachineCalibration, choose_scheme_for};
 
 /// An M2L translation scheme by name, or `auto`.
 #[derive(
@@ -112,7 +112,9 @@ impl SchemeChoice {
     /// a fixed `order` and the points (`(sources, targets)`; the targets
     /// `None` when they are the sources) in float type `precision`;
     /// `cached` when the operators come from a cache (the SVD
-    /// precomputation is then free).
+    /// precomputation is then free); `calibration`, this machine's
+    /// calibration of the cost model, if any
+    /// ([`MachineCalibration::from_cache`](crate::tuning::MachineCalibration::from_cache)).
     ///
     /// # Errors
     /// What [`choose_scheme_for`] reports for unreachable tolerances or bad
@@ -127,6 +129,7 @@ impl SchemeChoice {
         mode: EvalMode,
         precision: Precision,
         cached: bool,
+        calibration: Option<&MachineCalibration>,
     ) -> Result<SchemeChoice, FmmError> {
         if self != SchemeChoice::Auto {
             return Ok(self);
@@ -137,8 +140,16 @@ impl SchemeChoice {
         match (eps, order, points) {
             (None, None, _) | (_, _, None) => Ok(SchemeChoice::Svd),
             (eps, order, Some((sources, targets))) => {
-                let (shape, _) =
-                    choose_scheme_for(eps, order, mode, precision, sources, targets, cached)?;
+                let (shape, _) = choose_scheme_for(
+                    eps,
+                    order,
+                    mode,
+                    precision,
+                    sources,
+                    targets,
+                    cached,
+                    calibration,
+                )?;
                 Ok(SchemeChoice::of_shape(shape))
             }
         }
@@ -218,6 +229,7 @@ mod tests {
                 EvalMode::PotentialGradient,
                 Precision::F64,
                 false,
+                None,
             )
             .unwrap()
     }
@@ -253,6 +265,7 @@ mod tests {
                 EvalMode::Potential,
                 Precision::F64,
                 false,
+                None,
             )
             .unwrap();
         assert_eq!(svd, SchemeChoice::Svd);
@@ -272,6 +285,7 @@ mod tests {
                 EvalMode::Potential,
                 Precision::F64,
                 false,
+                None,
             )
             .unwrap();
         assert_eq!(high, SchemeChoice::Fft);

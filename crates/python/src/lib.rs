@@ -23,6 +23,7 @@
 //! `KeyboardInterrupt` at once (a precomputation in progress is cancelled;
 //! an evaluation in progress finishes in the background and is dropped).
 
+mod calibration;
 #[cfg(feature = "mpi")]
 mod distributed;
 mod engine;
@@ -41,6 +42,7 @@ fn _ferrofmm(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<engine::NativeFmm>()?;
     m.add_class::<octree::NativeOctree>()?;
     m.add_function(wrap_pyfunction!(limits::check_run_memory, m)?)?;
+    m.add_function(wrap_pyfunction!(calibration::calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(ewald::ewald_sum, m)?)?;
     m.add_function(wrap_pyfunction!(ewald::stokes_ewald_sum, m)?)?;
     m.add_function(wrap_pyfunction!(files::read_file, m)?)?;

@@ -224,6 +224,7 @@ pub(crate) mod tests {
             scheme,
             method: "fmm".into(),
             direct_predicted_s: None,
+            cost_model: None,
             fmm_predicted_s: None,
             precision,
             gradients: true,

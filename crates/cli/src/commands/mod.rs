@@ -1,5 +1,6 @@
 //! The subcommands and the argument types they share.
 
+pub mod calibrate;
 pub mod demo;
 pub mod eval;
 pub mod run;

@@ -90,6 +90,11 @@ pub struct RunReport {
     /// Predicted seconds of the direct sum, when it was a candidate.
     #[serde(default)]
     pub direct_predicted_s: Option<f64>,
+    /// The models the parameters were chosen with (`None` when they were
+    /// given), saying whether the costs were calibrated on this machine
+    /// (`ferrofmm calibrate`).
+    #[serde(default)]
+    pub cost_model: Option<String>,
     /// Predicted seconds of the cheapest FMM setting (tree, one
     /// evaluation and the operators' precomputation from nothing), when
     /// the parameters were chosen.

@@ -203,6 +203,18 @@ impl RunReport {
                     }
                 ),
             );
+            if let Some(model) = &self.cost_model {
+                row(
+                    &mut o,
+                    "cost model",
+                    if model.contains("calibrated on this machine") {
+                        "calibrated on this machine (ferrofmm calibrate)"
+                    } else {
+                        "built-in (ferrofmm calibrate fits it to this machine)"
+                    }
+                    .to_string(),
+                );
+            }
             match &self.verification {
                 Some(v) => {
                     for (i, a) in v.attempts.iter().enumerate() {

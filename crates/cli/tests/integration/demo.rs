@@ -281,6 +281,7 @@ fn every_registered_kernel_runs_by_name() {
                 ferrofmm_kernels::EvalMode::Potential,
                 ferrofmm_kernels::Precision::F64,
                 false,
+                None,
             )
             .unwrap();
         if expected == ferrofmm_fmm::SchemeChoice::Fft {

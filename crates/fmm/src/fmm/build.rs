@@ -116,7 +116,8 @@ impl<T: Real, K: Kernel, S: M2lScheme<T>> Fmm<T, K, S> {
                 (true, EvalMode::Potential) => EvalMode::PotentialGradient,
                 (_, mode) => mode,
             };
-            let mut tuner = Tuner::from_model(model, T::PRECISION, model_mode, S::COST_SHAPE);
+            let mut tuner = Tuner::from_model(model, T::PRECISION, model_mode, S::COST_SHAPE)
+                .with_calibration(b.machine_calibration());
             if b.order_given {
                 tuner = tuner.with_order(b.order);
             }

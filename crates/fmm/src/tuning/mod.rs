@@ -112,6 +112,7 @@ pub use ferrofmm_field::M2lCostShape;
 // fit), `model` (the models per kernel and scheme), `chooser` (the
 // cheapest admissible parameters). Each imports what it uses from the
 // others by name.
+mod calibration;
 mod chooser;
 mod cost;
 mod error_model;
@@ -123,6 +124,10 @@ mod scene;
 mod work;
 
 pub use crate::validate::validate_tolerance;
+pub use calibration::{
+    CALIBRATION_FILE, CALIBRATION_POINTS, CALIBRATION_REPEATS, CalibrationRun, CalibrationSetting,
+    GroupScales, MachineCalibration, this_processor,
+};
 pub use chooser::{
     Candidate, ChosenParameters, Tuner, choose_parameters, choose_precision, choose_scheme,
     choose_scheme_for, svd_precompute_seconds,

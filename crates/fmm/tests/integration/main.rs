@@ -3,6 +3,7 @@
 //! once per file.
 
 mod accuracy;
+mod calibration;
 mod components;
 mod concurrency;
 mod defaults;

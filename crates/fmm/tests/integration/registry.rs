@@ -83,6 +83,7 @@ fn every_registered_kernel_meets_a_tolerance_through_its_auto_scheme() {
                 EvalMode::PotentialGradient,
                 Precision::F64,
                 false,
+                None,
             )
             .unwrap();
         for (kind, charges) in [

@@ -39,6 +39,9 @@ Periodic boundaries (Laplace, a neutral cubic cell of side L; points are wrapped
 
 The octree on its own: ``ferrofmm.Octree(points, leaf_size=64)``.
 
+The cost model measured on this machine (once; later runs with the same cache folder,
+processor and threads choose their leaf size and scheme with it): ``ferrofmm.calibrate()``.
+
 Files as the ``ferrofmm`` command reads and writes them (``.csv``, ``.npy``, raw ``.f64``)::
 
     x = ferrofmm.load("points.csv")                       # (n, 3)
@@ -55,6 +58,7 @@ from __future__ import annotations
 
 from . import _ferrofmm
 from ._ferrofmm import DEEPEST_LEVEL, DEFAULT_LEAF_SIZE, MAX_ORDER, MIN_ORDER
+from ._calibration import calibrate
 from ._calls import helmholtz, laplace, stokes, yukawa
 from ._ewald import ewald, stokes_ewald
 from ._fmm import DEFAULT_EPS, AccuracyWarning, Fmm, FmmResult
@@ -79,6 +83,7 @@ __all__ = [
     "Octree",
     "load",
     "save",
+    "calibrate",
     "AccuracyWarning",
     "KERNELS",
     "DEFAULT_EPS",

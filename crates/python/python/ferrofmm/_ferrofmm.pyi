@@ -158,6 +158,8 @@ class NativeOctree:
     target_permutation: npt.NDArray[np.int64]
     def list_csr(self, kind: str) -> Tuple[npt.NDArray[np.int64], npt.NDArray[np.int64]]: ...
 
+def calibrate(points: int, cache_dir: Optional[str], threads: Optional[int]) -> str: ...
+
 # Only in builds with MPI (HAS_MPI); the wrappers are in ferrofmm.distributed.
 class NativeDistStokesLayers:
     def __init__(

@@ -325,5 +325,6 @@ fn resolve_scheme<T: Float>(
         o.mode,
         T::PRECISION,
         cached,
+        ferrofmm_fmm::tuning::MachineCalibration::from_cache(&o.cache).as_ref(),
     )
 }

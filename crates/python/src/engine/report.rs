@@ -40,6 +40,7 @@ impl NativeFmm {
             "leaf_size": s.leaf_size,
             "scheme": s.m2l_scheme,
             "method": if chosen.is_some_and(|c| c.direct) { "direct" } else { "fmm" },
+            "model": chosen.map(|c| c.model.clone()),
             "eps": self.options.eps,
             "predicted_error": verification
                 .map(Verification::predicted_error)

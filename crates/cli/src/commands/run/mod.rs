@@ -98,6 +98,7 @@ pub fn run(input: Input, settings: &Settings, output: Option<&Path>) -> Result<R
         // The SVD precomputation counts as free only with a folder the
         // user named (the default folder may be cold).
         matches!(settings.cache, CacheSetting::Dir(_)),
+        ferrofmm_fmm::tuning::MachineCalibration::from_cache(&settings.cache).as_ref(),
     )?;
     drop(points);
     let settings = &Settings {
@@ -643,6 +644,7 @@ pub(super) fn report<T: Real, K: Kernel, S: M2lScheme<T>>(
         }
         .to_string(),
         direct_predicted_s: fmm.chosen_parameters().and_then(|c| c.direct_seconds),
+        cost_model: fmm.chosen_parameters().map(|c| c.model.clone()),
         fmm_predicted_s: fmm
             .chosen_parameters()
             .map(|c| c.predicted_seconds + c.precompute_seconds),

@@ -7,6 +7,7 @@ use ferrofmm_field::M2lCostShape;
 use ferrofmm_kernels::{EvalMode, Precision};
 use ferrofmm_tree::Domain;
 
+use super::calibration::MachineCalibration;
 use super::cost::{CostModel, CostPrediction};
 use super::error_model::{ErrorModel, HIGHER_ORDER_GAIN, LEAF_SIZE_CANDIDATES};
 use super::model::{LaplaceModel, TuningModel};
@@ -130,6 +131,9 @@ pub struct Tuner {
     /// considered, admissible or not; the search is then for the leaf
     /// size (and, with [`Tuner::choose_scheme_with`], the scheme).
     pub fixed_order: Option<usize>,
+    /// This machine's calibration of the cost model, applied to
+    /// [`Tuner::cost`] ([`Tuner::with_calibration`]).
+    pub calibration: Option<MachineCalibration>,
 }
 
 /// An admissible order for a tolerance, with what goes with it.
@@ -170,10 +174,12 @@ impl Tuner {
             leaf_sizes: LEAF_SIZE_CANDIDATES.to_vec(),
             orders: 3,
             fixed_order: None,
+            calibration: None,
         }
     }
 
-    /// The same tuner with the models of `model`.
+    /// The same tuner with the models of `model` (and the calibration it
+    /// had).
     pub fn with_model(self, model: Arc<dyn TuningModel>) -> Self {
         Self {
             leaf_sizes: self.leaf_sizes,
@@ -181,6 +187,38 @@ impl Tuner {
             fixed_order: self.fixed_order,
             ..Self::from_model(model, self.precision, self.mode, self.scheme)
         }
+        .with_calibration(self.calibration)
+    }
+
+    /// The same tuner with the cost model calibrated on this machine
+    /// ([`MachineCalibration::apply`] on the model's costs), or, with
+    /// `None`, the model's costs as they are.
+    ///
+    /// ```
+    /// use ferrofmm_fmm::tuning::{GroupScales, MachineCalibration, Tuner, this_processor};
+    /// use ferrofmm_fmm::Geometry;
+    /// use ferrofmm_kernels::Precision;
+    /// let points: Vec<f64> = Geometry::Cube.points(20_000, 1);
+    /// // A machine whose kernel evaluations are 20x dearer: smaller leaves.
+    /// let slow_p2p = MachineCalibration {
+    ///     processor: this_processor(),
+    ///     threads: 2,
+    ///     scales: GroupScales { p2p: 20.0, ..GroupScales::default() },
+    /// };
+    /// let leaf = |c: Option<MachineCalibration>| {
+    ///     let tuner = Tuner::new(Precision::F64).with_calibration(c);
+    ///     tuner.choose(1e-6, &points, None, None, 16).unwrap().leaf_size
+    /// };
+    /// assert!(leaf(Some(slow_p2p)) < leaf(None));
+    /// ```
+    pub fn with_calibration(mut self, calibration: Option<MachineCalibration>) -> Self {
+        let cost = self.model.cost_model(self.mode, self.scheme);
+        self.cost = match &calibration {
+            Some(c) => c.apply(cost),
+            None => cost,
+        };
+        self.calibration = calibration;
+        self
     }
 
     /// The same tuner with the order fixed to `order` (a caller's
@@ -297,7 +335,14 @@ impl Tuner {
             predicted_error: best.predicted_error,
             predicted_seconds: best.predicted.total,
             m2l_cost: self.scheme.name().to_string(),
-            model: self.model.name(),
+            model: match &self.calibration {
+                Some(c) => format!(
+                    "{} (costs calibrated on this machine, {} threads)",
+                    self.model.name(),
+                    c.threads
+                ),
+                None => self.model.name(),
+            },
             model_measured: self.model.measured(),
             estimated_work: best.work,
             direct: false,

@@ -12,6 +12,7 @@ use crate::tuning::{ROOT_TIME_SLACK, box_bytes};
 use crate::validate::{check_sources_and_targets, validate_tolerance};
 
 use super::{ChosenParameters, Tuner};
+use crate::tuning::MachineCalibration;
 
 impl Tuner {
     /// Pick the M2L scheme too: the chooser runs for the SVD scheme and for
@@ -140,6 +141,7 @@ pub fn choose_scheme(
         sources,
         targets,
         svd_cached,
+        None,
     )
 }
 
@@ -153,14 +155,19 @@ pub fn choose_scheme(
 /// use ferrofmm_kernels::{EvalMode, Precision};
 /// let points: Vec<f64> = Geometry::Cube.points(20_000, 3);
 /// let (shape, c) = choose_scheme_for(
-///     None, Some(10), EvalMode::Potential, Precision::F64, &points, None, false,
+///     None, Some(10), EvalMode::Potential, Precision::F64, &points, None, false, None,
 /// ).unwrap();
 /// assert_eq!((shape, c.order), (M2lCostShape::Fft, 10));
 /// ```
 ///
+/// `calibration`, when given, is this machine's calibration of the cost
+/// model ([`MachineCalibration::from_cache`] finds the one a cache folder
+/// holds).
+///
 /// # Errors
 /// As [`Tuner::choose_for`]; [`FmmError::InvalidParameter`] with neither
 /// a tolerance nor an order.
+#[allow(clippy::too_many_arguments)]
 pub fn choose_scheme_for(
     eps: Option<f64>,
     order: Option<usize>,
@@ -169,13 +176,16 @@ pub fn choose_scheme_for(
     sources: &[f64],
     targets: Option<&[f64]>,
     svd_cached: bool,
+    calibration: Option<&MachineCalibration>,
 ) -> Result<(M2lCostShape, ChosenParameters), FmmError> {
     if let Some(eps) = eps {
         validate_tolerance(eps, precision)?;
     }
     check_sources_and_targets(sources, targets)?;
     let occupancy = Occupancy::new(sources, targets, None, DEEPEST_LEVEL)?;
-    let mut tuner = Tuner::new(precision).for_mode(mode);
+    let mut tuner = Tuner::new(precision)
+        .for_mode(mode)
+        .with_calibration(calibration.cloned());
     if let Some(p) = order {
         tuner = tuner.with_order(p);
     }
