@@ -139,7 +139,29 @@ impl GroupScales {
 }
 
 /// The cost model's group scales measured on one machine, for one number
-/// of threads (see the [module docs](self)).
+/// of threads.
+///
+/// [`CostModel::default`] was fitted on one machine; another has other
+/// ratios between the kinds of work (AVX2 against AVX-512 for the kernel
+/// evaluations, memory bandwidth for the FFT M2L), and the leaf size and
+/// scheme depend on those ratios only. [`MachineCalibration::measure`]
+/// times a few Laplace FMMs here and takes, for each group `g` of the
+/// coefficients (P2P, far field, SVD M2L, FFT M2L, tree),
+///
+/// ```text
+/// s_g = sum_r t_g(r) / sum_r t^_g(r)
+/// ```
+///
+/// over the runs `r`: `t_g` the measured seconds of the group's passes,
+/// `t^_g` what [`CostModel::default`] predicts on the same tree.
+/// [`MachineCalibration::apply`] multiplies every coefficient of group
+/// `g` by `s_g`: each group keeps the form fitted on many runs, the
+/// balance between the groups becomes this machine's. It is stored as
+/// [`CALIBRATION_FILE`] in the operator cache folder
+/// ([`MachineCalibration::save`]) and used by the builds whose cache is
+/// that folder, on this processor, with as many threads
+/// ([`FmmBuilder::calibration`]); `ferrofmm calibrate` measures and saves
+/// one.
 #[derive(Clone, Debug, PartialEq)]
 pub struct MachineCalibration {
     /// The processor it was measured on ([`this_processor`]).
@@ -200,8 +222,11 @@ impl MachineCalibration {
         }
     }
 
-    /// Measure this machine with the current rayon threads: the runs of
-    /// the [module docs](self) on `n_points` uniform points
+    /// Measure this machine with the current rayon threads: six Laplace
+    /// FMMs (uniform cube, zero-mean charges, potentials, `f64`; the FFT
+    /// scheme at (order, leaf) (5, 64), (7, 256), (6, 512), the SVD at
+    /// (5, 128), (6, 64), (6, 384), each evaluated
+    /// [`CALIBRATION_REPEATS`] times, the fastest pass kept) on `n_points` uniform points
     /// ([`CALIBRATION_POINTS`] is the default), operators from `cache`
     /// (a folder, or `None` to compute them). Returns the calibration and
     /// the runs it was fitted on.
