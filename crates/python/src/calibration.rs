@@ -5,9 +5,8 @@
 
 use std::path::PathBuf;
 
-use ferrofmm_field::{CacheLocation, CacheSetting};
+use ferrofmm_field::CacheSetting;
 use ferrofmm_fmm::tuning::MachineCalibration;
-use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::json;
 
@@ -30,32 +29,15 @@ pub(crate) fn calibrate(
         Some(dir) => CacheSetting::Dir(dir),
         None => CacheSetting::Default,
     };
-    let dir = match setting.resolve().map_err(|e| fmm_error(e.into()))? {
-        CacheLocation::Folder { dir, .. } => dir,
-        CacheLocation::Off(why) => {
-            return Err(PyValueError::new_err(format!(
-                "no folder to keep the calibration in ({why}): give cache_dir"
-            )));
-        }
-    };
     let threads = Threads::new(py, threads)?;
     let (calibration, path) = interruptible(py, &threads, None, move || {
-        let (c, _) = MachineCalibration::measure(points, Some(&dir))?;
-        let path = c.save(&dir)?;
-        Ok::<_, ferrofmm_fmm::FmmError>((c, path))
+        MachineCalibration::measure_and_save(&setting, points).map(|(c, _, path)| (c, path))
     })?
     .map_err(fmm_error)?;
-    let s = &calibration.scales;
     Ok(json!({
         "processor": calibration.processor,
         "threads": calibration.threads,
-        "scales": {
-            "p2p": s.p2p,
-            "far": s.far,
-            "m2l_compressed": s.m2l_compressed,
-            "m2l_fft": s.m2l_fft,
-            "tree": s.tree,
-        },
+        "scales": calibration.scales,
         "file": path.display().to_string(),
     })
     .to_string())

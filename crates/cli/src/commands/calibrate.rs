@@ -13,11 +13,11 @@
 use std::path::PathBuf;
 
 use clap::Args;
-use ferrofmm_field::{CacheLocation, CacheSetting, M2lCostShape};
+use ferrofmm_field::{CacheSetting, M2lCostShape};
 use ferrofmm_fmm::tuning::{CALIBRATION_POINTS, CalibrationRun, MachineCalibration};
 use serde_json::json;
 
-use crate::error::{CliError, Result};
+use crate::error::Result;
 use crate::stdout;
 
 /// Arguments of `ferrofmm calibrate`.
@@ -42,18 +42,8 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<()> {
         Some(dir) => CacheSetting::Dir(dir.clone()),
         None => CacheSetting::Default,
     };
-    let dir = match setting.resolve().map_err(ferrofmm_fmm::FmmError::from)? {
-        CacheLocation::Folder { dir, .. } => dir,
-        CacheLocation::Off(why) => {
-            return Err(CliError::InvalidArgument(format!(
-                "no folder to keep the calibration in ({why}): give --cache-dir DIR"
-            )));
-        }
-    };
-    let (calibration, runs) = MachineCalibration::measure(args.points, Some(&dir))?;
-    let path = calibration.save(&dir)?;
+    let (calibration, runs, path) = MachineCalibration::measure_and_save(&setting, args.points)?;
     if args.json {
-        let s = &calibration.scales;
         let runs: Vec<_> = runs
             .iter()
             .map(|r| {
@@ -61,8 +51,8 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<()> {
                     "scheme": scheme_name(r),
                     "order": r.order,
                     "leaf_size": r.leaf_size,
-                    "measured_s": group_seconds(&r.measured),
-                    "predicted_s": group_seconds(&r.predicted),
+                    "measured_s": r.measured,
+                    "predicted_s": r.predicted,
                 })
             })
             .collect();
@@ -70,13 +60,7 @@ pub fn calibrate(args: &CalibrateArgs) -> Result<()> {
             "processor": calibration.processor,
             "threads": calibration.threads,
             "points": args.points,
-            "scales": {
-                "p2p": s.p2p,
-                "far": s.far,
-                "m2l_compressed": s.m2l_compressed,
-                "m2l_fft": s.m2l_fft,
-                "tree": s.tree,
-            },
+            "scales": calibration.scales,
             "runs": runs,
             "file": path.display().to_string(),
         });
@@ -90,10 +74,6 @@ fn scheme_name(r: &CalibrationRun) -> &'static str {
         M2lCostShape::Fft => "fft",
         _ => "svd",
     }
-}
-
-fn group_seconds(p: &ferrofmm_fmm::tuning::CostPrediction) -> serde_json::Value {
-    json!({ "p2p": p.p2p, "far": p.far, "m2l": p.m2l, "tree": p.tree })
 }
 
 /// The human-readable report: each run's measured and predicted seconds

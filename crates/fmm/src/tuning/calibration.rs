@@ -35,7 +35,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use ferrofmm_field::{CacheSetting, FftM2l, M2lCostShape, M2lScheme};
+use ferrofmm_field::{CacheLocation, CacheSetting, FftM2l, M2lCostShape, M2lScheme};
 use ferrofmm_kernels::Laplace3d;
 
 use super::cost::{CostModel, CostPrediction};
@@ -85,7 +85,7 @@ pub enum CalibrationSetting {
 
 /// Measured over predicted seconds for each group of the cost model's
 /// coefficients (1 keeps [`CostModel::default`]'s).
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize)]
 pub struct GroupScales {
     /// P2P (`p2p_pair`, `p2p_entry`).
     pub p2p: f64,
@@ -277,6 +277,32 @@ impl MachineCalibration {
             scales: fit_scales(&runs),
         };
         Ok((calibration, runs))
+    }
+
+    /// [`MachineCalibration::measure`] with the operators in the folder
+    /// `cache` resolves to, then [`MachineCalibration::save`] there: what
+    /// `ferrofmm calibrate` and Python's `ferrofmm.calibrate` do. Returns
+    /// the calibration, its runs and the file written.
+    ///
+    /// # Errors
+    /// [`FmmError::InvalidParameter`] when `cache` resolves to no folder
+    /// (`FERROFMM_CACHE=off`, no home folder), naming why; otherwise as
+    /// [`MachineCalibration::measure`] and [`MachineCalibration::save`].
+    pub fn measure_and_save(
+        cache: &CacheSetting,
+        n_points: usize,
+    ) -> Result<(Self, Vec<CalibrationRun>, PathBuf), FmmError> {
+        let dir = match cache.resolve()? {
+            CacheLocation::Folder { dir, .. } => dir,
+            CacheLocation::Off(why) => {
+                return Err(FmmError::InvalidParameter(format!(
+                    "no folder to keep the calibration in ({why}): name a cache folder"
+                )));
+            }
+        };
+        let (calibration, runs) = Self::measure(n_points, Some(&dir))?;
+        let path = calibration.save(&dir)?;
+        Ok((calibration, runs, path))
     }
 
     /// Whether this calibration was measured on this processor with

@@ -238,6 +238,34 @@ def _check_float32_range(name: str, a: np.ndarray) -> None:
         )
 
 
+def _carried(
+    carries: Dict[str, bool], values: Dict[str, Any], names: Optional[Dict[str, str]] = None
+) -> List[Tuple[str, str, Any]]:
+    """The densities given (``values``: key -> array or ``None``), each checked against
+    what an Fmm's sources carry (``carries``: key -> bool), as ``(name shown, key,
+    value)`` for :func:`_check_densities`. ``names`` renames keys in messages (``forces``
+    for ``charges``)."""
+    flag = {"strslet": "stresslets", "strsvec": "stresslets"}
+    given = []
+    for key, value in values.items():
+        shown = (names or {}).get(key, key)
+        if value is None:
+            if carries[key]:
+                raise ValueError(f"this Fmm's sources carry {shown}: give {shown}")
+            continue
+        if not carries[key]:
+            carried = (
+                "charges" if carries["charges"] else "dipoles" if carries["dipoles"]
+                else "stresslets"
+            )
+            raise ValueError(
+                f"this Fmm's sources carry no {shown} (only {carried}): "
+                f"build it with {flag.get(key, key)}=True"
+            )
+        given.append((shown, key, value))
+    return given
+
+
 def _check_densities(
     kernel: str, n: int, given: List[Tuple[str, str, Any]]
 ) -> Tuple[List[Tuple[str, np.ndarray, Tuple[int, ...]]], int, bool]:

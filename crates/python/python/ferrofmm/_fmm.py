@@ -14,6 +14,7 @@ from . import _ferrofmm
 from ._checks import (
     _bool,
     _cache,
+    _carried,
     _cell,
     _check_densities,
     _check_eps_order,
@@ -427,26 +428,11 @@ class Fmm:
         exception it raises ends the call with that exception.
         """
         _check_progress(progress)
-        given = []
-        for name, value, wanted, flag in (
-            ("charges", charges, self._charges, "charges"),
-            ("dipoles", dipoles, self._dipoles, "dipoles"),
-            ("strslet", strslet, self._stresslets, "stresslets"),
-            ("strsvec", strsvec, self._stresslets, "stresslets"),
-        ):
-            if value is None:
-                if wanted:
-                    raise ValueError(f"this Fmm's sources carry {name}: give {name}")
-                continue
-            if not wanted:
-                carried = (
-                    "charges" if self._charges else "dipoles" if self._dipoles else "stresslets"
-                )
-                raise ValueError(
-                    f"this Fmm's sources carry no {name} (only {carried}): "
-                    f"build it with {flag}=True"
-                )
-            given.append((name, name, value))
+        carries = dict(charges=self._charges, dipoles=self._dipoles,
+                       strslet=self._stresslets, strsvec=self._stresslets)
+        given = _carried(
+            carries, dict(charges=charges, dipoles=dipoles, strslet=strslet, strsvec=strsvec)
+        )
         return self._evaluate(
             *_check_densities(self._kernel, self.n_sources, given), progress=progress
         )

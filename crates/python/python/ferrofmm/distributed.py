@@ -83,6 +83,7 @@ from ._checks import (  # noqa: E402  (after the MPI checks above)
     _flat,
     _bool,
     _cache,
+    _carried,
     _check_densities,
     _check_eps_order,
     _float_dtype,
@@ -449,26 +450,10 @@ class Fmm:
     def _given(
         self, names: Optional[Dict[str, str]], **values: Any
     ) -> List[Tuple[str, str, Any]]:
-        """The densities given, each checked against what the sources carry:
-        ``(name shown, key, value)``."""
-        carried = {"charges": self._charges, "dipoles": self._dipoles,
-                   "strslet": self._stresslets, "strsvec": self._stresslets}
-        flag = {"strslet": "stresslets", "strsvec": "stresslets"}
-        given = []
-        for key, value in values.items():
-            shown = (names or {}).get(key, key)
-            if value is None:
-                if carried[key]:
-                    raise ValueError(f"this Fmm's sources carry {shown}: give {shown}")
-                continue
-            if not carried[key]:
-                raise ValueError(
-                    f"this Fmm's sources carry no {shown}: build it with "
-                    f"{flag.get(key, key)}=True"
-                )
-            given.append((shown, key, value))
-        return given
-
+        """The densities given, each checked against what the sources carry."""
+        carries = dict(charges=self._charges, dipoles=self._dipoles,
+                       strslet=self._stresslets, strsvec=self._stresslets)
+        return _carried(carries, values, names)
     def _evaluate(
         self,
         charges: Any,

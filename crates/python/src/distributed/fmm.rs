@@ -8,15 +8,14 @@ use std::sync::Mutex;
 use ferrofmm_field::{CacheLocation, CacheOff, CacheSetting};
 use ferrofmm_fmm::SchemeChoice;
 use ferrofmm_kernels::{EvalMode, Precision};
-use ferrofmm_mpi::{DistRequest, DistSolver, agree_text};
+use ferrofmm_mpi::{DistRequest, DistSolver};
 use mpi::topology::SimpleCommunicator;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::{Value, json};
 
-use super::comm::AdoptedComm;
-use super::{Work, dist_error};
+use super::{Start, Work, dist_error};
 use crate::engine::{kernel_choice, parameters_given, source_kind};
 
 /// One rank's part of a distributed FMM. The public wrapper is
@@ -58,21 +57,16 @@ impl NativeDistFmm {
         source: &str,
         dtype: &str,
     ) -> PyResult<Self> {
-        // The communicator first (a collective every rank reaches: the
-        // Python wrapper agreed on its own checks), then every local check
-        // agreed on it, so that no rank goes on alone.
-        let adopted = AdoptedComm::duplicate(comm)?;
         let local = dist_request(
             kernel, k, eps, order, leaf_size, scheme, gradient, verify, samples, cache_dir, cache,
             source, dtype,
         );
-        let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
-            .map_err(PyValueError::new_err)?;
-        let work = Work::new(adopted, threads)?;
-        let points = sources.as_slice()?.to_vec();
-        let targets = targets
-            .map(|t| t.as_slice().map(<[f64]>::to_vec))
-            .transpose()?;
+        let Start {
+            request,
+            work,
+            points,
+            targets,
+        } = Start::new(comm, local, threads, sources, targets)?;
         let solver = work
             .run(py, |comm| match targets {
                 None => DistSolver::build(comm, points, request),
@@ -93,10 +87,7 @@ impl NativeDistFmm {
         py: Python<'py>,
         densities: PyReadonlyArray1<'_, f64>,
     ) -> PyResult<(Bound<'py, PyArray1<f64>>, String)> {
-        let mut state = self
-            .state
-            .lock()
-            .map_err(|_| PyValueError::new_err("a previous evaluation of this Fmm panicked"))?;
+        let mut state = self.lock()?;
         let densities = densities.as_slice()?.to_vec();
         let State { solver, work } = &mut *state;
         let solution = work

@@ -10,16 +10,15 @@ use std::path::PathBuf;
 use std::sync::Mutex;
 
 use ferrofmm_fmm::StokesRequest;
-use ferrofmm_mpi::{DistStokesLayers, agree_text};
+use ferrofmm_mpi::DistStokesLayers;
 use mpi::topology::SimpleCommunicator;
 use numpy::{PyArray1, PyReadonlyArray1};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use serde_json::json;
 
-use super::comm::AdoptedComm;
 use super::fmm::{cache_words, dist_request};
-use super::{Work, dist_error};
+use super::{Start, Work, dist_error};
 
 /// One rank's part of the distributed Stokes FMM with stresslets or the
 /// pressure.
@@ -75,21 +74,16 @@ impl NativeDistStokesLayers {
         stresslets: bool,
         pressure: bool,
     ) -> PyResult<Self> {
-        // The communicator first (every rank reaches it: the Python
-        // wrapper agreed on its own checks), then the local checks agreed
-        // on it, so that no rank goes on alone.
-        let adopted = AdoptedComm::duplicate(comm)?;
         let local = dist_request(
             "stokes", None, eps, order, leaf_size, scheme, gradient, verify, samples, cache_dir,
             cache, "charge", dtype,
         );
-        let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
-            .map_err(PyValueError::new_err)?;
-        let work = Work::new(adopted, threads)?;
-        let points = sources.as_slice()?.to_vec();
-        let targets = targets
-            .map(|t| t.as_slice().map(<[f64]>::to_vec))
-            .transpose()?;
+        let Start {
+            request,
+            work,
+            points,
+            targets,
+        } = Start::new(comm, local, threads, sources, targets)?;
         let wanted = StokesRequest {
             forces,
             stresslets,

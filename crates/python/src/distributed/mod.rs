@@ -13,10 +13,11 @@ mod fmm;
 mod layers;
 mod octree;
 
-use ferrofmm_mpi::{DistError, agree_text};
+use ferrofmm_mpi::{DistError, DistRequest, agree_text};
 use mpi::Threading;
 use mpi::topology::SimpleCommunicator;
 use mpi::traits::*;
+use numpy::PyReadonlyArray1;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 
@@ -42,6 +43,44 @@ pub(crate) fn register(m: &Bound<'_, PyModule>) -> PyResult<()> {
 /// input, bad parameters or a failed setup, so `ValueError`.
 pub(crate) fn dist_error(e: DistError) -> PyErr {
     PyValueError::new_err(e.to_string())
+}
+
+/// What a distributed build starts from on this rank: the request (the
+/// local checks of the Python arguments, agreed on every rank), a
+/// communicator of our own with the threads, and this rank's points and
+/// targets copied out of the arrays.
+pub(crate) struct Start {
+    pub(crate) request: DistRequest,
+    pub(crate) work: Work,
+    pub(crate) points: Vec<f64>,
+    pub(crate) targets: Option<Vec<f64>>,
+}
+
+impl Start {
+    /// The communicator `comm` adopted first (a collective every rank
+    /// reaches: the Python wrapper agreed on its own checks), then the
+    /// outcome of the local checks `local` agreed on it, so that no rank
+    /// goes on alone; then the threads and the copies.
+    pub(crate) fn new(
+        comm: i64,
+        local: PyResult<DistRequest>,
+        threads: Option<usize>,
+        sources: PyReadonlyArray1<'_, f64>,
+        targets: Option<PyReadonlyArray1<'_, f64>>,
+    ) -> PyResult<Self> {
+        let adopted = AdoptedComm::duplicate(comm)?;
+        let request = agree_text(adopted.comm(), local.map_err(|e| e.to_string()))
+            .map_err(PyValueError::new_err)?;
+        let work = Work::new(adopted, threads)?;
+        Ok(Start {
+            request,
+            work,
+            points: sources.as_slice()?.to_vec(),
+            targets: targets
+                .map(|t| t.as_slice().map(<[f64]>::to_vec))
+                .transpose()?,
+        })
+    }
 }
 
 /// A communicator of our own and the threads this rank's passes run on.
