@@ -24,7 +24,12 @@
 //!   leaf's neighbourhood that holds at any `N` for the same density
 //!   profile; a sample of the points has that profile. For `N <=
 //!   TUNING_SAMPLE` the sample is every point and the choice is the single
-//!   machine's.
+//!   machine's;
+//! * **the cost model** is calibrated where the operator cache folder
+//!   holds a calibration of rank 0's processor at the ranks' thread count
+//!   (`ferrofmm calibrate --threads T`, run on one node with the threads
+//!   of one rank): the balance of near and far field is a rank's own, so a
+//!   rank's calibration is the one that applies.
 //!
 //! # Checking
 //!
@@ -37,7 +42,7 @@
 
 use ferrofmm_field::M2lCostShape;
 use ferrofmm_fmm::SchemeChoice;
-use ferrofmm_fmm::tuning::{ChosenParameters, Occupancy, Tuner, default_model};
+use ferrofmm_fmm::tuning::{ChosenParameters, MachineCalibration, Occupancy, Tuner, default_model};
 use ferrofmm_kernels::{EvalMode, Kernel, Precision, SourceKind, direct_sum_sources};
 use ferrofmm_tree::DEEPEST_LEVEL;
 use mpi::collective::SystemOperation;
@@ -67,6 +72,10 @@ pub struct DistChoice {
     pub sample: usize,
     /// The chooser's full answer (rank 0 only; `None` elsewhere).
     pub chosen: Option<ChosenParameters>,
+    /// Whether rank 0 weighed the costs with a calibration of this machine
+    /// ([`MachineCalibration`], from `ferrofmm calibrate`); the same on
+    /// every rank.
+    pub calibrated: bool,
 }
 
 /// Chooses order, leaf size and SVD tolerance for the relative L2 error
@@ -75,7 +84,9 @@ pub struct DistChoice {
 /// to choose between the SVD and FFT schemes by predicted time (FFT where
 /// [`SchemeChoice::auto_is_fft`], as on one machine); `svd_cached`:
 /// whether the SVD scheme's operators come from a cache (its precomputation
-/// is then not counted).
+/// is then not counted); `calibration`: the cost model's calibration for
+/// this processor and a rank's threads (used on rank 0, where the chooser
+/// runs; `None`: the built-in costs).
 ///
 /// # Errors
 /// The same [`DistError`] on every rank: a tolerance out of range for the
@@ -91,6 +102,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
     mode: EvalMode,
     shape: Option<M2lCostShape>,
     svd_cached: bool,
+    calibration: Option<&MachineCalibration>,
 ) -> Result<DistChoice, DistError> {
     // The single-machine chooser on the gathered sample (rank 0).
     let choose_on = |sample: &[f64]| -> Result<(M2lCostShape, ChosenParameters), String> {
@@ -109,7 +121,8 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
             precision,
             mode,
             shape.unwrap_or(M2lCostShape::Compressed),
-        );
+        )
+        .with_calibration(calibration.cloned());
         if let Some(p) = order {
             tuner = tuner.with_order(p);
         }
@@ -151,7 +164,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
     };
     let chosen = agree_message(comm, local)?;
     let sample = counts.iter().map(|&c| c as usize).sum::<usize>() / 3;
-    let mut wire = [0.0f64; 5];
+    let mut wire = [0.0f64; 6];
     if let Some((s, c)) = &chosen {
         wire = [
             c.order as f64,
@@ -159,6 +172,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
             c.svd_tolerance,
             c.predicted_error,
             if *s == M2lCostShape::Fft { 1.0 } else { 0.0 },
+            if calibration.is_some() { 1.0 } else { 0.0 },
         ];
     }
     root.broadcast_into(&mut wire[..]);
@@ -174,6 +188,7 @@ pub fn choose_parameters<C: Communicator, K: Kernel>(
         },
         sample,
         chosen: chosen.map(|(_, c)| c),
+        calibrated: wire[5] == 1.0,
     })
 }
 

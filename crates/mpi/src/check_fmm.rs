@@ -50,6 +50,12 @@ pub struct FmmCheckArgs {
     /// Seed of the points and charges.
     #[arg(long, default_value_t = 11)]
     seed: u64,
+    /// Operator cache folder for both FMMs of each case (default: none,
+    /// every rank computes its operators). The cases of one kind, scheme
+    /// and order share their operators, so a cache computes them once per
+    /// run instead of twice per case on every rank.
+    #[arg(long, value_name = "DIR")]
+    cache_dir: Option<std::path::PathBuf>,
 }
 
 const METHODS: [&str; 10] = [
@@ -128,6 +134,7 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
         .map_err(|e| e.to_string())?;
     let options = DistFmmOptions {
         sources,
+        cache_dir: a.cache_dir.clone(),
         ..DistFmmOptions::new(a.order, EvalMode::PotentialGradient)
     };
     let c = kernel.components();
@@ -135,7 +142,11 @@ fn case<K: Kernel + Clone, S: M2lScheme<f64>>(
     let w = kernel.values_per_target(EvalMode::PotentialGradient);
     let dfmm = DistributedFmm::<f64, K, S>::build(world, &dtree, kernel.clone(), &config, &options)
         .map_err(|e| e.to_string())?;
-    let single = FmmBuilder::new(all)
+    let mut single = FmmBuilder::new(all);
+    if let Some(dir) = &a.cache_dir {
+        single = single.cache_dir(dir.clone());
+    }
+    let single = single
         .kernel(kernel)
         .domain(dtree.domain)
         .leaf_size(a.leaf_size)

@@ -152,6 +152,7 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
                 "predicted_error": c.predicted_error,
                 "sample_points": c.sample,
                 "model": c.chosen.as_ref().map(|p| p.model.clone()),
+                "calibrated": c.calibrated,
             })),
             "attempts": info.attempts.iter().map(|t| serde_json::json!({
                 "order": t.order,
@@ -187,7 +188,7 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
 
     if let (Some(eps), Some(c)) = (info.tolerance, info.choice) {
         println!(
-            "tolerance {eps:e}: {}chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points){}",
+            "tolerance {eps:e}: {}chosen order {}, leaf {}, predicted error {:.2e} (from {} sampled points{}){}",
             if info.layers.is_some() {
                 "Stokeslet FMM "
             } else {
@@ -197,6 +198,11 @@ pub(crate) fn report(info: &RunInfo<'_>, all: &[f64], size: usize) {
             c.leaf_size,
             c.predicted_error,
             c.sample,
+            if c.calibrated {
+                "; costs calibrated on this machine"
+            } else {
+                ""
+            },
             match tolerance_met {
                 Some(true) => format!(", met after {} evaluation(s)", info.attempts.len()),
                 Some(false) => ", NOT met at the highest order tried".to_string(),

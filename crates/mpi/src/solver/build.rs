@@ -3,6 +3,7 @@
 //! size, scheme) and the distributed tree.
 
 use ferrofmm_field::CacheLocation;
+use ferrofmm_fmm::tuning::MachineCalibration;
 use ferrofmm_fmm::{DEFAULT_LEAF_SIZE, DEFAULT_ORDER, SchemeChoice, effective_tolerance};
 use ferrofmm_kernels::{EvalMode, Kernel, KernelVisitor, Precision, SourceKind};
 use mpi::traits::*;
@@ -56,7 +57,7 @@ impl<C: Communicator + 'static> KernelVisitor for Build<'_, C> {
             Precision::F64 => crate::check_rank_memory::<C, f64>(comm, &size, what)?,
             Precision::F32 => crate::check_rank_memory::<C, f32>(comm, &size, what)?,
         }
-        let plan = plan(comm, &points, &kernel, &request, cache.dir().is_some())?;
+        let plan = plan(comm, &points, &kernel, &request, &cache)?;
         let options = DistOptions::adaptive(plan.leaf_size);
         let tree = match &targets {
             None => DistributedTree::build(comm, &points, &options)?,
@@ -79,13 +80,15 @@ impl<C: Communicator + 'static> KernelVisitor for Build<'_, C> {
 
 /// The one default rule: no order and no tolerance means the default
 /// tolerance; an order alone gets its leaf size and scheme from the cost
-/// model; an order and a leaf size are used as given.
+/// model; an order and a leaf size are used as given. The cost model is
+/// calibrated where the cache folder holds a calibration of this processor
+/// at this rank's thread count (read on rank 0, where the chooser runs).
 fn plan<C: Communicator, K: Kernel>(
     comm: &C,
     points: &[f64],
     kernel: &K,
     request: &DistRequest,
-    cached: bool,
+    cache: &CacheLocation,
 ) -> Result<DistPlan, DistError> {
     let eps = effective_tolerance(
         request.tolerance,
@@ -106,6 +109,10 @@ fn plan<C: Communicator, K: Kernel>(
             tolerance: None,
         },
         (eps, order, _) => {
+            let calibration = cache
+                .dir()
+                .filter(|_| comm.rank() == 0)
+                .and_then(|dir| MachineCalibration::load(dir, rayon::current_num_threads()));
             let choice = choose_parameters(
                 comm,
                 points,
@@ -115,7 +122,8 @@ fn plan<C: Communicator, K: Kernel>(
                 request.precision,
                 request.mode,
                 request.scheme.shape(),
-                cached,
+                cache.dir().is_some(),
+                calibration.as_ref(),
             )?;
             DistPlan {
                 order: choice.order,

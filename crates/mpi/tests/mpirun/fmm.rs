@@ -9,7 +9,9 @@ use crate::common::*;
 /// M2L schemes spread over the rank counts (the SVD precomputation is the
 /// slow part of a debug build); two charge vectors on one build (input
 /// order) and one in tree order; bad charges on one rank are the same
-/// error everywhere.
+/// error everywhere. Both FMMs load their operators from the tests'
+/// cache (computed by rank 0 of the first case; the empty-rank test below
+/// computes them on every rank).
 #[test]
 fn distributed_fmm_equals_the_single_machine_fmm_on_1_to_4_ranks() {
     let methods = [
@@ -18,6 +20,7 @@ fn distributed_fmm_equals_the_single_machine_fmm_on_1_to_4_ranks() {
         "laplace-svd,helmholtz-fft",
         "laplace-fft,laplace-dense,helmholtz-svd",
     ];
+    let cache = test_cache().to_string_lossy().into_owned();
     for (ranks, method) in (1..=4).zip(methods) {
         let args = [
             "fmm-check",
@@ -27,6 +30,8 @@ fn distributed_fmm_equals_the_single_machine_fmm_on_1_to_4_ranks() {
             "3",
             "--method",
             method,
+            "--cache-dir",
+            &cache,
         ];
         let (ok, out) = mpirun(ranks, &args);
         assert!(
@@ -64,7 +69,8 @@ fn distributed_fmm_with_empty_ranks_and_a_single_leaf() {
 
 /// Kernels with several components (complex Helmholtz, Stokes) and dipole
 /// sources: the distributed FMM equals the single-machine FMM (1e-12) on
-/// 2 to 4 ranks, with the SVD and FFT schemes.
+/// 2 to 4 ranks, with the SVD and FFT schemes (operators from the tests'
+/// cache).
 #[test]
 fn distributed_fmm_with_vector_kernels_and_dipoles() {
     let methods = [
@@ -72,6 +78,7 @@ fn distributed_fmm_with_vector_kernels_and_dipoles() {
         (3, "oscillatory-fft,stokes-svd"),
         (4, "stokes-fft,dipoles-svd,oscillatory-fft"),
     ];
+    let cache = test_cache().to_string_lossy().into_owned();
     for (ranks, method) in methods {
         let args = [
             "fmm-check",
@@ -83,6 +90,8 @@ fn distributed_fmm_with_vector_kernels_and_dipoles() {
             "plummer,two-clusters",
             "--method",
             method,
+            "--cache-dir",
+            &cache,
         ];
         let (ok, out) = mpirun(ranks, &args);
         assert!(

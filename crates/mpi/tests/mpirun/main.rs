@@ -5,6 +5,7 @@
 //! run is killed after a time limit).
 
 mod cache;
+mod calibration;
 mod common;
 mod eval;
 mod eval_input;

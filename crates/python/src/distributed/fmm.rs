@@ -102,6 +102,7 @@ impl NativeDistFmm {
             "svd_tolerance": plan.svd_tolerance,
             "eps": plan.tolerance,
             "predicted_error": plan.choice.as_ref().map(|c| c.predicted_error),
+            "calibrated": plan.choice.as_ref().map(|c| c.calibrated),
             "measured_error": solution.errors.map(|e| json!({
                 "potential": e[0],
                 "gradient": (solver.request().mode != EvalMode::Potential).then_some(e[1]),
