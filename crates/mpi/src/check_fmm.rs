@@ -50,10 +50,11 @@ pub struct FmmCheckArgs {
     /// Seed of the points and charges.
     #[arg(long, default_value_t = 11)]
     seed: u64,
-    /// Operator cache folder for both FMMs of each case (default: none,
-    /// every rank computes its operators). The cases of one kind, scheme
-    /// and order share their operators, so a cache computes them once per
-    /// run instead of twice per case on every rank.
+    /// Operator cache folder for both FMMs of each case. Without it the
+    /// distributed FMM computes its operators on every rank and the
+    /// single-machine one uses the default cache (FERROFMM_CACHE, ...).
+    /// The cases of one kind, scheme and order share their operators, so
+    /// a folder computes them once per run instead of twice per case.
     #[arg(long, value_name = "DIR")]
     cache_dir: Option<std::path::PathBuf>,
 }
